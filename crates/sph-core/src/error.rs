@@ -1,0 +1,89 @@
+//! The error type of `sph-core`.
+
+/// Everything that can go wrong in `sph-core`, each with a message that names the
+/// offending value and the reason.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum Error {
+    /// A parameter is out of its valid range or not finite.
+    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        /// The parameter's name.
+        name: &'static str,
+        /// Its value, formatted.
+        value: String,
+        /// Why it is rejected.
+        reason: &'static str,
+    },
+    /// A particle position is NaN or infinite.
+    #[error("particle {index} has a non-finite position {position:?}")]
+    NonFinitePosition {
+        /// Index of the particle in the input slice.
+        index: usize,
+        /// The offending position.
+        position: [f32; 3],
+    },
+    /// A particle lies so far from the origin, relative to the cell size, that its
+    /// cell coordinate does not fit the grid's 32-bit cell coordinates.
+    #[error(
+        "particle {index} at {position:?} is too far from the origin for cell size h = {h} \
+         (|x/h| must stay below 2^30); use a larger h or recentre the scene"
+    )]
+    OutOfGridRange {
+        /// Index of the particle in the input slice.
+        index: usize,
+        /// The offending position.
+        position: [f32; 3],
+        /// The grid's cell size.
+        h: f32,
+    },
+    /// More particles than the 32-bit indices of the neighbour grid can address.
+    #[error("{count} particles exceed the neighbour grid's limit of {limit}")]
+    TooManyParticles {
+        /// The number of particles given.
+        count: usize,
+        /// The largest number supported.
+        limit: usize,
+    },
+    /// A named particle attribute does not exist.
+    #[error("particle attribute `{0}` does not exist")]
+    MissingAttribute(String),
+    /// A named particle attribute exists with another element type.
+    #[error("particle attribute `{name}` holds `{actual}`, not `{requested}`")]
+    AttributeType {
+        /// The attribute's name.
+        name: String,
+        /// The element type it holds.
+        actual: &'static str,
+        /// The element type that was asked for.
+        requested: &'static str,
+    },
+    /// An attribute with this name already exists (or is a built-in field).
+    #[error("particle attribute `{0}` already exists")]
+    DuplicateAttribute(String),
+    /// Arrays that must have the same length do not.
+    #[error("length mismatch: `{what}` has {actual} elements, expected {expected}")]
+    LengthMismatch {
+        /// What was measured.
+        what: &'static str,
+        /// Its length.
+        actual: usize,
+        /// The expected length.
+        expected: usize,
+    },
+}
+
+/// `Result` with [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Checks that `h` is a usable smoothing length: finite and positive.
+pub(crate) fn check_h(h: f32) -> Result<()> {
+    if h.is_finite() && h > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name: "h",
+            value: h.to_string(),
+            reason: "the smoothing length must be finite and > 0",
+        })
+    }
+}

@@ -1,0 +1,560 @@
+//! Neighbour search: a uniform grid of cell size h over an unbounded domain.
+//!
+//! # Layout
+//!
+//! [`NeighbourGrid::build`] computes each particle's integer cell, sorts the
+//! particles by cell in (z, y, x) lexicographic order and stores their positions in
+//! that order, struct-of-arrays, so a cell's particles are one contiguous *slot*
+//! range. Only occupied cells are stored, and a hash table on the cell coordinates
+//! (as in Teschner et al. 2003 and the thesis, 3.3.1) finds them, so memory is
+//! O(particles) wherever the particles are: a particle at 10⁷ m costs what one at
+//! the origin costs.
+//!
+//! Because cells are sorted with x fastest, the three cells (x−1, y, z), (x, y, z),
+//! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
+//! contiguous slot ranges ("rows"), computed once per cell at build time. A query
+//! scans those 9 ranges in 8-wide chunks, which the compiler vectorises.
+//!
+//! # Exactness
+//!
+//! A neighbour of `x` is every particle `j` with `|x − x_j|² ≤ h²`, evaluated in
+//! `f32` as `dx·dx + dy·dy + dz·dz` with `d = x − x_j`, the same expression a brute
+//! force loop uses, so the grid returns exactly the brute-force set. Cells are
+//! computed in `f64` and are a relative 10⁻⁵ wider than h: rounding in the `f32`
+//! distance can then never accept a pair two cells apart.
+//!
+//! # Determinism
+//!
+//! Slot order depends only on (cell, input index), and each query visits rows in a
+//! fixed order and slots in increasing order, so every particle sees its neighbours
+//! in the same order for any number of threads: sums over neighbours are bitwise
+//! reproducible.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::error::{Error, Result, check_h};
+
+/// Cell edge relative to h: a little wider than h, see the module docs.
+const CELL_SCALE: f64 = 1.0 + 1e-5;
+/// Cell coordinates must satisfy |c| < 2³⁰, leaving room for ±1 neighbours and
+/// key offsets in 32 bits.
+const MAX_CELL: f64 = (1u64 << 30) as f64;
+/// Slots scanned per vectorised chunk.
+const LANES: usize = 8;
+
+/// Integer cell coordinates (x, y, z).
+type Cell = [i32; 3];
+
+/// A half-open range of slots.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct SlotRange {
+    start: u32,
+    end: u32,
+}
+
+/// A neighbour grid over a snapshot of particle positions.
+///
+/// Build it once per time step; query it for particles
+/// ([`NeighbourGrid::for_each_neighbour`], [`NeighbourGrid::par_map`]) or for any
+/// point in space ([`NeighbourGrid::for_each_neighbour_of_point`]).
+///
+/// ```
+/// use sph_core::{NeighbourGrid, glam::Vec3};
+/// let positions = [Vec3::ZERO, Vec3::new(0.5, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0)];
+/// let grid = NeighbourGrid::build(&positions, 1.0).unwrap();
+/// let mut found = Vec::new();
+/// grid.for_each_neighbour(0, |j, _offset, _r2| found.push(j));
+/// assert_eq!(found, [0, 1]); // itself and the particle 0.5 m away
+/// ```
+#[derive(Debug, Clone)]
+pub struct NeighbourGrid {
+    h: f32,
+    h2: f32,
+    inv_cell: f64,
+    /// Occupied cells, sorted by (z, y, x).
+    cells: Vec<Cell>,
+    /// Slots of cell `c`: `cell_start[c]..cell_start[c + 1]`.
+    cell_start: Vec<u32>,
+    /// For each occupied cell, the 9 slot ranges covering its 27 neighbour cells.
+    rows: Vec<[SlotRange; 9]>,
+    table: CellTable,
+    /// Slot → input index.
+    order: Vec<u32>,
+    /// Input index → slot.
+    rank: Vec<u32>,
+    /// Slot → cell index.
+    slot_cell: Vec<u32>,
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    zs: Vec<f32>,
+}
+
+impl NeighbourGrid {
+    /// Builds the grid for `positions` with search radius (and cell size) `h`, in
+    /// parallel.
+    ///
+    /// Errors if `h` is not finite and positive, a position is NaN or infinite, a
+    /// position is beyond 2³⁰·h from the origin, or there are 2³² or more particles.
+    pub fn build(positions: &[Vec3], h: f32) -> Result<Self> {
+        check_h(h)?;
+        let n = positions.len();
+        if n >= u32::MAX as usize {
+            return Err(Error::TooManyParticles {
+                count: n,
+                limit: u32::MAX as usize - 1,
+            });
+        }
+        let inv_cell = 1.0 / (h as f64 * CELL_SCALE);
+        let particle_cells: Vec<Cell> = match positions
+            .par_iter()
+            .map(|&p| cell_of(p, inv_cell))
+            .collect::<Option<Vec<_>>>()
+        {
+            Some(c) => c,
+            None => return Err(first_bad_position(positions, inv_cell, h)),
+        };
+
+        let order = sorted_order(&particle_cells);
+        let mut rank = vec![0u32; n];
+        for (s, &i) in order.iter().enumerate() {
+            rank[i as usize] = s as u32;
+        }
+        let xs = order.par_iter().map(|&i| positions[i as usize].x).collect();
+        let ys = order.par_iter().map(|&i| positions[i as usize].y).collect();
+        let zs = order.par_iter().map(|&i| positions[i as usize].z).collect();
+
+        // Cell boundaries in slot order.
+        let cell_of_slot = |s: usize| particle_cells[order[s] as usize];
+        let mut cell_start: Vec<u32> = (0..n)
+            .into_par_iter()
+            .filter(|&s| s == 0 || cell_of_slot(s) != cell_of_slot(s - 1))
+            .map(|s| s as u32)
+            .collect();
+        let cells: Vec<Cell> = cell_start
+            .par_iter()
+            .map(|&s| cell_of_slot(s as usize))
+            .collect();
+        cell_start.push(n as u32);
+        let mut slot_cell = vec![0u32; n];
+        for (c, w) in cell_start.windows(2).enumerate() {
+            slot_cell[w[0] as usize..w[1] as usize].fill(c as u32);
+        }
+
+        let table = CellTable::new(&cells);
+        let rows = cells
+            .par_iter()
+            .enumerate()
+            .map(|(c, &cell)| neighbour_rows(c, cell, &cells, &cell_start, &table))
+            .collect();
+
+        Ok(Self {
+            h,
+            h2: h * h,
+            inv_cell,
+            cells,
+            cell_start,
+            rows,
+            table,
+            order,
+            rank,
+            slot_cell,
+            xs,
+            ys,
+            zs,
+        })
+    }
+
+    /// The search radius h.
+    #[inline]
+    pub fn h(&self) -> f32 {
+        self.h
+    }
+
+    /// Number of particles the grid was built over.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// Whether the grid holds no particles.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// Number of occupied cells.
+    #[inline]
+    pub fn cell_count(&self) -> usize {
+        self.cells.len()
+    }
+
+    /// The particles in cell order: slot `k` holds input particle `order()[k]`.
+    /// Passing it to [`crate::Particles::permute`] stores particles in the order
+    /// the grid scans them, which makes gathers over neighbours cache-friendly.
+    #[inline]
+    pub fn order(&self) -> &[u32] {
+        &self.order
+    }
+
+    /// Calls `f(j, x_i − x_j, |x_i − x_j|²)` for every particle `j` within h of
+    /// particle `i` (`i` itself included, first among its cell's particles by
+    /// input index), in an order that does not depend on threads.
+    ///
+    /// Panics if `i >= self.len()`, like slice indexing.
+    #[inline]
+    pub fn for_each_neighbour(&self, i: usize, f: impl FnMut(usize, Vec3, f32)) {
+        self.neighbourhood(i).for_each(f);
+    }
+
+    /// The neighbourhood of particle `i`, to scan one or more times.
+    ///
+    /// Panics if `i >= self.len()`, like slice indexing.
+    #[inline]
+    pub fn neighbourhood(&self, i: usize) -> Neighbourhood<'_> {
+        self.neighbourhood_of_slot(self.rank[i] as usize)
+    }
+
+    #[inline]
+    fn neighbourhood_of_slot(&self, s: usize) -> Neighbourhood<'_> {
+        Neighbourhood {
+            grid: self,
+            centre: Vec3::new(self.xs[s], self.ys[s], self.zs[s]),
+            rows: self.rows[self.slot_cell[s] as usize],
+        }
+    }
+
+    /// The particles within h of an arbitrary point `x`. A point that is not finite
+    /// or lies far outside the grid's range has no neighbours.
+    pub fn neighbourhood_of_point(&self, x: Vec3) -> Neighbourhood<'_> {
+        let rows = match point_cell(x, self.inv_cell) {
+            Some(cell) if !self.is_empty() => {
+                point_rows(cell, &self.cells, &self.cell_start, &self.table)
+            }
+            _ => [SlotRange::default(); 9],
+        };
+        Neighbourhood {
+            grid: self,
+            centre: x,
+            rows,
+        }
+    }
+
+    /// Calls `f(j, x − x_j, |x − x_j|²)` for every particle `j` within h of the
+    /// point `x`, in a fixed order. See [`NeighbourGrid::neighbourhood_of_point`].
+    pub fn for_each_neighbour_of_point(&self, x: Vec3, f: impl FnMut(usize, Vec3, f32)) {
+        self.neighbourhood_of_point(x).for_each(f);
+    }
+
+    /// Evaluates `f(i, neighbourhood of i)` for every particle in parallel and
+    /// returns the results indexed by particle. Work is scheduled in cell order (for
+    /// locality); results are independent of the number of threads.
+    pub fn par_map<T, F>(&self, f: F) -> Vec<T>
+    where
+        T: Copy + Send + Sync,
+        F: Fn(usize, Neighbourhood<'_>) -> T + Sync,
+    {
+        let by_slot: Vec<T> = (0..self.len())
+            .into_par_iter()
+            .map(|s| f(self.order[s] as usize, self.neighbourhood_of_slot(s)))
+            .collect();
+        self.rank.par_iter().map(|&s| by_slot[s as usize]).collect()
+    }
+}
+
+/// The particles within h of a centre point, as up to 9 contiguous slot ranges of a
+/// [`NeighbourGrid`]. Cheap to copy; scanning it does not allocate.
+#[derive(Debug, Clone, Copy)]
+pub struct Neighbourhood<'a> {
+    grid: &'a NeighbourGrid,
+    centre: Vec3,
+    rows: [SlotRange; 9],
+}
+
+impl Neighbourhood<'_> {
+    /// The centre of the query.
+    #[inline]
+    pub fn centre(&self) -> Vec3 {
+        self.centre
+    }
+
+    /// Calls `f(j, centre − x_j, |centre − x_j|²)` for every particle `j` with
+    /// `|centre − x_j|² ≤ h²`, rows in a fixed order, slots increasing.
+    #[inline]
+    pub fn for_each(&self, mut f: impl FnMut(usize, Vec3, f32)) {
+        let g = self.grid;
+        let c = self.centre;
+        for row in &self.rows {
+            let (start, end) = (row.start as usize, row.end as usize);
+            let xs = &g.xs[start..end];
+            let ys = &g.ys[start..end];
+            let zs = &g.zs[start..end];
+            let mut k = 0;
+            // Full chunks: distances computed branch-free, then hits visited by mask.
+            while k + LANES <= xs.len() {
+                let mut dx = [0.0f32; LANES];
+                let mut dy = [0.0f32; LANES];
+                let mut dz = [0.0f32; LANES];
+                let mut r2 = [0.0f32; LANES];
+                let mut mask = 0u32;
+                for l in 0..LANES {
+                    dx[l] = c.x - xs[k + l];
+                    dy[l] = c.y - ys[k + l];
+                    dz[l] = c.z - zs[k + l];
+                    r2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
+                    mask |= ((r2[l] <= g.h2) as u32) << l;
+                }
+                while mask != 0 {
+                    let l = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    let s = start + k + l;
+                    f(g.order[s] as usize, Vec3::new(dx[l], dy[l], dz[l]), r2[l]);
+                }
+                k += LANES;
+            }
+            for l in k..xs.len() {
+                let d = Vec3::new(c.x - xs[l], c.y - ys[l], c.z - zs[l]);
+                let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
+                if r2 <= g.h2 {
+                    f(g.order[start + l] as usize, d, r2);
+                }
+            }
+        }
+    }
+
+    /// Number of particles within h of the centre.
+    pub fn count(&self) -> usize {
+        let mut n = 0;
+        self.for_each(|_, _, _| n += 1);
+        n
+    }
+}
+
+/// The cell of a finite position in range, or `None`.
+#[inline]
+fn cell_of(p: Vec3, inv_cell: f64) -> Option<Cell> {
+    let mut c = [0i32; 3];
+    for a in 0..3 {
+        let q = (p[a] as f64 * inv_cell).floor();
+        // NaN and infinities fail this test too.
+        if !q.is_finite() || q.abs() >= MAX_CELL {
+            return None;
+        }
+        c[a] = q as i32;
+    }
+    Some(c)
+}
+
+/// The cell of a query point, clamped: a point beyond the particles' range is put
+/// in a cell at least two away from any particle's cell, so it finds nothing.
+#[inline]
+fn point_cell(p: Vec3, inv_cell: f64) -> Option<Cell> {
+    if !p.is_finite() {
+        return None;
+    }
+    let limit = MAX_CELL + 2.0;
+    let mut c = [0i32; 3];
+    for a in 0..3 {
+        c[a] = (p[a] as f64 * inv_cell).floor().clamp(-limit, limit) as i32;
+    }
+    Some(c)
+}
+
+/// The error for the first position (by index) that [`cell_of`] rejects.
+fn first_bad_position(positions: &[Vec3], inv_cell: f64, h: f32) -> Error {
+    let index = positions
+        .par_iter()
+        .position_first(|&p| cell_of(p, inv_cell).is_none())
+        .unwrap_or(0);
+    let p = positions[index];
+    if p.is_finite() {
+        Error::OutOfGridRange {
+            index,
+            position: p.to_array(),
+            h,
+        }
+    } else {
+        Error::NonFinitePosition {
+            index,
+            position: p.to_array(),
+        }
+    }
+}
+
+/// Input indices sorted by (z, y, x) cell, ties by index. Keys pack into a `u64`
+/// when the occupied cells span fewer than 2²¹ cells per axis (any scene that fits
+/// in memory densely), else into a `u128`.
+fn sorted_order(cells: &[Cell]) -> Vec<u32> {
+    let Some((lo, hi)) = cells
+        .par_iter()
+        .map(|&c| (c, c))
+        .reduce_with(|(a0, a1), (b0, b1)| {
+            (
+                [a0[0].min(b0[0]), a0[1].min(b0[1]), a0[2].min(b0[2])],
+                [a1[0].max(b1[0]), a1[1].max(b1[1]), a1[2].max(b1[2])],
+            )
+        })
+    else {
+        return Vec::new();
+    };
+    let span = (0..3)
+        .map(|a| (hi[a] as i64 - lo[a] as i64) as u64)
+        .max()
+        .unwrap_or(0);
+    let rel = |c: Cell, a: usize| (c[a] as i64 - lo[a] as i64) as u64;
+    if span < 1 << 21 {
+        sort_by_key(cells, |c| (rel(c, 2) << 42) | (rel(c, 1) << 21) | rel(c, 0))
+    } else {
+        sort_by_key(cells, |c| {
+            ((rel(c, 2) as u128) << 64) | ((rel(c, 1) as u128) << 32) | rel(c, 0) as u128
+        })
+    }
+}
+
+fn sort_by_key<K, F>(cells: &[Cell], key: F) -> Vec<u32>
+where
+    K: Ord + Copy + Send,
+    F: Fn(Cell) -> K + Sync,
+{
+    let mut pairs: Vec<(K, u32)> = cells
+        .par_iter()
+        .enumerate()
+        .map(|(i, &c)| (key(c), i as u32))
+        .collect();
+    // Pairs are unique (the index breaks ties), so an unstable sort is deterministic.
+    pairs.par_sort_unstable();
+    pairs.into_par_iter().map(|(_, i)| i).collect()
+}
+
+/// The 9 rows around occupied cell `c`.
+fn neighbour_rows(
+    c: usize,
+    cell: Cell,
+    cells: &[Cell],
+    cell_start: &[u32],
+    table: &CellTable,
+) -> [SlotRange; 9] {
+    let mut rows = [SlotRange::default(); 9];
+    let mut r = 0;
+    for dz in -1..=1 {
+        for dy in -1..=1 {
+            let centre = [cell[0], cell[1] + dy, cell[2] + dz];
+            let known = (dy == 0 && dz == 0).then_some(c);
+            rows[r] = row_range(centre, known, cells, cell_start, table);
+            r += 1;
+        }
+    }
+    rows
+}
+
+/// The 9 rows around an arbitrary (possibly unoccupied) cell.
+fn point_rows(cell: Cell, cells: &[Cell], cell_start: &[u32], table: &CellTable) -> [SlotRange; 9] {
+    let mut rows = [SlotRange::default(); 9];
+    let mut r = 0;
+    for dz in -1..=1 {
+        for dy in -1..=1 {
+            let centre = [
+                cell[0],
+                cell[1].saturating_add(dy),
+                cell[2].saturating_add(dz),
+            ];
+            rows[r] = row_range(centre, None, cells, cell_start, table);
+            r += 1;
+        }
+    }
+    rows
+}
+
+/// The slots of the occupied cells among (x−1, y, z), (x, y, z), (x+1, y, z), which
+/// are adjacent in the sorted cell list. `known` is the index of the centre cell if
+/// the caller has it.
+fn row_range(
+    centre: Cell,
+    known: Option<usize>,
+    cells: &[Cell],
+    cell_start: &[u32],
+    table: &CellTable,
+) -> SlotRange {
+    let left = [centre[0].saturating_sub(1), centre[1], centre[2]];
+    let right = [centre[0].saturating_add(1), centre[1], centre[2]];
+    let (first, last) = match known.or_else(|| table.find(centre, cells)) {
+        Some(k) => {
+            let first = if k > 0 && cells[k - 1] == left {
+                k - 1
+            } else {
+                k
+            };
+            let last = if k + 1 < cells.len() && cells[k + 1] == right {
+                k + 1
+            } else {
+                k
+            };
+            (first, last)
+        }
+        None => match (table.find(left, cells), table.find(right, cells)) {
+            (Some(a), Some(b)) => (a, b),
+            (Some(a), None) => (a, a),
+            (None, Some(b)) => (b, b),
+            (None, None) => return SlotRange::default(),
+        },
+    };
+    SlotRange {
+        start: cell_start[first],
+        end: cell_start[last + 1],
+    }
+}
+
+/// Open-addressing hash table from cell coordinates to occupied-cell index.
+#[derive(Debug, Clone)]
+struct CellTable {
+    /// Cell index per slot, `EMPTY` where free.
+    slots: Vec<u32>,
+    shift: u32,
+}
+
+const EMPTY: u32 = u32::MAX;
+
+impl CellTable {
+    fn new(cells: &[Cell]) -> Self {
+        let capacity = (2 * cells.len()).next_power_of_two().max(16);
+        let mut table = Self {
+            slots: vec![EMPTY; capacity],
+            shift: 64 - capacity.trailing_zeros(),
+        };
+        let mask = capacity - 1;
+        for (c, &cell) in cells.iter().enumerate() {
+            let mut s = table.home(cell);
+            while table.slots[s] != EMPTY {
+                s = (s + 1) & mask;
+            }
+            table.slots[s] = c as u32;
+        }
+        table
+    }
+
+    /// Fibonacci hashing of the three coordinates (a variant of the large-prime XOR
+    /// hash of Teschner et al. 2003 with better high bits).
+    #[inline]
+    fn home(&self, cell: Cell) -> usize {
+        let h = (cell[0] as u32 as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (cell[1] as u32 as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F)
+            ^ (cell[2] as u32 as u64).wrapping_mul(0x1656_67B1_9E37_79F9);
+        ((h ^ (h >> 31)).wrapping_mul(0x9E37_79B9_7F4A_7C15) >> self.shift) as usize
+    }
+
+    #[inline]
+    fn find(&self, cell: Cell, cells: &[Cell]) -> Option<usize> {
+        let mask = self.slots.len() - 1;
+        let mut s = self.home(cell);
+        loop {
+            let c = self.slots[s];
+            if c == EMPTY {
+                return None;
+            }
+            if cells[c as usize] == cell {
+                return Some(c as usize);
+            }
+            s = (s + 1) & mask;
+        }
+    }
+}

@@ -1,0 +1,25 @@
+//! # sph-core
+//!
+//! A pure-Rust Smoothed Particle Hydrodynamics core after Müller, Charypar & Gross
+//! (2003) as used in Vesterlund's 2004 thesis: the smoothing [`kernels`], a
+//! parallel uniform-grid neighbour search over an unbounded domain
+//! ([`NeighbourGrid`]) and the extensible struct-of-arrays particle container
+//! ([`Particles`]).
+//!
+//! Everything here is independent of rendering: downstream crates (the surfel
+//! extractor, user simulations) use the neighbour grid and the kernels directly.
+//!
+//! Units are SI (m, kg, s); +y is up.
+
+pub mod error;
+pub mod grid;
+pub mod kernels;
+pub mod particles;
+
+pub use error::{Error, Result};
+pub use grid::{NeighbourGrid, Neighbourhood};
+pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
+pub use particles::{FieldsMut, Particles};
+
+/// Re-export of the vector maths crate used in the public API.
+pub use glam;

@@ -1,0 +1,467 @@
+//! The particle container: struct-of-arrays storage of the fields every SPH solver
+//! needs, plus named extra attributes that user processors add and read (the
+//! thesis's extensible particle container, section 4.3.1).
+//!
+//! All arrays always have the same length. Adding, removing and reordering
+//! particles goes through [`Particles`] so that built-in fields and extra
+//! attributes stay in step; slices handed out can change values, never lengths.
+
+use std::any::Any;
+use std::collections::BTreeMap;
+
+use glam::Vec3;
+
+use crate::error::{Error, Result};
+
+/// Names of the built-in fields; extra attributes may not reuse them.
+pub const BUILTIN_FIELDS: [&str; 9] = [
+    "id",
+    "position",
+    "velocity",
+    "acceleration",
+    "density",
+    "pressure",
+    "mass",
+    "colour_gradient",
+    "colour_laplacian",
+];
+
+/// Struct-of-arrays particle storage.
+///
+/// ```
+/// use sph_core::{Particles, glam::Vec3};
+/// let mut p = Particles::new();
+/// p.push(Vec3::ZERO, Vec3::X, 0.5);
+/// p.add_attribute("temperature", 293.0f32).unwrap();
+/// p.attribute_mut::<f32>("temperature").unwrap()[0] += 10.0;
+/// assert_eq!(p.attribute::<f32>("temperature").unwrap(), &[303.0]);
+/// ```
+#[derive(Default)]
+pub struct Particles {
+    ids: Vec<u64>,
+    next_id: u64,
+    positions: Vec<Vec3>,
+    velocities: Vec<Vec3>,
+    accelerations: Vec<Vec3>,
+    densities: Vec<f32>,
+    pressures: Vec<f32>,
+    masses: Vec<f32>,
+    colour_gradients: Vec<Vec3>,
+    colour_laplacians: Vec<f32>,
+    extra: BTreeMap<String, Box<dyn Column>>,
+}
+
+/// Mutable views of every built-in field at once, for processors that read some
+/// fields while writing others.
+pub struct FieldsMut<'a> {
+    /// Stable particle identifiers (read-only: ids never change).
+    pub ids: &'a [u64],
+    /// Positions x (m).
+    pub positions: &'a mut [Vec3],
+    /// Velocities v (m/s).
+    pub velocities: &'a mut [Vec3],
+    /// Accelerations a (m/s²), the sum of forces divided by mass.
+    pub accelerations: &'a mut [Vec3],
+    /// Densities ρ (kg/m³).
+    pub densities: &'a mut [f32],
+    /// Pressures p (Pa).
+    pub pressures: &'a mut [f32],
+    /// Masses m (kg).
+    pub masses: &'a mut [f32],
+    /// Colour-field gradients n = ∇c (1/m), eq. 19.
+    pub colour_gradients: &'a mut [Vec3],
+    /// Colour-field laplacians ∇²c (1/m²), eq. 20.
+    pub colour_laplacians: &'a mut [f32],
+}
+
+macro_rules! field_accessors {
+    ($($(#[$doc:meta])* $name:ident, $name_mut:ident: $ty:ty;)*) => {$(
+        $(#[$doc])*
+        #[inline]
+        pub fn $name(&self) -> &[$ty] {
+            &self.$name
+        }
+        $(#[$doc])*
+        ///
+        /// Mutable: values may change, the length may not.
+        #[inline]
+        pub fn $name_mut(&mut self) -> &mut [$ty] {
+            &mut self.$name
+        }
+    )*};
+}
+
+impl Particles {
+    /// An empty container.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Number of particles.
+    #[inline]
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// Whether there are no particles.
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Adds a particle at rest state (zero acceleration, density and pressure; extra
+    /// attributes at their defaults) and returns its stable id.
+    pub fn push(&mut self, position: Vec3, velocity: Vec3, mass: f32) -> u64 {
+        let id = self.next_id;
+        self.next_id += 1;
+        self.ids.push(id);
+        self.positions.push(position);
+        self.velocities.push(velocity);
+        self.accelerations.push(Vec3::ZERO);
+        self.densities.push(0.0);
+        self.pressures.push(0.0);
+        self.masses.push(mass);
+        self.colour_gradients.push(Vec3::ZERO);
+        self.colour_laplacians.push(0.0);
+        for column in self.extra.values_mut() {
+            column.push_default();
+        }
+        id
+    }
+
+    /// Stable particle identifiers, unique within this container; they follow the
+    /// particle through [`Particles::permute`] and [`Particles::retain`].
+    #[inline]
+    pub fn ids(&self) -> &[u64] {
+        &self.ids
+    }
+
+    field_accessors! {
+        /// Positions x (m).
+        positions, positions_mut: Vec3;
+        /// Velocities v (m/s).
+        velocities, velocities_mut: Vec3;
+        /// Accelerations a (m/s²).
+        accelerations, accelerations_mut: Vec3;
+        /// Densities ρ (kg/m³).
+        densities, densities_mut: f32;
+        /// Pressures p (Pa).
+        pressures, pressures_mut: f32;
+        /// Masses m (kg).
+        masses, masses_mut: f32;
+        /// Colour-field gradients n = ∇c (1/m), eq. 19.
+        colour_gradients, colour_gradients_mut: Vec3;
+        /// Colour-field laplacians ∇²c (1/m²), eq. 20.
+        colour_laplacians, colour_laplacians_mut: f32;
+    }
+
+    /// Every built-in field at once, for disjoint mutable borrows.
+    pub fn fields_mut(&mut self) -> FieldsMut<'_> {
+        FieldsMut {
+            ids: &self.ids,
+            positions: &mut self.positions,
+            velocities: &mut self.velocities,
+            accelerations: &mut self.accelerations,
+            densities: &mut self.densities,
+            pressures: &mut self.pressures,
+            masses: &mut self.masses,
+            colour_gradients: &mut self.colour_gradients,
+            colour_laplacians: &mut self.colour_laplacians,
+        }
+    }
+
+    /// Adds a named per-particle attribute of element type `T`, every particle
+    /// (present and future) starting at `default`.
+    ///
+    /// Errors if the name is taken, by a built-in field or another attribute.
+    pub fn add_attribute<T>(&mut self, name: &str, default: T) -> Result<()>
+    where
+        T: Clone + Send + Sync + 'static,
+    {
+        if BUILTIN_FIELDS.contains(&name) || self.extra.contains_key(name) {
+            return Err(Error::DuplicateAttribute(name.to_owned()));
+        }
+        let column = TypedColumn {
+            data: vec![default.clone(); self.len()],
+            default,
+        };
+        self.extra.insert(name.to_owned(), Box::new(column));
+        Ok(())
+    }
+
+    /// Removes a named attribute; errors if it does not exist.
+    pub fn remove_attribute(&mut self, name: &str) -> Result<()> {
+        self.extra
+            .remove(name)
+            .map(drop)
+            .ok_or_else(|| Error::MissingAttribute(name.to_owned()))
+    }
+
+    /// Whether an extra attribute of this name exists.
+    pub fn has_attribute(&self, name: &str) -> bool {
+        self.extra.contains_key(name)
+    }
+
+    /// Names of the extra attributes, in sorted order.
+    pub fn attribute_names(&self) -> impl Iterator<Item = &str> {
+        self.extra.keys().map(String::as_str)
+    }
+
+    /// The values of a named attribute; errors if it is missing or holds another type.
+    pub fn attribute<T: 'static>(&self, name: &str) -> Result<&[T]> {
+        let column = self
+            .extra
+            .get(name)
+            .ok_or_else(|| Error::MissingAttribute(name.to_owned()))?;
+        let type_name = column.type_name();
+        column
+            .as_any()
+            .downcast_ref::<TypedColumn<T>>()
+            .map(|c| c.data.as_slice())
+            .ok_or_else(|| Error::AttributeType {
+                name: name.to_owned(),
+                actual: type_name,
+                requested: std::any::type_name::<T>(),
+            })
+    }
+
+    /// The values of a named attribute, mutable (values, not length).
+    pub fn attribute_mut<T: 'static>(&mut self, name: &str) -> Result<&mut [T]> {
+        let column = self
+            .extra
+            .get_mut(name)
+            .ok_or_else(|| Error::MissingAttribute(name.to_owned()))?;
+        let type_name = column.type_name();
+        column
+            .as_any_mut()
+            .downcast_mut::<TypedColumn<T>>()
+            .map(|c| c.data.as_mut_slice())
+            .ok_or_else(|| Error::AttributeType {
+                name: name.to_owned(),
+                actual: type_name,
+                requested: std::any::type_name::<T>(),
+            })
+    }
+
+    /// Keeps the particles whose entry in `keep` is true, in their order, removing
+    /// the others from every field and attribute. Returns how many were removed.
+    pub fn retain(&mut self, keep: &[bool]) -> Result<usize> {
+        check_len("keep mask", keep.len(), self.len())?;
+        let before = self.len();
+        retain_vec(&mut self.ids, keep);
+        retain_vec(&mut self.positions, keep);
+        retain_vec(&mut self.velocities, keep);
+        retain_vec(&mut self.accelerations, keep);
+        retain_vec(&mut self.densities, keep);
+        retain_vec(&mut self.pressures, keep);
+        retain_vec(&mut self.masses, keep);
+        retain_vec(&mut self.colour_gradients, keep);
+        retain_vec(&mut self.colour_laplacians, keep);
+        for column in self.extra.values_mut() {
+            column.retain(keep);
+        }
+        Ok(before - self.len())
+    }
+
+    /// Reorders every field and attribute so that new slot `k` holds the particle
+    /// that was at `order[k]` (e.g. [`crate::NeighbourGrid::order`], which makes
+    /// neighbour queries cache-friendly). `order` must be a permutation.
+    pub fn permute(&mut self, order: &[u32]) -> Result<()> {
+        check_len("order", order.len(), self.len())?;
+        let mut seen = vec![false; order.len()];
+        for &o in order {
+            match seen.get_mut(o as usize) {
+                Some(s) if !*s => *s = true,
+                _ => {
+                    return Err(Error::InvalidParameter {
+                        name: "order",
+                        value: o.to_string(),
+                        reason: "not a permutation: an index is out of range or repeated",
+                    });
+                }
+            }
+        }
+        permute_vec(&mut self.ids, order);
+        permute_vec(&mut self.positions, order);
+        permute_vec(&mut self.velocities, order);
+        permute_vec(&mut self.accelerations, order);
+        permute_vec(&mut self.densities, order);
+        permute_vec(&mut self.pressures, order);
+        permute_vec(&mut self.masses, order);
+        permute_vec(&mut self.colour_gradients, order);
+        permute_vec(&mut self.colour_laplacians, order);
+        for column in self.extra.values_mut() {
+            column.permute(order);
+        }
+        Ok(())
+    }
+
+    /// Total mass Σ m (kg), summed in f64 in index order.
+    pub fn total_mass(&self) -> f64 {
+        self.masses.iter().map(|&m| m as f64).sum()
+    }
+}
+
+impl std::fmt::Debug for Particles {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Particles")
+            .field("len", &self.len())
+            .field("attributes", &self.extra.keys().collect::<Vec<_>>())
+            .finish()
+    }
+}
+
+impl Clone for Particles {
+    fn clone(&self) -> Self {
+        Self {
+            ids: self.ids.clone(),
+            next_id: self.next_id,
+            positions: self.positions.clone(),
+            velocities: self.velocities.clone(),
+            accelerations: self.accelerations.clone(),
+            densities: self.densities.clone(),
+            pressures: self.pressures.clone(),
+            masses: self.masses.clone(),
+            colour_gradients: self.colour_gradients.clone(),
+            colour_laplacians: self.colour_laplacians.clone(),
+            extra: self
+                .extra
+                .iter()
+                .map(|(k, v)| (k.clone(), v.clone_box()))
+                .collect(),
+        }
+    }
+}
+
+fn check_len(what: &'static str, actual: usize, expected: usize) -> Result<()> {
+    if actual == expected {
+        Ok(())
+    } else {
+        Err(Error::LengthMismatch {
+            what,
+            actual,
+            expected,
+        })
+    }
+}
+
+fn retain_vec<T>(v: &mut Vec<T>, keep: &[bool]) {
+    let mut k = keep.iter();
+    v.retain(|_| *k.next().unwrap_or(&false));
+}
+
+fn permute_vec<T: Clone>(v: &mut Vec<T>, order: &[u32]) {
+    *v = order.iter().map(|&o| v[o as usize].clone()).collect();
+}
+
+/// A type-erased attribute column.
+trait Column: Send + Sync {
+    fn push_default(&mut self);
+    fn retain(&mut self, keep: &[bool]);
+    fn permute(&mut self, order: &[u32]);
+    fn type_name(&self) -> &'static str;
+    fn as_any(&self) -> &dyn Any;
+    fn as_any_mut(&mut self) -> &mut dyn Any;
+    fn clone_box(&self) -> Box<dyn Column>;
+}
+
+struct TypedColumn<T> {
+    data: Vec<T>,
+    default: T,
+}
+
+impl<T: Clone + Send + Sync + 'static> Column for TypedColumn<T> {
+    fn push_default(&mut self) {
+        self.data.push(self.default.clone());
+    }
+    fn retain(&mut self, keep: &[bool]) {
+        retain_vec(&mut self.data, keep);
+    }
+    fn permute(&mut self, order: &[u32]) {
+        permute_vec(&mut self.data, order);
+    }
+    fn type_name(&self) -> &'static str {
+        std::any::type_name::<T>()
+    }
+    fn as_any(&self) -> &dyn Any {
+        self
+    }
+    fn as_any_mut(&mut self) -> &mut dyn Any {
+        self
+    }
+    fn clone_box(&self) -> Box<dyn Column> {
+        Box::new(TypedColumn {
+            data: self.data.clone(),
+            default: self.default.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn three() -> Particles {
+        let mut p = Particles::new();
+        for i in 0..3 {
+            p.push(Vec3::splat(i as f32), Vec3::ZERO, 1.0 + i as f32);
+        }
+        p
+    }
+
+    #[test]
+    fn attributes_follow_pushes_removals_and_permutations() {
+        let mut p = three();
+        p.add_attribute("tag", 7u32).unwrap();
+        p.attribute_mut::<u32>("tag").unwrap()[2] = 42;
+        p.push(Vec3::ONE, Vec3::ZERO, 9.0);
+        assert_eq!(p.attribute::<u32>("tag").unwrap(), &[7, 7, 42, 7]);
+
+        assert_eq!(p.retain(&[true, false, true, true]).unwrap(), 1);
+        assert_eq!(p.ids(), &[0, 2, 3]);
+        assert_eq!(p.masses(), &[1.0, 3.0, 9.0]);
+        assert_eq!(p.attribute::<u32>("tag").unwrap(), &[7, 42, 7]);
+
+        p.permute(&[2, 0, 1]).unwrap();
+        assert_eq!(p.ids(), &[3, 0, 2]);
+        assert_eq!(p.masses(), &[9.0, 1.0, 3.0]);
+        assert_eq!(p.attribute::<u32>("tag").unwrap(), &[7, 7, 42]);
+        assert_eq!(p.total_mass(), 13.0);
+        // A fresh particle gets a new id, never a reused one.
+        assert_eq!(p.push(Vec3::ZERO, Vec3::ZERO, 1.0), 4);
+    }
+
+    #[test]
+    fn attribute_errors_are_clear() {
+        let mut p = three();
+        p.add_attribute("heat", 0.0f32).unwrap();
+        assert_eq!(
+            p.add_attribute("heat", 1.0f32),
+            Err(Error::DuplicateAttribute("heat".into()))
+        );
+        assert!(p.add_attribute("density", 1.0f32).is_err());
+        let e = p.attribute::<Vec3>("heat").unwrap_err();
+        assert!(e.to_string().contains("holds `f32`"), "{e}");
+        assert_eq!(
+            p.attribute::<f32>("nope").unwrap_err(),
+            Error::MissingAttribute("nope".into())
+        );
+        assert!(p.retain(&[true]).is_err());
+        assert!(p.permute(&[0, 0, 1]).is_err());
+        assert!(p.permute(&[0, 1, 3]).is_err());
+        p.remove_attribute("heat").unwrap();
+        assert!(!p.has_attribute("heat"));
+    }
+
+    #[test]
+    fn disjoint_field_borrows() {
+        let mut p = three();
+        let f = p.fields_mut();
+        for (a, x) in f.accelerations.iter_mut().zip(f.positions.iter()) {
+            *a = *x * 2.0;
+        }
+        assert_eq!(p.accelerations()[2], Vec3::splat(4.0));
+        let q = p.clone();
+        assert_eq!(q.accelerations(), p.accelerations());
+    }
+}

@@ -1,0 +1,12 @@
+//! # sph-splat
+//!
+//! Real-time viscous fluid after Vesterlund (2004): an SPH simulation
+//! ([`sph_core`]), surfel extraction on its colour-field surface
+//! ([`surfel_extract`]) and point-splat rendering ([`splat_render`]).
+//!
+//! This root package re-exports the workspace crates and owns the cross-crate
+//! tests (`tests/`) and benchmarks (`benches/`). See `ARCHITECTURE.md`.
+
+pub use sph_core;
+pub use splat_render;
+pub use surfel_extract;
