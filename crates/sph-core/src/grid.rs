@@ -13,7 +13,7 @@
 //! Because cells are sorted with x fastest, the three cells (x−1, y, z), (x, y, z),
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
 //! contiguous slot ranges ("rows"), computed once per cell at build time. A query
-//! scans those 9 ranges in 8-wide chunks, which the compiler vectorises.
+//! scans those 9 ranges four candidates at a time (SSE2 on x86-64).
 //!
 //! # Exactness
 //!
@@ -40,11 +40,22 @@ const CELL_SCALE: f64 = 1.0 + 1e-5;
 /// Cell coordinates must satisfy |c| < 2³⁰, leaving room for ±1 neighbours and
 /// key offsets in 32 bits.
 const MAX_CELL: f64 = (1u64 << 30) as f64;
-/// Slots scanned per vectorised chunk.
-const LANES: usize = 8;
+
+/// Slots tested per SIMD chunk (SSE2).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
+const LANES: usize = 4;
 
 /// Integer cell coordinates (x, y, z).
 type Cell = [i32; 3];
+
+/// Marks a position whose cell is out of range (|c| < 2³⁰ for every real cell).
+const BAD_CELL: Cell = [i32::MIN; 3];
+
+/// The sort key of a cell: (z, y, x) lexicographic.
+#[inline]
+fn zyx(c: Cell) -> (i32, i32, i32) {
+    (c[2], c[1], c[0])
+}
 
 /// A half-open range of slots.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -106,14 +117,15 @@ impl NeighbourGrid {
             });
         }
         let inv_cell = 1.0 / (h as f64 * CELL_SCALE);
-        let particle_cells: Vec<Cell> = match positions
+        // Out-of-range positions get a sentinel cell, reported below; an indexed
+        // collect keeps this one pass with no intermediate lists.
+        let particle_cells: Vec<Cell> = positions
             .par_iter()
-            .map(|&p| cell_of(p, inv_cell))
-            .collect::<Option<Vec<_>>>()
-        {
-            Some(c) => c,
-            None => return Err(first_bad_position(positions, inv_cell, h)),
-        };
+            .map(|&p| cell_of(p, inv_cell).unwrap_or(BAD_CELL))
+            .collect();
+        if particle_cells.par_iter().any(|&c| c == BAD_CELL) {
+            return Err(first_bad_position(positions, inv_cell, h));
+        }
 
         let order = sorted_order(&particle_cells);
         let mut rank = vec![0u32; n];
@@ -142,11 +154,7 @@ impl NeighbourGrid {
         }
 
         let table = CellTable::new(&cells);
-        let rows = cells
-            .par_iter()
-            .enumerate()
-            .map(|(c, &cell)| neighbour_rows(c, cell, &cells, &cell_start, &table))
-            .collect();
+        let rows = neighbour_rows(&cells, &cell_start);
 
         Ok(Self {
             h,
@@ -283,42 +291,16 @@ impl Neighbourhood<'_> {
     #[inline]
     pub fn for_each(&self, mut f: impl FnMut(usize, Vec3, f32)) {
         let g = self.grid;
-        let c = self.centre;
         for row in &self.rows {
             let (start, end) = (row.start as usize, row.end as usize);
-            let xs = &g.xs[start..end];
-            let ys = &g.ys[start..end];
-            let zs = &g.zs[start..end];
-            let mut k = 0;
-            // Full chunks: distances computed branch-free, then hits visited by mask.
-            while k + LANES <= xs.len() {
-                let mut dx = [0.0f32; LANES];
-                let mut dy = [0.0f32; LANES];
-                let mut dz = [0.0f32; LANES];
-                let mut r2 = [0.0f32; LANES];
-                let mut mask = 0u32;
-                for l in 0..LANES {
-                    dx[l] = c.x - xs[k + l];
-                    dy[l] = c.y - ys[k + l];
-                    dz[l] = c.z - zs[k + l];
-                    r2[l] = dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l];
-                    mask |= ((r2[l] <= g.h2) as u32) << l;
-                }
-                while mask != 0 {
-                    let l = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    let s = start + k + l;
-                    f(g.order[s] as usize, Vec3::new(dx[l], dy[l], dz[l]), r2[l]);
-                }
-                k += LANES;
-            }
-            for l in k..xs.len() {
-                let d = Vec3::new(c.x - xs[l], c.y - ys[l], c.z - zs[l]);
-                let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
-                if r2 <= g.h2 {
-                    f(g.order[start + l] as usize, d, r2);
-                }
-            }
+            scan_row(
+                self.centre,
+                g.h2,
+                &g.xs[start..end],
+                &g.ys[start..end],
+                &g.zs[start..end],
+                |k, d, r2| f(g.order[start + k] as usize, d, r2),
+            );
         }
     }
 
@@ -327,6 +309,67 @@ impl Neighbourhood<'_> {
         let mut n = 0;
         self.for_each(|_, _, _| n += 1);
         n
+    }
+}
+
+/// Calls `f(k, c − x_k, |c − x_k|²)` for each `k` with `|c − x_k|² ≤ h2`, `k`
+/// increasing. Four candidates at a time with SSE2 (part of every x86-64 CPU); the
+/// arithmetic and its order are those of the scalar tail, so results are bitwise
+/// the same either way.
+#[inline]
+fn scan_row(
+    c: Vec3,
+    h2: f32,
+    xs: &[f32],
+    ys: &[f32],
+    zs: &[f32],
+    mut f: impl FnMut(usize, Vec3, f32),
+) {
+    let n = xs.len().min(ys.len()).min(zs.len());
+    #[allow(unused_mut)]
+    let mut k = 0;
+    // SAFETY: SSE2 is part of the x86-64 baseline, so the intrinsics are available
+    // on every CPU this compiles for; the loads read xs/ys/zs[k..k + 4] with
+    // k + 4 <= n, and the stores write whole [f32; 4] arrays.
+    #[cfg(target_arch = "x86_64")]
+    unsafe {
+        use std::arch::x86_64::*;
+        let (cx, cy, cz) = (_mm_set1_ps(c.x), _mm_set1_ps(c.y), _mm_set1_ps(c.z));
+        let lim = _mm_set1_ps(h2);
+        while k + LANES <= n {
+            let x = _mm_loadu_ps(xs.as_ptr().add(k));
+            let y = _mm_loadu_ps(ys.as_ptr().add(k));
+            let z = _mm_loadu_ps(zs.as_ptr().add(k));
+            let (dx, dy, dz) = (_mm_sub_ps(cx, x), _mm_sub_ps(cy, y), _mm_sub_ps(cz, z));
+            let r2 = _mm_add_ps(
+                _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+                _mm_mul_ps(dz, dz),
+            );
+            let mut mask = _mm_movemask_ps(_mm_cmple_ps(r2, lim)) as u32;
+            if mask != 0 {
+                let mut lanes = [[0.0f32; LANES]; 4];
+                for (out, v) in lanes.iter_mut().zip([dx, dy, dz, r2]) {
+                    _mm_storeu_ps(out.as_mut_ptr(), v);
+                }
+                while mask != 0 {
+                    let l = mask.trailing_zeros() as usize;
+                    mask &= mask - 1;
+                    f(
+                        k + l,
+                        Vec3::new(lanes[0][l], lanes[1][l], lanes[2][l]),
+                        lanes[3][l],
+                    );
+                }
+            }
+            k += LANES;
+        }
+    }
+    for k in k..n {
+        let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
+        let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
+        if r2 <= h2 {
+            f(k, d, r2);
+        }
     }
 }
 
@@ -381,9 +424,15 @@ fn first_bad_position(positions: &[Vec3], inv_cell: f64, h: f32) -> Error {
     }
 }
 
-/// Input indices sorted by (z, y, x) cell, ties by index. Keys pack into a `u64`
-/// when the occupied cells span fewer than 2²¹ cells per axis (any scene that fits
-/// in memory densely), else into a `u128`.
+/// Input indices sorted by (z, y, x) cell, ties by index.
+///
+/// Cells are numbered densely within their bounding box, x fastest; when that
+/// number fits a `u64` (any box under 2²¹ cells a side does) and the box is
+/// densely occupied, a counting sort orders them in one pass; otherwise a stable
+/// LSD radix
+/// sort on just the bits it needs orders them in O(N) per 11-bit digit: two
+/// passes for a million particles in a dense block. Wider spreads fall back to a
+/// parallel comparison sort on `u128` keys.
 fn sorted_order(cells: &[Cell]) -> Vec<u32> {
     let Some((lo, hi)) = cells
         .par_iter()
@@ -397,53 +446,132 @@ fn sorted_order(cells: &[Cell]) -> Vec<u32> {
     else {
         return Vec::new();
     };
-    let span = (0..3)
-        .map(|a| (hi[a] as i64 - lo[a] as i64) as u64)
-        .max()
-        .unwrap_or(0);
     let rel = |c: Cell, a: usize| (c[a] as i64 - lo[a] as i64) as u64;
-    if span < 1 << 21 {
-        sort_by_key(cells, |c| (rel(c, 2) << 42) | (rel(c, 1) << 21) | rel(c, 0))
-    } else {
-        sort_by_key(cells, |c| {
-            ((rel(c, 2) as u128) << 64) | ((rel(c, 1) as u128) << 32) | rel(c, 0) as u128
-        })
+    let dims = [0, 1, 2].map(|a| (hi[a] as i64 - lo[a] as i64) as u64 + 1);
+    if let Some(total) = dims[0]
+        .checked_mul(dims[1])
+        .and_then(|v| v.checked_mul(dims[2]))
+    {
+        if total <= 2 * cells.len() as u64 + 1024 {
+            return counting_sort(
+                cells,
+                |c| (rel(c, 0) + dims[0] * (rel(c, 1) + dims[1] * rel(c, 2))) as usize,
+                total as usize,
+            );
+        }
+        let keys: Vec<(u64, u32)> = cells
+            .par_iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                (
+                    rel(c, 0) + dims[0] * (rel(c, 1) + dims[1] * rel(c, 2)),
+                    i as u32,
+                )
+            })
+            .collect();
+        return radix_sort(keys, u64::BITS - (total - 1).leading_zeros());
     }
-}
-
-fn sort_by_key<K, F>(cells: &[Cell], key: F) -> Vec<u32>
-where
-    K: Ord + Copy + Send,
-    F: Fn(Cell) -> K + Sync,
-{
-    let mut pairs: Vec<(K, u32)> = cells
+    let mut pairs: Vec<(u128, u32)> = cells
         .par_iter()
         .enumerate()
-        .map(|(i, &c)| (key(c), i as u32))
+        .map(|(i, &c)| {
+            let k = ((rel(c, 2) as u128) << 64) | ((rel(c, 1) as u128) << 32) | rel(c, 0) as u128;
+            (k, i as u32)
+        })
         .collect();
     // Pairs are unique (the index breaks ties), so an unstable sort is deterministic.
     pairs.par_sort_unstable();
     pairs.into_par_iter().map(|(_, i)| i).collect()
 }
 
-/// The 9 rows around occupied cell `c`.
-fn neighbour_rows(
-    c: usize,
-    cell: Cell,
-    cells: &[Cell],
-    cell_start: &[u32],
-    table: &CellTable,
-) -> [SlotRange; 9] {
-    let mut rows = [SlotRange::default(); 9];
-    let mut r = 0;
-    for dz in -1..=1 {
-        for dy in -1..=1 {
-            let centre = [cell[0], cell[1] + dy, cell[2] + dz];
-            let known = (dy == 0 && dz == 0).then_some(c);
-            rows[r] = row_range(centre, known, cells, cell_start, table);
-            r += 1;
+/// Stable counting sort of the indices by a dense key below `range`: one histogram
+/// and one scatter, for cells packed densely in their bounding box.
+fn counting_sort(cells: &[Cell], key: impl Fn(Cell) -> usize + Sync, range: usize) -> Vec<u32> {
+    let keys: Vec<u32> = cells.par_iter().map(|&c| key(c) as u32).collect();
+    let mut next = vec![0u32; range];
+    for &k in &keys {
+        next[k as usize] += 1;
+    }
+    let mut sum = 0;
+    for c in next.iter_mut() {
+        (*c, sum) = (sum, sum + *c);
+    }
+    let mut order = vec![0u32; cells.len()];
+    for (i, &k) in keys.iter().enumerate() {
+        let slot = &mut next[k as usize];
+        order[*slot as usize] = i as u32;
+        *slot += 1;
+    }
+    order
+}
+
+/// Stable LSD radix sort of (key, index) pairs on the low `bits` bits of the key;
+/// returns the indices. Input in index order, so ties stay in index order.
+fn radix_sort(mut a: Vec<(u64, u32)>, bits: u32) -> Vec<u32> {
+    let passes = bits.div_ceil(11);
+    if passes > 0 {
+        let digit = bits.div_ceil(passes);
+        let mask = (1u64 << digit) - 1;
+        let mut b = vec![(0u64, 0u32); a.len()];
+        let mut counts = vec![0usize; 1 << digit];
+        for pass in 0..passes {
+            let shift = pass * digit;
+            counts.fill(0);
+            for &(k, _) in &a {
+                counts[((k >> shift) & mask) as usize] += 1;
+            }
+            let mut sum = 0;
+            for c in counts.iter_mut() {
+                (*c, sum) = (sum, sum + *c);
+            }
+            for &e in &a {
+                let d = ((e.0 >> shift) & mask) as usize;
+                b[counts[d]] = e;
+                counts[d] += 1;
+            }
+            std::mem::swap(&mut a, &mut b);
         }
     }
+    a.into_par_iter().map(|(_, i)| i).collect()
+}
+
+/// For every occupied cell, the 9 slot ranges of its 27 neighbour cells.
+///
+/// For a fixed row offset (dy, dz), the target row (x−1..=x+1, y+dy, z+dz) moves
+/// forward in (z, y, x) order as the cell does, so one forward walk over the sorted
+/// cells finds every cell's row: O(cells) per offset with sequential memory access.
+/// Chunks of cells walk in parallel, each starting from a binary search.
+fn neighbour_rows(cells: &[Cell], cell_start: &[u32]) -> Vec<[SlotRange; 9]> {
+    const CHUNK: usize = 4096;
+    let mut rows = vec![[SlotRange::default(); 9]; cells.len()];
+    rows.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let first_cell = chunk * CHUNK;
+            let mut r = 0;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    let lo = |c: Cell| zyx([c[0] - 1, c[1] + dy, c[2] + dz]);
+                    let hi = |c: Cell| zyx([c[0] + 1, c[1] + dy, c[2] + dz]);
+                    let mut p = cells.partition_point(|&q| zyx(q) < lo(cells[first_cell]));
+                    for (k, row) in out.iter_mut().enumerate() {
+                        let cell = cells[first_cell + k];
+                        while p < cells.len() && zyx(cells[p]) < lo(cell) {
+                            p += 1;
+                        }
+                        let mut q = p;
+                        while q < cells.len() && zyx(cells[q]) <= hi(cell) {
+                            q += 1;
+                        }
+                        row[r] = SlotRange {
+                            start: cell_start[p],
+                            end: cell_start[q],
+                        };
+                    }
+                    r += 1;
+                }
+            }
+        });
     rows
 }
 
@@ -458,7 +586,7 @@ fn point_rows(cell: Cell, cells: &[Cell], cell_start: &[u32], table: &CellTable)
                 cell[1].saturating_add(dy),
                 cell[2].saturating_add(dz),
             ];
-            rows[r] = row_range(centre, None, cells, cell_start, table);
+            rows[r] = row_range(centre, cells, cell_start, table);
             r += 1;
         }
     }
@@ -466,18 +594,11 @@ fn point_rows(cell: Cell, cells: &[Cell], cell_start: &[u32], table: &CellTable)
 }
 
 /// The slots of the occupied cells among (x−1, y, z), (x, y, z), (x+1, y, z), which
-/// are adjacent in the sorted cell list. `known` is the index of the centre cell if
-/// the caller has it.
-fn row_range(
-    centre: Cell,
-    known: Option<usize>,
-    cells: &[Cell],
-    cell_start: &[u32],
-    table: &CellTable,
-) -> SlotRange {
+/// are adjacent in the sorted cell list.
+fn row_range(centre: Cell, cells: &[Cell], cell_start: &[u32], table: &CellTable) -> SlotRange {
     let left = [centre[0].saturating_sub(1), centre[1], centre[2]];
     let right = [centre[0].saturating_add(1), centre[1], centre[2]];
-    let (first, last) = match known.or_else(|| table.find(centre, cells)) {
+    let (first, last) = match table.find(centre, cells) {
         Some(k) => {
             let first = if k > 0 && cells[k - 1] == left {
                 k - 1
