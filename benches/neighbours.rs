@@ -165,6 +165,15 @@ fn neighbours(c: &mut Criterion) {
             &positions,
             |b, p| b.iter(|| black_box(kiddo_pairs(p))),
         );
+        if n >= 1_000_000 {
+            let mixed = shuffled(positions.clone());
+            assert_eq!(grid_pairs(&mixed).0, pairs);
+            group.bench_with_input(
+                BenchmarkId::new("sph-core grid shuffled", label),
+                &mixed,
+                |b, p| b.iter(|| black_box(grid_pairs(p))),
+            );
+        }
     }
     group.finish();
 }
