@@ -60,6 +60,26 @@ pub enum Error {
     /// An attribute with this name already exists (or is a built-in field).
     #[error("particle attribute `{0}` already exists")]
     DuplicateAttribute(String),
+    /// A processor ran without what it needs from earlier processors.
+    #[error("processor `{processor}` {reason}")]
+    Pipeline {
+        /// The processor's name.
+        processor: &'static str,
+        /// What it lacked.
+        reason: &'static str,
+    },
+    /// The simulation became unstable and was stopped.
+    #[error("simulation stopped at step {step} (t = {time:.4} s): {what}; {hint}")]
+    Unstable {
+        /// The step at which it was detected.
+        step: u64,
+        /// Simulated time (s).
+        time: f64,
+        /// What went wrong.
+        what: String,
+        /// Which parameters to change.
+        hint: String,
+    },
     /// Arrays that must have the same length do not.
     #[error("length mismatch: `{what}` has {actual} elements, expected {expected}")]
     LengthMismatch {

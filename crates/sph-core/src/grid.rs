@@ -205,6 +205,21 @@ impl NeighbourGrid {
         &self.order
     }
 
+    /// Renumbers the grid's particles by slot, for use after the particle storage
+    /// was reordered with `particles.permute(grid.order())`: particle `k` of the
+    /// reordered storage is slot `k`, and queries and [`NeighbourGrid::par_map`]
+    /// then walk memory in order.
+    pub fn renumber_by_slot(&mut self) {
+        self.order
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, o)| *o = k as u32);
+        self.rank
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(k, r)| *r = k as u32);
+    }
+
     /// Calls `f(j, x_i − x_j, |x_i − x_j|²)` for every particle `j` within h of
     /// particle `i` (`i` itself included, first among its cell's particles by
     /// input index), in an order that does not depend on threads.

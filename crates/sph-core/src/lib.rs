@@ -11,15 +11,21 @@
 //!
 //! Units are SI (m, kg, s); +y is up.
 
+pub mod boundary;
 pub mod error;
 pub mod grid;
 pub mod kernels;
 pub mod particles;
+pub mod processor;
+pub mod solver;
 
+pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
 pub use grid::{NeighbourGrid, Neighbourhood};
 pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
+pub use processor::{Context, Processor, Program};
+pub use solver::{FluidParams, TimeStepping, World};
 
 /// Re-export of the vector maths crate used in the public API.
 pub use glam;

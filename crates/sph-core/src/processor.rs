@@ -1,0 +1,150 @@
+//! The "conveyor belt" of thesis section 4.3.1: each time step, the particle
+//! container passes through an ordered list of [`Processor`]s, each of which
+//! modifies it (builds the neighbour grid, computes densities, adds forces,
+//! integrates, adds or removes particles, ...). A [`Program`] is itself a
+//! processor, so programs nest.
+//!
+//! ```
+//! use sph_core::processor::{Context, Processor, Program};
+//! use sph_core::{Particles, Result, glam::Vec3};
+//!
+//! /// Counts steps in a per-particle attribute.
+//! struct Age;
+//! impl Processor for Age {
+//!     fn name(&self) -> &str { "age" }
+//!     fn process(&mut self, particles: &mut Particles, _ctx: &mut Context) -> Result<()> {
+//!         if !particles.has_attribute("age") {
+//!             particles.add_attribute("age", 0u32)?;
+//!         }
+//!         particles.attribute_mut::<u32>("age")?.iter_mut().for_each(|a| *a += 1);
+//!         Ok(())
+//!     }
+//! }
+//!
+//! let mut program = Program::new("mine");
+//! program.push(Age);
+//! let mut particles = Particles::new();
+//! particles.push(Vec3::ZERO, Vec3::ZERO, 1.0);
+//! let mut ctx = Context::new(0.01);
+//! program.process(&mut particles, &mut ctx).unwrap();
+//! program.process(&mut particles, &mut ctx).unwrap();
+//! assert_eq!(particles.attribute::<u32>("age").unwrap(), &[2]);
+//! ```
+
+use crate::error::Result;
+use crate::grid::NeighbourGrid;
+use crate::particles::Particles;
+
+/// What a processor knows of the current step besides the particles.
+#[derive(Debug)]
+pub struct Context {
+    /// The step's time increment (s).
+    pub dt: f32,
+    /// Simulated time at the start of the step (s).
+    pub time: f64,
+    /// Index of the step, from 0.
+    pub step: u64,
+    /// The neighbour grid over the current positions, once a grid processor has
+    /// built it this step; `None` before, and after anything moved particles.
+    pub grid: Option<NeighbourGrid>,
+}
+
+impl Context {
+    /// A context for a step of length `dt` at time 0.
+    pub fn new(dt: f32) -> Self {
+        Self {
+            dt,
+            time: 0.0,
+            step: 0,
+            grid: None,
+        }
+    }
+}
+
+/// One station of the conveyor belt: modifies the particle container for one step.
+pub trait Processor: Send {
+    /// A short name, unique within its program (used to find and report it).
+    fn name(&self) -> &str;
+    /// Processes the particles for the step described by `ctx`.
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()>;
+}
+
+/// An ordered list of processors, itself a processor.
+pub struct Program {
+    name: String,
+    processors: Vec<Box<dyn Processor>>,
+}
+
+impl Program {
+    /// An empty program.
+    pub fn new(name: impl Into<String>) -> Self {
+        Self {
+            name: name.into(),
+            processors: Vec::new(),
+        }
+    }
+
+    /// Appends a processor.
+    pub fn push(&mut self, processor: impl Processor + 'static) -> &mut Self {
+        self.processors.push(Box::new(processor));
+        self
+    }
+
+    /// Inserts a processor right after the one named `after`; returns false (and
+    /// inserts nothing) if there is none of that name.
+    pub fn insert_after(&mut self, after: &str, processor: impl Processor + 'static) -> bool {
+        match self.processors.iter().position(|p| p.name() == after) {
+            Some(k) => {
+                self.processors.insert(k + 1, Box::new(processor));
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Inserts a processor right before the one named `before`; returns false (and
+    /// inserts nothing) if there is none of that name.
+    pub fn insert_before(&mut self, before: &str, processor: impl Processor + 'static) -> bool {
+        match self.processors.iter().position(|p| p.name() == before) {
+            Some(k) => {
+                self.processors.insert(k, Box::new(processor));
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Removes the processor named `name`; returns whether there was one.
+    pub fn remove(&mut self, name: &str) -> bool {
+        let before = self.processors.len();
+        self.processors.retain(|p| p.name() != name);
+        self.processors.len() != before
+    }
+
+    /// The processors' names, in order.
+    pub fn names(&self) -> impl Iterator<Item = &str> {
+        self.processors.iter().map(|p| p.name())
+    }
+}
+
+impl Processor for Program {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        for p in &mut self.processors {
+            p.process(particles, ctx)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::fmt::Debug for Program {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Program")
+            .field("name", &self.name)
+            .field("processors", &self.names().collect::<Vec<_>>())
+            .finish()
+    }
+}

@@ -1,0 +1,706 @@
+//! The SPH solver of Müller, Charypar & Gross (2003) with the symmetric pressure
+//! force of thesis eq. 15, as a [`Program`] of built-in [`Processor`]s driven by a
+//! [`World`] with an adaptive time step.
+//!
+//! Per step: [`BuildGrid`] → [`DensityPressure`] (eq. 4, 16) → [`Forces`]
+//! (pressure eq. 15, viscosity eq. 17, surface tension eq. 18–20, gravity) →
+//! [`Integrate`] (semi-implicit Euler) → [`Boundaries`].
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::boundary::Boundary;
+use crate::error::{Error, Result};
+use crate::kernels::{Kernel, Kernels};
+use crate::particles::Particles;
+use crate::processor::{Context, Processor, Program};
+
+/// Physical parameters of the fluid.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FluidParams {
+    /// Smoothing length h (m): kernel support and neighbour radius.
+    pub h: f32,
+    /// Rest density ρ0 (kg/m³).
+    pub rest_density: f32,
+    /// Stiffness k of the equation of state p = k(ρ − ρ0) (eq. 16), in m²/s²; the
+    /// speed of sound is √k.
+    pub stiffness: f32,
+    /// Dynamic viscosity μ (Pa·s), eq. 17.
+    pub viscosity: f32,
+    /// Surface tension coefficient σ (N/m), eq. 20.
+    pub surface_tension: f32,
+    /// Surface tension acts where |∇c| exceeds this (1/m).
+    pub surface_threshold: f32,
+    /// Gravity (m/s²).
+    pub gravity: Vec3,
+}
+
+impl FluidParams {
+    /// Water-like defaults for a real-time simulation at smoothing length `h`:
+    /// ρ0 = 1000 kg/m³, k = 200 m²/s² (sound speed ≈ 14 m/s), μ = 0.2 Pa·s,
+    /// σ = 0.0728 N/m acting where |∇c| > 0.1/h, gravity 9.81 m/s² down.
+    pub fn water(h: f32) -> Self {
+        Self {
+            h,
+            rest_density: 1000.0,
+            stiffness: 200.0,
+            viscosity: 0.2,
+            surface_tension: 0.0728,
+            surface_threshold: 0.1 / h,
+            gravity: Vec3::new(0.0, -9.81, 0.0),
+        }
+    }
+
+    /// Checks every parameter is finite and in range; the error names it.
+    pub fn validate(&self) -> Result<()> {
+        positive("h", self.h)?;
+        positive("rest_density", self.rest_density)?;
+        positive("stiffness", self.stiffness)?;
+        non_negative("viscosity", self.viscosity)?;
+        non_negative("surface_tension", self.surface_tension)?;
+        non_negative("surface_threshold", self.surface_threshold)?;
+        if !self.gravity.is_finite() {
+            return Err(Error::InvalidParameter {
+                name: "gravity",
+                value: format!("{:?}", self.gravity),
+                reason: "must be finite",
+            });
+        }
+        Ok(())
+    }
+
+    /// Speed of sound √k (m/s).
+    pub fn sound_speed(&self) -> f32 {
+        self.stiffness.sqrt()
+    }
+
+    /// The particle mass for fluid sampled on a cubic lattice of `spacing`: chosen
+    /// so that a particle inside the lattice sums to exactly ρ0 with the poly6
+    /// kernel, so fluid starts at rest density rather than a few % off.
+    pub fn particle_mass(&self, spacing: f32) -> Result<f32> {
+        positive("spacing", spacing)?;
+        if spacing >= self.h {
+            return Err(Error::InvalidParameter {
+                name: "spacing",
+                value: spacing.to_string(),
+                reason: "must be smaller than h (at least one neighbour per axis)",
+            });
+        }
+        let poly6 = crate::kernels::Poly6::new(self.h)?;
+        let n = (self.h / spacing).ceil() as i32;
+        let mut sum = 0.0f64;
+        for k in -n..=n {
+            for j in -n..=n {
+                for i in -n..=n {
+                    let r = Vec3::new(i as f32, j as f32, k as f32) * spacing;
+                    sum += poly6.value(r) as f64;
+                }
+            }
+        }
+        Ok((self.rest_density as f64 / sum) as f32)
+    }
+}
+
+fn positive(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name,
+            value: v.to_string(),
+            reason: "must be finite and > 0",
+        })
+    }
+}
+
+fn non_negative(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name,
+            value: v.to_string(),
+            reason: "must be finite and >= 0",
+        })
+    }
+}
+
+/// Adaptive time stepping: dt = min(max_dt, cfl·h/(c + v_max), force·√(h/a_max)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeStepping {
+    /// Upper bound on a step (s).
+    pub max_dt: f32,
+    /// Courant factor on h/(c + v_max), c = √k (the acoustic CFL condition).
+    pub cfl: f32,
+    /// Factor on √(h/a_max) (the force condition).
+    pub force_factor: f32,
+    /// A step shorter than this is reported as a blow-up (s).
+    pub min_dt: f32,
+}
+
+impl Default for TimeStepping {
+    fn default() -> Self {
+        Self {
+            max_dt: 2e-3,
+            cfl: 0.4,
+            force_factor: 0.25,
+            min_dt: 1e-7,
+        }
+    }
+}
+
+impl TimeStepping {
+    /// Checks every parameter; the error names it.
+    pub fn validate(&self) -> Result<()> {
+        positive("max_dt", self.max_dt)?;
+        positive("cfl", self.cfl)?;
+        positive("force_factor", self.force_factor)?;
+        positive("min_dt", self.min_dt)
+    }
+}
+
+/// Builds the neighbour grid into [`Context::grid`] and stores the particles in
+/// the grid's cell order (every `sort_every` steps), so later gathers walk memory
+/// in order. Reordering keeps ids and every attribute with its particle.
+#[derive(Debug, Clone)]
+pub struct BuildGrid {
+    h: f32,
+    sort_every: u64,
+}
+
+impl BuildGrid {
+    /// Grid of cell size `h`, reordering particles every `sort_every` steps (0: never).
+    pub fn new(h: f32, sort_every: u64) -> Self {
+        Self { h, sort_every }
+    }
+}
+
+impl Processor for BuildGrid {
+    fn name(&self) -> &str {
+        "grid"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let mut grid = crate::NeighbourGrid::build(particles.positions(), self.h)?;
+        if self.sort_every > 0 && ctx.step.is_multiple_of(self.sort_every) {
+            particles.permute(grid.order())?;
+            grid.renumber_by_slot();
+        }
+        ctx.grid = Some(grid);
+        Ok(())
+    }
+}
+
+fn grid<'a>(ctx: &'a Context, who: &'static str) -> Result<&'a crate::NeighbourGrid> {
+    ctx.grid.as_ref().ok_or(Error::Pipeline {
+        processor: who,
+        reason: "needs the neighbour grid: put a `grid` processor before it",
+    })
+}
+
+/// Density by poly6 summation (eq. 4) and pressure by the equation of state
+/// p = k(ρ − ρ0) (eq. 16).
+#[derive(Debug, Clone, Copy)]
+pub struct DensityPressure {
+    params: FluidParams,
+    kernels: Kernels,
+}
+
+impl DensityPressure {
+    /// For these parameters (validated by [`World::new`]).
+    pub fn new(params: FluidParams) -> Result<Self> {
+        Ok(Self {
+            params,
+            kernels: Kernels::new(params.h)?,
+        })
+    }
+}
+
+impl Processor for DensityPressure {
+    fn name(&self) -> &str {
+        "density"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let grid = grid(ctx, "density")?;
+        let masses = particles.masses();
+        let poly6 = self.kernels.poly6;
+        let rho = grid.par_map(|_, nb| {
+            let mut rho = 0.0f32;
+            nb.for_each(|j, _, r2| rho += masses[j] * poly6.value_r2(r2));
+            rho
+        });
+        let (k, rho0) = (self.params.stiffness, self.params.rest_density);
+        let f = particles.fields_mut();
+        f.densities.copy_from_slice(&rho);
+        f.pressures
+            .par_iter_mut()
+            .zip(rho.par_iter())
+            .for_each(|(p, &r)| *p = k * (r - rho0));
+        Ok(())
+    }
+}
+
+/// Accelerations from the symmetric pressure force (eq. 15, spiky gradient),
+/// viscosity (eq. 17, viscosity laplacian), surface tension from the colour field
+/// (eq. 18–20, where |n| > threshold) and gravity. Also stores the colour-field
+/// gradient and laplacian. Overwrites accelerations: processors adding external
+/// forces go after it.
+#[derive(Debug, Clone, Copy)]
+pub struct Forces {
+    params: FluidParams,
+    kernels: Kernels,
+}
+
+impl Forces {
+    /// For these parameters (validated by [`World::new`]).
+    pub fn new(params: FluidParams) -> Result<Self> {
+        Ok(Self {
+            params,
+            kernels: Kernels::new(params.h)?,
+        })
+    }
+}
+
+impl Processor for Forces {
+    fn name(&self) -> &str {
+        "forces"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let grid = grid(ctx, "forces")?;
+        let v = particles.velocities();
+        let (m, rho, p) = (
+            particles.masses(),
+            particles.densities(),
+            particles.pressures(),
+        );
+        let Kernels {
+            poly6,
+            spiky,
+            viscosity,
+        } = self.kernels;
+        let prm = self.params;
+        let out = grid.par_map(|i, nb| {
+            let pi = p[i] / (rho[i] * rho[i]);
+            let mut a_p = Vec3::ZERO;
+            let mut a_v = Vec3::ZERO;
+            let mut n = Vec3::ZERO;
+            let mut lap_c = 0.0f32;
+            nb.for_each(|j, r, r2| {
+                let vol = m[j] / rho[j];
+                n += vol * poly6.gradient_r2(r, r2);
+                lap_c += vol * poly6.laplacian_r2(r2);
+                if j == i {
+                    return;
+                }
+                let len = r2.sqrt();
+                // eq. 15 divided by m_i.
+                a_p -= m[j] * (pi + p[j] / (rho[j] * rho[j])) * spiky.gradient_len(r, len);
+                // eq. 17 divided by m_i.
+                a_v += m[j] * (v[j] - v[i]) / (rho[i] * rho[j]) * viscosity.laplacian_len(len);
+            });
+            let mut a = a_p + prm.viscosity * a_v + prm.gravity;
+            let n_len = n.length();
+            if prm.surface_tension > 0.0 && n_len > prm.surface_threshold {
+                // eq. 20: f = −σ ∇²c n/|n| per unit volume; a = f/ρ.
+                a -= prm.surface_tension * lap_c * n / (n_len * rho[i]);
+            }
+            (a, n, lap_c)
+        });
+        let f = particles.fields_mut();
+        for (k, (a, n, l)) in out.into_iter().enumerate() {
+            f.accelerations[k] = a;
+            f.colour_gradients[k] = n;
+            f.colour_laplacians[k] = l;
+        }
+        Ok(())
+    }
+}
+
+/// Adds a user-defined acceleration field a(x, t) to every particle.
+pub struct ExternalAcceleration<F> {
+    name: String,
+    field: F,
+}
+
+impl<F: Fn(Vec3, f64) -> Vec3 + Send + Sync> ExternalAcceleration<F> {
+    /// A processor named `name` adding `field(position, time)`.
+    pub fn new(name: impl Into<String>, field: F) -> Self {
+        Self {
+            name: name.into(),
+            field,
+        }
+    }
+}
+
+impl<F: Fn(Vec3, f64) -> Vec3 + Send + Sync> Processor for ExternalAcceleration<F> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let f = particles.fields_mut();
+        let time = ctx.time;
+        f.accelerations
+            .par_iter_mut()
+            .zip(f.positions.par_iter())
+            .for_each(|(a, &x)| *a += (self.field)(x, time));
+        Ok(())
+    }
+}
+
+/// Semi-implicit (symplectic) Euler: v += a·dt, then x += v·dt.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Integrate;
+
+impl Processor for Integrate {
+    fn name(&self) -> &str {
+        "integrate"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let dt = ctx.dt;
+        let f = particles.fields_mut();
+        f.positions
+            .par_iter_mut()
+            .zip(f.velocities.par_iter_mut())
+            .zip(f.accelerations.par_iter())
+            .for_each(|((x, v), &a)| {
+                *v += a * dt;
+                *x += *v * dt;
+            });
+        ctx.grid = None; // positions moved
+        Ok(())
+    }
+}
+
+/// Keeps particles inside the domain and out of obstacles (see [`crate::boundary`]).
+#[derive(Debug, Clone)]
+pub struct Boundaries {
+    boundary: Boundary,
+}
+
+impl Boundaries {
+    /// Enforces `boundary`.
+    pub fn new(boundary: Boundary) -> Self {
+        Self { boundary }
+    }
+}
+
+impl Processor for Boundaries {
+    fn name(&self) -> &str {
+        "boundaries"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let f = particles.fields_mut();
+        let b = &self.boundary;
+        f.positions
+            .par_iter_mut()
+            .zip(f.velocities.par_iter_mut())
+            .for_each(|(x, v)| b.resolve(x, v));
+        ctx.grid = None;
+        Ok(())
+    }
+}
+
+/// Adds particles at a rate: square layers of `n × n` particles at `spacing`
+/// around `centre`, in the plane normal to `velocity`, one layer each time the
+/// previous one has moved `spacing` on.
+#[derive(Debug, Clone)]
+pub struct Emitter {
+    centre: Vec3,
+    velocity: Vec3,
+    n: u32,
+    spacing: f32,
+    mass: f32,
+    max_particles: usize,
+    travelled: f32,
+}
+
+impl Emitter {
+    /// An emitter; it stops adding particles once the container holds `max_particles`.
+    pub fn new(
+        centre: Vec3,
+        velocity: Vec3,
+        n: u32,
+        spacing: f32,
+        mass: f32,
+        max_particles: usize,
+    ) -> Result<Self> {
+        positive("emitter.spacing", spacing)?;
+        positive("emitter.speed", velocity.length())?;
+        positive("emitter.mass", mass)?;
+        Ok(Self {
+            centre,
+            velocity,
+            n,
+            spacing,
+            mass,
+            max_particles,
+            travelled: spacing, // emit a layer on the first step
+        })
+    }
+}
+
+impl Processor for Emitter {
+    fn name(&self) -> &str {
+        "emitter"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        self.travelled += self.velocity.length() * ctx.dt;
+        let dir = self.velocity.normalize();
+        let (u, w) = dir.any_orthonormal_pair();
+        while self.travelled >= self.spacing {
+            self.travelled -= self.spacing;
+            let offset = dir * self.travelled; // where this layer is now
+            let half = (self.n as f32 - 1.0) / 2.0;
+            for b in 0..self.n {
+                for a in 0..self.n {
+                    if particles.len() >= self.max_particles {
+                        return Ok(());
+                    }
+                    let x = self.centre
+                        + offset
+                        + (u * (a as f32 - half) + w * (b as f32 - half)) * self.spacing;
+                    particles.push(x, self.velocity, self.mass);
+                }
+            }
+            ctx.grid = None;
+        }
+        Ok(())
+    }
+}
+
+/// Removes the particles inside a box.
+#[derive(Debug, Clone)]
+pub struct Sink {
+    region: crate::boundary::Aabb,
+    removed: u64,
+}
+
+impl Sink {
+    /// A sink over `region`.
+    pub fn new(region: crate::boundary::Aabb) -> Self {
+        Self { region, removed: 0 }
+    }
+
+    /// Particles removed so far.
+    pub fn removed(&self) -> u64 {
+        self.removed
+    }
+}
+
+impl Processor for Sink {
+    fn name(&self) -> &str {
+        "sink"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let keep: Vec<bool> = particles
+            .positions()
+            .iter()
+            .map(|&x| !self.region.contains(x))
+            .collect();
+        let removed = particles.retain(&keep)?;
+        if removed > 0 {
+            self.removed += removed as u64;
+            ctx.grid = None;
+        }
+        Ok(())
+    }
+}
+
+/// The default solver program: grid → density → forces → integrate → boundaries.
+pub fn default_program(params: FluidParams, boundary: Boundary) -> Result<Program> {
+    let mut program = Program::new("sph");
+    program
+        .push(BuildGrid::new(params.h, 1))
+        .push(DensityPressure::new(params)?)
+        .push(Forces::new(params)?)
+        .push(Integrate)
+        .push(Boundaries::new(boundary));
+    Ok(program)
+}
+
+/// A simulation: particles, the program that advances them, and the clock.
+pub struct World {
+    /// The particles.
+    pub particles: Particles,
+    params: FluidParams,
+    stepping: TimeStepping,
+    program: Program,
+    time: f64,
+    step: u64,
+}
+
+/// What one call of [`World::advance`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameReport {
+    /// Substeps taken.
+    pub substeps: u32,
+    /// Smallest and largest substep (s).
+    pub dt_range: (f32, f32),
+    /// Simulated time after the frame (s).
+    pub time: f64,
+}
+
+impl World {
+    /// A world running the [`default_program`].
+    pub fn new(
+        particles: Particles,
+        params: FluidParams,
+        boundary: Boundary,
+        stepping: TimeStepping,
+    ) -> Result<Self> {
+        params.validate()?;
+        stepping.validate()?;
+        let program = default_program(params, boundary)?;
+        Ok(Self {
+            particles,
+            params,
+            stepping,
+            program,
+            time: 0.0,
+            step: 0,
+        })
+    }
+
+    /// The program, to add, insert or remove processors.
+    pub fn program_mut(&mut self) -> &mut Program {
+        &mut self.program
+    }
+
+    /// The fluid parameters.
+    pub fn params(&self) -> &FluidParams {
+        &self.params
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.step
+    }
+
+    /// The next step's length from the CFL and force conditions.
+    pub fn stable_dt(&self) -> f32 {
+        let (v_max, a_max) = self
+            .particles
+            .velocities()
+            .par_iter()
+            .zip(self.particles.accelerations().par_iter())
+            .map(|(v, a)| (v.length(), a.length()))
+            .reduce(|| (0.0, 0.0), |x, y| (x.0.max(y.0), x.1.max(y.1)));
+        let h = self.params.h;
+        let s = &self.stepping;
+        let mut dt = s
+            .max_dt
+            .min(s.cfl * h / (self.params.sound_speed() + v_max));
+        if a_max > 0.0 {
+            dt = dt.min(s.force_factor * (h / a_max).sqrt());
+        }
+        dt
+    }
+
+    /// Takes one step of the stable length; returns it.
+    pub fn step(&mut self) -> Result<f32> {
+        let dt = self.stable_dt();
+        self.step_by(dt)?;
+        Ok(dt)
+    }
+
+    /// Advances by `frame_dt` in stable substeps (the last one shortened to land
+    /// on the frame time).
+    pub fn advance(&mut self, frame_dt: f32) -> Result<FrameReport> {
+        positive("frame_dt", frame_dt)?;
+        let end = self.time + frame_dt as f64;
+        let mut report = FrameReport {
+            substeps: 0,
+            dt_range: (f32::INFINITY, 0.0),
+            time: self.time,
+        };
+        while self.time < end - 1e-9 {
+            let dt = self.stable_dt().min((end - self.time) as f32);
+            self.step_by(dt)?;
+            report.substeps += 1;
+            report.dt_range = (report.dt_range.0.min(dt), report.dt_range.1.max(dt));
+        }
+        report.time = self.time;
+        Ok(report)
+    }
+
+    fn step_by(&mut self, dt: f32) -> Result<()> {
+        if !(dt >= self.stepping.min_dt) {
+            return Err(self.unstable(format!(
+                "the stable step fell to {dt:e} s, below min_dt = {:e} s",
+                self.stepping.min_dt
+            )));
+        }
+        let mut ctx = Context {
+            dt,
+            time: self.time,
+            step: self.step,
+            grid: None,
+        };
+        self.program.process(&mut self.particles, &mut ctx)?;
+        self.time += dt as f64;
+        self.step += 1;
+        self.check()
+    }
+
+    /// NaN, infinities and speeds above 5 × the speed of sound end the run.
+    fn check(&self) -> Result<()> {
+        let limit = 5.0 * self.params.sound_speed();
+        let bad = self
+            .particles
+            .positions()
+            .par_iter()
+            .zip(self.particles.velocities().par_iter())
+            .position_first(|(x, v)| !x.is_finite() || !v.is_finite() || v.length() > limit);
+        match bad {
+            None => Ok(()),
+            Some(i) => {
+                let (x, v) = (
+                    self.particles.positions()[i],
+                    self.particles.velocities()[i],
+                );
+                let what = if !x.is_finite() || !v.is_finite() {
+                    format!("particle {i} became non-finite (x = {x}, v = {v})")
+                } else {
+                    format!(
+                        "particle {i} moves at {:.3} m/s, above 5 × the speed of sound √k = {:.3} m/s",
+                        v.length(),
+                        self.params.sound_speed()
+                    )
+                };
+                Err(self.unstable(what))
+            }
+        }
+    }
+
+    fn unstable(&self, what: String) -> Error {
+        Error::Unstable {
+            step: self.step,
+            time: self.time,
+            what,
+            hint: format!(
+                "lower time_step.max_dt (now {:e} s) or time_step.cfl (now {}), raise viscosity (now {} Pa·s), \
+                 or check stiffness k (now {} m²/s²) and h (now {} m)",
+                self.stepping.max_dt,
+                self.stepping.cfl,
+                self.params.viscosity,
+                self.params.stiffness,
+                self.params.h
+            ),
+        }
+    }
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("particles", &self.particles.len())
+            .field("time", &self.time)
+            .field("step", &self.step)
+            .field("program", &self.program)
+            .finish()
+    }
+}
