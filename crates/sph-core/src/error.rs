@@ -80,6 +80,26 @@ pub enum Error {
         /// Which parameters to change.
         hint: String,
     },
+    /// A scene file is not valid TOML or does not match the scene format (unknown
+    /// or missing field, wrong type); the message names the field and line.
+    #[error("scene file: {0}")]
+    SceneSyntax(String),
+    /// A scene value is out of range.
+    #[error("scene field `{field}`: {reason}")]
+    Scene {
+        /// The field, e.g. `fluid.h` or `blocks[1]`.
+        field: String,
+        /// Why it is rejected.
+        reason: String,
+    },
+    /// Reading or writing a file failed.
+    #[error("{path}: {reason}")]
+    Io {
+        /// The file.
+        path: String,
+        /// The operating system's reason.
+        reason: String,
+    },
     /// Arrays that must have the same length do not.
     #[error("length mismatch: `{what}` has {actual} elements, expected {expected}")]
     LengthMismatch {

@@ -17,6 +17,7 @@ pub mod grid;
 pub mod kernels;
 pub mod particles;
 pub mod processor;
+pub mod scene;
 pub mod solver;
 
 pub use boundary::{Aabb, Boundary, Obstacle};
@@ -25,6 +26,7 @@ pub use grid::{NeighbourGrid, Neighbourhood};
 pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program};
+pub use scene::Scene;
 pub use solver::{FluidParams, TimeStepping, World};
 
 /// Re-export of the vector maths crate used in the public API.

@@ -9,7 +9,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::boundary::Boundary;
+use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::kernels::{Kernel, Kernels};
 use crate::particles::Particles;
@@ -33,6 +33,12 @@ pub struct FluidParams {
     pub surface_threshold: f32,
     /// Gravity (m/s²).
     pub gravity: Vec3,
+    /// Factor on negative pressures, in [0, 1]: 1 is eq. 16 as written, 0 clamps
+    /// p ≥ 0. With eq. 16 as written, free-surface and wall particles (whose
+    /// neighbourhoods are incomplete, ρ < ρ0) feel suction of order k/h, tens of
+    /// thousands of m/s² at real-time stiffness, which tears the surface apart; the
+    /// clamp (0, the default) is the usual remedy (e.g. Becker & Teschner 2007).
+    pub negative_pressure_scale: f32,
 }
 
 impl FluidParams {
@@ -48,6 +54,7 @@ impl FluidParams {
             surface_tension: 0.0728,
             surface_threshold: 0.1 / h,
             gravity: Vec3::new(0.0, -9.81, 0.0),
+            negative_pressure_scale: 0.0,
         }
     }
 
@@ -59,6 +66,13 @@ impl FluidParams {
         non_negative("viscosity", self.viscosity)?;
         non_negative("surface_tension", self.surface_tension)?;
         non_negative("surface_threshold", self.surface_threshold)?;
+        if !(0.0..=1.0).contains(&self.negative_pressure_scale) {
+            return Err(Error::InvalidParameter {
+                name: "negative_pressure_scale",
+                value: self.negative_pressure_scale.to_string(),
+                reason: "must be in [0, 1]",
+            });
+        }
         if !self.gravity.is_finite() {
             return Err(Error::InvalidParameter {
                 name: "gravity",
@@ -198,19 +212,24 @@ fn grid<'a>(ctx: &'a Context, who: &'static str) -> Result<&'a crate::NeighbourG
 }
 
 /// Density by poly6 summation (eq. 4) and pressure by the equation of state
-/// p = k(ρ − ρ0) (eq. 16).
-#[derive(Debug, Clone, Copy)]
+/// p = k(ρ − ρ0) (eq. 16), negative values scaled by
+/// [`FluidParams::negative_pressure_scale`].
+/// Walls within h add the density of the fluid "behind" them (see
+/// [`crate::boundary`]).
+#[derive(Debug, Clone)]
 pub struct DensityPressure {
     params: FluidParams,
     kernels: Kernels,
+    boundary: Boundary,
 }
 
 impl DensityPressure {
-    /// For these parameters (validated by [`World::new`]).
-    pub fn new(params: FluidParams) -> Result<Self> {
+    /// For these parameters (validated by [`World::new`]) and walls.
+    pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         Ok(Self {
             params,
             kernels: Kernels::new(params.h)?,
+            boundary,
         })
     }
 }
@@ -223,18 +242,25 @@ impl Processor for DensityPressure {
         let grid = grid(ctx, "density")?;
         let masses = particles.masses();
         let poly6 = self.kernels.poly6;
+        let wall = WallKernel::new(self.params.h);
+        let (b, rho0, h) = (&self.boundary, self.params.rest_density, self.params.h);
         let rho = grid.par_map(|_, nb| {
             let mut rho = 0.0f32;
             nb.for_each(|j, _, r2| rho += masses[j] * poly6.value_r2(r2));
+            b.for_each_wall_within(nb.centre(), h, |d, _| rho += rho0 * wall.volume_fraction(d));
             rho
         });
         let (k, rho0) = (self.params.stiffness, self.params.rest_density);
+        let suction = self.params.negative_pressure_scale;
         let f = particles.fields_mut();
         f.densities.copy_from_slice(&rho);
         f.pressures
             .par_iter_mut()
             .zip(rho.par_iter())
-            .for_each(|(p, &r)| *p = k * (r - rho0));
+            .for_each(|(p, &r)| {
+                let eos = k * (r - rho0);
+                *p = if eos < 0.0 { suction * eos } else { eos };
+            });
         Ok(())
     }
 }
@@ -244,18 +270,23 @@ impl Processor for DensityPressure {
 /// (eq. 18–20, where |n| > threshold) and gravity. Also stores the colour-field
 /// gradient and laplacian. Overwrites accelerations: processors adding external
 /// forces go after it.
-#[derive(Debug, Clone, Copy)]
+///
+/// Walls within h push back with the pressure force of fluid at rest density and
+/// the particle's own pressure behind them (see [`crate::boundary`]).
+#[derive(Debug, Clone)]
 pub struct Forces {
     params: FluidParams,
     kernels: Kernels,
+    boundary: Boundary,
 }
 
 impl Forces {
-    /// For these parameters (validated by [`World::new`]).
-    pub fn new(params: FluidParams) -> Result<Self> {
+    /// For these parameters (validated by [`World::new`]) and walls.
+    pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         Ok(Self {
             params,
             kernels: Kernels::new(params.h)?,
+            boundary,
         })
     }
 }
@@ -278,6 +309,8 @@ impl Processor for Forces {
             viscosity,
         } = self.kernels;
         let prm = self.params;
+        let wall = WallKernel::new(prm.h);
+        let b = &self.boundary;
         let out = grid.par_map(|i, nb| {
             let pi = p[i] / (rho[i] * rho[i]);
             let mut a_p = Vec3::ZERO;
@@ -296,6 +329,9 @@ impl Processor for Forces {
                 a_p -= m[j] * (pi + p[j] / (rho[j] * rho[j])) * spiky.gradient_len(r, len);
                 // eq. 17 divided by m_i.
                 a_v += m[j] * (v[j] - v[i]) / (rho[i] * rho[j]) * viscosity.laplacian_len(len);
+            });
+            b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
+                a_p += 2.0 * pi * prm.rest_density * wall.gradient_flux(d) * normal;
             });
             let mut a = a_p + prm.viscosity * a_v + prm.gravity;
             let n_len = n.length();
@@ -510,8 +546,8 @@ pub fn default_program(params: FluidParams, boundary: Boundary) -> Result<Progra
     let mut program = Program::new("sph");
     program
         .push(BuildGrid::new(params.h, 1))
-        .push(DensityPressure::new(params)?)
-        .push(Forces::new(params)?)
+        .push(DensityPressure::new(params, boundary.clone())?)
+        .push(Forces::new(params, boundary.clone())?)
         .push(Integrate)
         .push(Boundaries::new(boundary));
     Ok(program)
@@ -628,7 +664,7 @@ impl World {
     }
 
     fn step_by(&mut self, dt: f32) -> Result<()> {
-        if !(dt >= self.stepping.min_dt) {
+        if dt.is_nan() || dt < self.stepping.min_dt {
             return Err(self.unstable(format!(
                 "the stable step fell to {dt:e} s, below min_dt = {:e} s",
                 self.stepping.min_dt

@@ -1,0 +1,510 @@
+//! Scenes: a domain, fluid blocks, obstacles, emitters, physical and time-stepping
+//! parameters and rendering hints, as TOML files (`assets/scenes/*.toml`) or built
+//! in ([`Scene::dam_break`], [`Scene::drop_into_pool`], [`Scene::double_dam_break`]).
+//!
+//! Loading rejects syntax errors, unknown and missing fields, and non-finite or
+//! out-of-range values with a message naming the field and the reason.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+use crate::boundary::{Aabb, Boundary, Obstacle};
+use crate::error::{Error, Result};
+use crate::particles::Particles;
+use crate::solver::{Emitter, FluidParams, TimeStepping, World};
+
+/// A complete scene description.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// Human-readable name.
+    pub name: String,
+    /// The box the fluid stays in.
+    pub domain: BoxSpec,
+    /// Physical parameters.
+    pub fluid: FluidSpec,
+    /// Particle spacing of blocks and emitters (m); must be below `fluid.h`.
+    pub spacing: f32,
+    /// Blocks of fluid at rest, filled on a lattice of `spacing`.
+    #[serde(default)]
+    pub blocks: Vec<BlockSpec>,
+    /// Static obstacles.
+    #[serde(default)]
+    pub obstacles: Vec<ObstacleSpec>,
+    /// Particle emitters.
+    #[serde(default)]
+    pub emitters: Vec<EmitterSpec>,
+    /// Time stepping.
+    pub time_step: TimeStepSpec,
+    /// Upper bound on the particle count (blocks and emitters together).
+    #[serde(default = "default_max_particles")]
+    pub max_particles: usize,
+    /// Rendering hints.
+    #[serde(default)]
+    pub render: RenderSpec,
+}
+
+fn default_max_particles() -> usize {
+    2_000_000
+}
+
+/// An axis-aligned box by its corners.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BoxSpec {
+    /// Minimum corner (m).
+    pub min: [f32; 3],
+    /// Maximum corner (m).
+    pub max: [f32; 3],
+}
+
+/// A block of fluid.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BlockSpec {
+    /// Minimum corner (m).
+    pub min: [f32; 3],
+    /// Maximum corner (m).
+    pub max: [f32; 3],
+    /// Initial velocity (m/s).
+    #[serde(default)]
+    pub velocity: [f32; 3],
+}
+
+/// Physical parameters, see [`FluidParams`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FluidSpec {
+    /// Smoothing length h (m).
+    pub h: f32,
+    /// Rest density ρ0 (kg/m³).
+    pub rest_density: f32,
+    /// Stiffness k (m²/s²).
+    pub stiffness: f32,
+    /// Viscosity μ (Pa·s).
+    pub viscosity: f32,
+    /// Surface tension σ (N/m).
+    pub surface_tension: f32,
+    /// |∇c| threshold for surface tension (1/m).
+    pub surface_threshold: f32,
+    /// Gravity (m/s²).
+    pub gravity: [f32; 3],
+    /// Factor on negative pressures in [0, 1] (0 = clamp, the default).
+    #[serde(default)]
+    pub negative_pressure_scale: f32,
+}
+
+/// An obstacle.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "shape", rename_all = "lowercase", deny_unknown_fields)]
+pub enum ObstacleSpec {
+    /// A solid box.
+    Box {
+        /// Minimum corner (m).
+        min: [f32; 3],
+        /// Maximum corner (m).
+        max: [f32; 3],
+    },
+    /// A solid sphere.
+    Sphere {
+        /// Centre (m).
+        centre: [f32; 3],
+        /// Radius (m).
+        radius: f32,
+    },
+}
+
+/// An emitter of square layers of particles.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EmitterSpec {
+    /// Centre of the nozzle (m).
+    pub centre: [f32; 3],
+    /// Velocity of the emitted particles (m/s).
+    pub velocity: [f32; 3],
+    /// Particles per side of the square nozzle.
+    pub width: u32,
+}
+
+/// Time-stepping parameters, see [`TimeStepping`].
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeStepSpec {
+    /// Largest substep (s).
+    pub max_dt: f32,
+    /// Courant factor.
+    #[serde(default = "default_cfl")]
+    pub cfl: f32,
+    /// Force-condition factor.
+    #[serde(default = "default_force_factor")]
+    pub force_factor: f32,
+    /// Simulated time per rendered frame (s).
+    pub frame_dt: f32,
+}
+
+fn default_cfl() -> f32 {
+    TimeStepping::default().cfl
+}
+fn default_force_factor() -> f32 {
+    TimeStepping::default().force_factor
+}
+
+/// Hints for the renderer and the demo.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSpec {
+    /// Camera position (m).
+    pub camera: [f32; 3],
+    /// Point the camera looks at (m).
+    pub look_at: [f32; 3],
+    /// Vertical field of view (degrees).
+    pub fov_y: f32,
+}
+
+impl Default for RenderSpec {
+    fn default() -> Self {
+        Self {
+            camera: [0.5, 0.6, 2.0],
+            look_at: [0.5, 0.2, 0.0],
+            fov_y: 45.0,
+        }
+    }
+}
+
+fn invalid(field: impl Into<String>, reason: impl Into<String>) -> Error {
+    Error::Scene {
+        field: field.into(),
+        reason: reason.into(),
+    }
+}
+
+fn finite3(field: &str, v: [f32; 3]) -> Result<Vec3> {
+    let v = Vec3::from(v);
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(invalid(field, format!("{v:?} is not finite")))
+    }
+}
+
+fn positive(field: &str, v: f32) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("{v} must be finite and > 0")))
+    }
+}
+
+fn non_negative(field: &str, v: f32) -> Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(invalid(field, format!("{v} must be finite and >= 0")))
+    }
+}
+
+fn lattice_count(min: Vec3, max: Vec3, spacing: f32) -> [usize; 3] {
+    let n = ((max - min) / spacing).floor();
+    [n.x as usize, n.y as usize, n.z as usize]
+}
+
+impl Scene {
+    /// Parses and validates a scene from TOML text.
+    pub fn from_toml(text: &str) -> Result<Self> {
+        let scene: Scene = toml::from_str(text).map_err(|e| Error::SceneSyntax(e.to_string()))?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    /// Reads, parses and validates a scene file.
+    pub fn load(path: impl AsRef<std::path::Path>) -> Result<Self> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        })?;
+        Self::from_toml(&text)
+    }
+
+    /// The scene as TOML text.
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Checks every value; the error names the field and the reason.
+    pub fn validate(&self) -> Result<()> {
+        let f = &self.fluid;
+        positive("fluid.h", f.h)?;
+        positive("fluid.rest_density", f.rest_density)?;
+        positive("fluid.stiffness", f.stiffness)?;
+        non_negative("fluid.viscosity", f.viscosity)?;
+        non_negative("fluid.surface_tension", f.surface_tension)?;
+        non_negative("fluid.surface_threshold", f.surface_threshold)?;
+        finite3("fluid.gravity", f.gravity)?;
+        if !(0.0..=1.0).contains(&f.negative_pressure_scale) {
+            return Err(invalid(
+                "fluid.negative_pressure_scale",
+                format!("{} must be in [0, 1]", f.negative_pressure_scale),
+            ));
+        }
+        positive("spacing", self.spacing)?;
+        if self.spacing >= f.h {
+            return Err(invalid(
+                "spacing",
+                format!("{} must be smaller than fluid.h = {}", self.spacing, f.h),
+            ));
+        }
+        let dmin = finite3("domain.min", self.domain.min)?;
+        let dmax = finite3("domain.max", self.domain.max)?;
+        if !dmin.cmplt(dmax).all() {
+            return Err(invalid("domain", "min must be below max on every axis"));
+        }
+        let domain = Aabb::new(dmin, dmax);
+        let mut count = 0usize;
+        for (k, b) in self.blocks.iter().enumerate() {
+            let field = format!("blocks[{k}]");
+            let (min, max) = (
+                finite3(&format!("{field}.min"), b.min)?,
+                finite3(&format!("{field}.max"), b.max)?,
+            );
+            finite3(&format!("{field}.velocity"), b.velocity)?;
+            if !min.cmplt(max).all() {
+                return Err(invalid(&field, "min must be below max on every axis"));
+            }
+            if !domain.contains(min) || !domain.contains(max) {
+                return Err(invalid(
+                    &field,
+                    "the block lies (partly) outside the domain",
+                ));
+            }
+            let n = lattice_count(min, max, self.spacing);
+            count = count.saturating_add(n[0].saturating_mul(n[1]).saturating_mul(n[2]));
+        }
+        for (k, o) in self.obstacles.iter().enumerate() {
+            let field = format!("obstacles[{k}]");
+            match *o {
+                ObstacleSpec::Box { min, max } => {
+                    let (min, max) = (
+                        finite3(&format!("{field}.min"), min)?,
+                        finite3(&format!("{field}.max"), max)?,
+                    );
+                    if !min.cmplt(max).all() {
+                        return Err(invalid(&field, "min must be below max on every axis"));
+                    }
+                }
+                ObstacleSpec::Sphere { centre, radius } => {
+                    finite3(&format!("{field}.centre"), centre)?;
+                    positive(&format!("{field}.radius"), radius)?;
+                }
+            }
+        }
+        for (k, e) in self.emitters.iter().enumerate() {
+            let field = format!("emitters[{k}]");
+            let c = finite3(&format!("{field}.centre"), e.centre)?;
+            let v = finite3(&format!("{field}.velocity"), e.velocity)?;
+            if v.length() <= 0.0 {
+                return Err(invalid(format!("{field}.velocity"), "must be non-zero"));
+            }
+            if !domain.contains(c) {
+                return Err(invalid(
+                    format!("{field}.centre"),
+                    "lies outside the domain",
+                ));
+            }
+            if e.width == 0 {
+                return Err(invalid(format!("{field}.width"), "must be at least 1"));
+            }
+        }
+        let t = &self.time_step;
+        positive("time_step.max_dt", t.max_dt)?;
+        positive("time_step.cfl", t.cfl)?;
+        positive("time_step.force_factor", t.force_factor)?;
+        positive("time_step.frame_dt", t.frame_dt)?;
+        if count > self.max_particles {
+            return Err(invalid(
+                "max_particles",
+                format!(
+                    "the blocks hold {count} particles, more than max_particles = {}",
+                    self.max_particles
+                ),
+            ));
+        }
+        if count == 0 && self.emitters.is_empty() {
+            return Err(invalid(
+                "blocks",
+                "the scene has no fluid: add a block or an emitter",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The fluid parameters.
+    pub fn fluid_params(&self) -> FluidParams {
+        let f = &self.fluid;
+        FluidParams {
+            h: f.h,
+            rest_density: f.rest_density,
+            stiffness: f.stiffness,
+            viscosity: f.viscosity,
+            surface_tension: f.surface_tension,
+            surface_threshold: f.surface_threshold,
+            gravity: Vec3::from(f.gravity),
+            negative_pressure_scale: f.negative_pressure_scale,
+        }
+    }
+
+    /// The boundary: domain and obstacles, inelastic walls.
+    pub fn boundary(&self) -> Boundary {
+        let mut b = Boundary::new(Aabb::new(self.domain.min.into(), self.domain.max.into()));
+        b.obstacles = self
+            .obstacles
+            .iter()
+            .map(|o| match *o {
+                ObstacleSpec::Box { min, max } => Obstacle::Box(Aabb::new(min.into(), max.into())),
+                ObstacleSpec::Sphere { centre, radius } => Obstacle::Sphere {
+                    centre: centre.into(),
+                    radius,
+                },
+            })
+            .collect();
+        b
+    }
+
+    /// The particles of the blocks, on a lattice of `spacing` (cell-centred),
+    /// skipping lattice points inside obstacles.
+    pub fn particles(&self) -> Result<Particles> {
+        self.validate()?;
+        let mass = self.fluid_params().particle_mass(self.spacing)?;
+        let boundary = self.boundary();
+        let mut p = Particles::new();
+        for b in &self.blocks {
+            let min = Vec3::from(b.min);
+            let n = lattice_count(min, b.max.into(), self.spacing);
+            for k in 0..n[2] {
+                for j in 0..n[1] {
+                    for i in 0..n[0] {
+                        let x =
+                            min + (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * self.spacing;
+                        if boundary.admits(x) {
+                            p.push(x, b.velocity.into(), mass);
+                        }
+                    }
+                }
+            }
+        }
+        Ok(p)
+    }
+
+    /// A ready-to-run world: particles, default program, emitters appended.
+    pub fn build_world(&self) -> Result<World> {
+        let particles = self.particles()?;
+        let t = &self.time_step;
+        let stepping = TimeStepping {
+            max_dt: t.max_dt,
+            cfl: t.cfl,
+            force_factor: t.force_factor,
+            ..TimeStepping::default()
+        };
+        let mass = self.fluid_params().particle_mass(self.spacing)?;
+        let mut world = World::new(particles, self.fluid_params(), self.boundary(), stepping)?;
+        for e in &self.emitters {
+            let emitter = Emitter::new(
+                e.centre.into(),
+                e.velocity.into(),
+                e.width,
+                self.spacing,
+                mass,
+                self.max_particles,
+            )?;
+            world.program_mut().insert_before("grid", emitter);
+        }
+        Ok(world)
+    }
+
+    /// Common parameters of the built-in scenes: h = 2 × spacing.
+    fn base(name: &str, domain: Vec3, spacing: f32) -> Self {
+        let h = 2.0 * spacing;
+        Scene {
+            name: name.into(),
+            domain: BoxSpec {
+                min: [0.0; 3],
+                max: domain.to_array(),
+            },
+            fluid: FluidSpec {
+                h,
+                rest_density: 1000.0,
+                // Sound speed √k ≈ 10 × the fastest expected flow (√(2 g · 1 m)).
+                stiffness: 2000.0,
+                viscosity: 0.5,
+                surface_tension: 0.0,
+                surface_threshold: 0.1 / h,
+                gravity: [0.0, -9.81, 0.0],
+                negative_pressure_scale: 0.0,
+            },
+            spacing,
+            blocks: Vec::new(),
+            obstacles: Vec::new(),
+            emitters: Vec::new(),
+            time_step: TimeStepSpec {
+                max_dt: 2e-3,
+                cfl: default_cfl(),
+                force_factor: default_force_factor(),
+                frame_dt: 1.0 / 60.0,
+            },
+            max_particles: default_max_particles(),
+            render: RenderSpec {
+                camera: [domain.x * 0.5, domain.y * 0.8, domain.x * 1.6 + domain.z],
+                look_at: [domain.x * 0.5, domain.y * 0.2, domain.z * 0.5],
+                fov_y: 45.0,
+            },
+        }
+    }
+
+    /// The dam break: a water column of width `a` and height 2a at the left of a
+    /// tank 4a long and 2.5a high, `depth` deep (a thin slab when depth is a few
+    /// spacings, full 3D when depth ≈ a).
+    pub fn dam_break(a: f32, depth: f32, spacing: f32) -> Self {
+        let mut s = Self::base("dam break", Vec3::new(4.0 * a, 2.5 * a, depth), spacing);
+        s.blocks.push(BlockSpec {
+            min: [0.0; 3],
+            max: [a, 2.0 * a, depth],
+            velocity: [0.0; 3],
+        });
+        s
+    }
+
+    /// Two columns released from both ends of the tank.
+    pub fn double_dam_break(a: f32, depth: f32, spacing: f32) -> Self {
+        let mut s = Self::base(
+            "double dam break",
+            Vec3::new(5.0 * a, 2.5 * a, depth),
+            spacing,
+        );
+        for x0 in [0.0, 4.0 * a] {
+            s.blocks.push(BlockSpec {
+                min: [x0, 0.0, 0.0],
+                max: [x0 + a, 2.0 * a, depth],
+                velocity: [0.0; 3],
+            });
+        }
+        s
+    }
+
+    /// A cube of water of side `a` falling into a pool of depth a/2 in a tank 3a
+    /// wide and deep.
+    pub fn drop_into_pool(a: f32, spacing: f32) -> Self {
+        let w = 3.0 * a;
+        let mut s = Self::base("drop into pool", Vec3::new(w, 3.0 * a, w), spacing);
+        s.blocks.push(BlockSpec {
+            min: [0.0; 3],
+            max: [w, 0.5 * a, w],
+            velocity: [0.0; 3],
+        });
+        s.blocks.push(BlockSpec {
+            min: [a, 1.6 * a, a],
+            max: [2.0 * a, 2.6 * a, 2.0 * a],
+            velocity: [0.0, -1.0, 0.0],
+        });
+        s
+    }
+}

@@ -1,0 +1,233 @@
+//! The SPH solver against physics: hydrostatics, momentum and mass conservation,
+//! containment and the dam-break front speed, and determinism across threads.
+
+use glam::Vec3;
+use sph_core::{Aabb, Boundary, FluidParams, Particles, Scene, TimeStepping, World};
+
+fn momentum(p: &Particles) -> [f64; 3] {
+    let mut m = [0.0f64; 3];
+    for (&mass, v) in p.masses().iter().zip(p.velocities()) {
+        for a in 0..3 {
+            m[a] += mass as f64 * v[a] as f64;
+        }
+    }
+    m
+}
+
+/// Deterministic pseudo-random numbers in [-1, 1).
+fn noise(seed: &mut u64) -> f32 {
+    *seed = seed
+        .wrapping_mul(6_364_136_223_846_793_005)
+        .wrapping_add(1_442_695_040_888_963_407);
+    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+}
+
+#[test]
+fn free_cluster_conserves_momentum_and_mass() {
+    let spacing = 0.02;
+    let mut params = FluidParams::water(2.0 * spacing);
+    params.gravity = Vec3::ZERO;
+    params.surface_tension = 0.0; // MCG03 surface tension is not pairwise symmetric
+    params.stiffness = 500.0;
+    let mass = params.particle_mass(spacing).unwrap();
+    let mut particles = Particles::new();
+    let mut seed = 7;
+    for k in 0..8 {
+        for j in 0..8 {
+            for i in 0..8 {
+                let x = Vec3::new(i as f32, j as f32, k as f32) * spacing
+                    + Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed))
+                        * 0.2
+                        * spacing;
+                let v = Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed)) * 0.5;
+                particles.push(x, v, mass);
+            }
+        }
+    }
+    let m0 = particles.total_mass();
+    let p0 = momentum(&particles);
+    let scale: f64 = particles
+        .masses()
+        .iter()
+        .zip(particles.velocities())
+        .map(|(&m, v)| m as f64 * v.length() as f64)
+        .sum();
+    // Walls far beyond reach: nothing but internal forces acts.
+    let boundary = Boundary::new(Aabb::new(Vec3::splat(-100.0), Vec3::splat(100.0)));
+    let mut world = World::new(particles, params, boundary, TimeStepping::default()).unwrap();
+    for _ in 0..1000 {
+        world.step().unwrap();
+    }
+    let p1 = momentum(&world.particles);
+    let drift =
+        ((p1[0] - p0[0]).powi(2) + (p1[1] - p0[1]).powi(2) + (p1[2] - p0[2]).powi(2)).sqrt();
+    println!("momentum drift {drift:e} of Σ m|v| = {scale:e} after 1000 steps");
+    assert!(
+        drift <= 1e-5 * scale,
+        "momentum drift {drift:e} vs Σ m|v| {scale:e}"
+    );
+    assert_eq!(world.particles.total_mass(), m0, "mass changed");
+    assert_eq!(world.particles.len(), 512);
+}
+
+/// Known failure, kept visible (`cargo test -- --ignored`): the tank does not
+/// settle. Measured at this commit: mean interior density error 21 %, pressure
+/// slope −60 % off ρ0 g, rms speed 3.8 m/s after 1.5 s; kinetic energy grows with
+/// time under gravity and with the stiffness k, while a free cube and a cube in a
+/// box without gravity calm down. The wall treatment and the spiky/poly6 pressure
+/// force are the suspects; see the issue note.
+#[test]
+#[ignore = "known failure: the hydrostatic tank does not settle yet (issue 3)"]
+fn hydrostatic_tank() {
+    let spacing = 0.02;
+    let h = 2.0 * spacing;
+    let (w, depth) = (0.4f32, 0.4f32);
+    let mut scene = Scene::dam_break(w, w, spacing);
+    scene.domain.max = [w, 0.6, w];
+    scene.blocks[0].max = [w, depth, w];
+    scene.fluid.stiffness = 500.0;
+    scene.fluid.viscosity = 1.0;
+    let mut world = scene.build_world().unwrap();
+    while world.time() < 1.5 {
+        world.step().unwrap();
+    }
+    let p = &world.particles;
+    let top = p.positions().iter().map(|x| x.y).fold(f32::MIN, f32::max);
+    // Interior: more than h from the side walls, the floor and the free surface.
+    let interior: Vec<usize> = (0..p.len())
+        .filter(|&i| {
+            let x = p.positions()[i];
+            x.x > h && x.x < w - h && x.z > h && x.z < w - h && x.y > h && x.y < top - h
+        })
+        .collect();
+    assert!(
+        interior.len() > 1000,
+        "{} interior particles",
+        interior.len()
+    );
+    let rho0 = scene.fluid.rest_density as f64;
+    let density_error = interior
+        .iter()
+        .map(|&i| (p.densities()[i] as f64 - rho0).abs() / rho0)
+        .sum::<f64>()
+        / interior.len() as f64;
+    // Least-squares slope of pressure against depth.
+    let n = interior.len() as f64;
+    let (mut sd, mut sp, mut sdd, mut sdp) = (0.0, 0.0, 0.0, 0.0);
+    for &i in &interior {
+        let d = (top - p.positions()[i].y) as f64;
+        let pr = p.pressures()[i] as f64;
+        sd += d;
+        sp += pr;
+        sdd += d * d;
+        sdp += d * pr;
+    }
+    let slope = (n * sdp - sd * sp) / (n * sdd - sd * sd);
+    let rho_g = rho0 * 9.81;
+    let rms_speed = (p
+        .velocities()
+        .iter()
+        .map(|v| v.length_squared() as f64)
+        .sum::<f64>()
+        / p.len() as f64)
+        .sqrt();
+    println!(
+        "density error {:.3} %, dp/d(depth) = {slope:.1} Pa/m vs ρ0 g = {rho_g:.1} ({:+.2} %), rms speed {rms_speed:.4} m/s",
+        100.0 * density_error,
+        100.0 * (slope - rho_g) / rho_g
+    );
+    assert!(density_error < 0.03, "mean density error {density_error}");
+    assert!(
+        (slope - rho_g).abs() < 0.1 * rho_g,
+        "slope {slope} vs ρ0 g {rho_g}"
+    );
+    assert!(rms_speed < 0.02, "rms speed {rms_speed} m/s");
+}
+
+#[test]
+fn dam_break_soak_stays_contained_and_subcritical() {
+    let (a, spacing) = (0.2f32, 0.02f32);
+    let scene = Scene::dam_break(a, 3.0 * spacing, spacing);
+    let boundary = scene.boundary();
+    let mut world = scene.build_world().unwrap();
+    let front = |w: &World| {
+        w.particles
+            .positions()
+            .iter()
+            .map(|x| x.x)
+            .fold(f32::MIN, f32::max)
+    };
+    let front0 = front(&world);
+    let ritter = 2.0 * (9.81f32 * 2.0 * a).sqrt();
+    let mut fastest = 0.0f32;
+    for step in 0..20_000 {
+        world.step().unwrap();
+        let t = world.time() as f32;
+        // Until the front reaches the far wall, compare with Ritter's dry-bed speed.
+        let f = front(&world);
+        if f < scene.domain.max[0] - scene.fluid.h {
+            fastest = fastest.max((f - front0 - scene.fluid.h) / t);
+            assert!(
+                f - front0 <= ritter * t + scene.fluid.h,
+                "step {step}: front moved {} m in {t} s, Ritter allows {}",
+                f - front0,
+                ritter * t
+            );
+        }
+        if step % 1000 == 0 {
+            let outside = world
+                .particles
+                .positions()
+                .iter()
+                .filter(|&&x| !boundary.admits(x))
+                .count();
+            assert_eq!(outside, 0, "step {step}: particles outside the domain");
+        }
+    }
+    let outside = world
+        .particles
+        .positions()
+        .iter()
+        .filter(|&&x| !boundary.admits(x))
+        .count();
+    assert_eq!(outside, 0);
+    assert!(world.particles.positions().iter().all(|x| x.is_finite()));
+    println!(
+        "{} particles, {} steps, t = {:.3} s; front speed (minus h) at most {fastest:.3} m/s vs Ritter {ritter:.3} m/s",
+        world.particles.len(),
+        world.steps(),
+        world.time()
+    );
+}
+
+#[test]
+fn identical_for_1_2_and_4_threads() {
+    let scene = Scene::dam_break(0.16, 0.08, 0.02);
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let mut world = scene.build_world().unwrap();
+                for _ in 0..200 {
+                    world.step().unwrap();
+                }
+                let p = &world.particles;
+                let bits = |v: &[Vec3]| {
+                    v.iter()
+                        .flat_map(|x| x.to_array().map(f32::to_bits))
+                        .collect::<Vec<_>>()
+                };
+                (
+                    p.ids().to_vec(),
+                    bits(p.positions()),
+                    bits(p.velocities()),
+                    world.time().to_bits(),
+                )
+            })
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(4));
+}
