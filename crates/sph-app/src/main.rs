@@ -1,19 +1,13 @@
 //! The sph-splat demo.
 //!
-//! Until the solver, extractor and renderer land, it sets up the default scene's
-//! particles (the dam-break water column), builds the neighbour grid over them and
-//! prints what it did.
+//! Until the extractor and renderer land, it runs the default scene (the slab dam
+//! break, or a scene file given as the first argument) headless for two seconds of
+//! simulated time and prints what it did.
 
 use std::process::ExitCode;
 use std::time::Instant;
 
-use sph_core::{NeighbourGrid, Particles, glam::Vec3};
-
-/// Default scene: a water column of width a = 0.3 m and height 2a, depth 0.15 m, at
-/// spacing h/2 with h = 0.02 m (about 33 neighbours per particle).
-const A: f32 = 0.3;
-const H: f32 = 0.02;
-const REST_DENSITY: f32 = 1000.0;
+use sph_core::Scene;
 
 fn main() -> ExitCode {
     match run() {
@@ -26,40 +20,45 @@ fn main() -> ExitCode {
 }
 
 fn run() -> Result<(), sph_core::Error> {
-    let spacing = H / 2.0;
-    let mass = REST_DENSITY * spacing.powi(3);
-    let dims = [A, 2.0 * A, A / 2.0].map(|l| (l / spacing).round() as usize);
-    let mut particles = Particles::new();
-    for k in 0..dims[2] {
-        for j in 0..dims[1] {
-            for i in 0..dims[0] {
-                let p = (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * spacing;
-                particles.push(p, Vec3::ZERO, mass);
-            }
+    let scene = match std::env::args().nth(1) {
+        Some(path) => Scene::load(path)?,
+        None => Scene::dam_break(0.25, 0.08, 0.02),
+    };
+    let mut world = scene.build_world()?;
+    println!(
+        "scene `{}`: {} particles, h = {} m, spacing = {} m, k = {} m²/s², μ = {} Pa·s",
+        scene.name,
+        world.particles.len(),
+        scene.fluid.h,
+        scene.spacing,
+        scene.fluid.stiffness,
+        scene.fluid.viscosity
+    );
+    let start = Instant::now();
+    let frames = (2.0 / scene.time_step.frame_dt).round() as u32;
+    let mut substeps = 0u64;
+    for frame in 0..frames {
+        let report = world.advance(scene.time_step.frame_dt)?;
+        substeps += report.substeps as u64;
+        if (frame + 1) % 30 == 0 {
+            let front = world
+                .particles
+                .positions()
+                .iter()
+                .map(|x| x.x)
+                .fold(f32::MIN, f32::max);
+            println!(
+                "t = {:.2} s: {} substeps so far, dt in [{:.2e}, {:.2e}] s, surge front at x = {front:.3} m",
+                report.time, substeps, report.dt_range.0, report.dt_range.1
+            );
         }
     }
+    let wall = start.elapsed().as_secs_f64();
     println!(
-        "default scene: dam-break column {A} m × {} m × {} m, {} particles at spacing {spacing} m, h = {H} m",
-        2.0 * A,
-        A / 2.0,
-        particles.len()
+        "simulated {:.2} s in {substeps} steps, {wall:.2} s of wall time ({:.2} M particle-steps/s)",
+        world.time(),
+        world.particles.len() as f64 * substeps as f64 / wall / 1e6
     );
-
-    let t = Instant::now();
-    let grid = NeighbourGrid::build(particles.positions(), H)?;
-    let built = t.elapsed();
-    let t = Instant::now();
-    let counts = grid.par_map(|_, n| n.count() as u32 - 1);
-    let queried = t.elapsed();
-    let pairs: u64 = counts.iter().map(|&c| c as u64).sum();
-    println!(
-        "neighbour grid: {} occupied cells, built in {:.2} ms; {pairs} neighbour pairs \
-         ({:.1} per particle) enumerated in {:.2} ms",
-        grid.cell_count(),
-        built.as_secs_f64() * 1e3,
-        pairs as f64 / particles.len().max(1) as f64,
-        queried.as_secs_f64() * 1e3,
-    );
-    println!("the solver, surfel extraction and rendering are not implemented yet (see README.md)");
+    println!("surfel extraction and rendering are not implemented yet (see README.md)");
     Ok(())
 }
