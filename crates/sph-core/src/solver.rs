@@ -217,18 +217,30 @@ fn grid<'a>(ctx: &'a Context, who: &'static str) -> Result<&'a crate::NeighbourG
 /// Walls within h add the density of the fluid "behind" them (see
 /// [`crate::boundary`]).
 #[derive(Debug, Clone)]
-pub struct DensityPressure {
-    params: FluidParams,
-    kernels: Kernels,
-    boundary: Boundary,
-}
+pub struct DensityPressure(FluidModel);
 
 impl DensityPressure {
     /// For these parameters (validated by [`World::new`]) and walls.
     pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
+        FluidModel::new(params, boundary).map(Self)
+    }
+}
+
+/// What the density and force processors share: parameters, kernels, walls.
+#[derive(Debug, Clone)]
+struct FluidModel {
+    params: FluidParams,
+    kernels: Kernels,
+    wall: WallKernel,
+    boundary: Boundary,
+}
+
+impl FluidModel {
+    fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         Ok(Self {
             params,
             kernels: Kernels::new(params.h)?,
+            wall: WallKernel::new(params.h),
             boundary,
         })
     }
@@ -241,17 +253,20 @@ impl Processor for DensityPressure {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let grid = grid(ctx, "density")?;
         let masses = particles.masses();
-        let poly6 = self.kernels.poly6;
-        let wall = WallKernel::new(self.params.h);
-        let (b, rho0, h) = (&self.boundary, self.params.rest_density, self.params.h);
+        let FluidModel {
+            params,
+            kernels,
+            wall,
+            boundary: b,
+        } = &self.0;
+        let (poly6, rho0, h) = (kernels.poly6, params.rest_density, params.h);
         let rho = grid.par_map(|_, nb| {
             let mut rho = 0.0f32;
             nb.for_each(|j, _, r2| rho += masses[j] * poly6.value_r2(r2));
             b.for_each_wall_within(nb.centre(), h, |d, _| rho += rho0 * wall.volume_fraction(d));
             rho
         });
-        let (k, rho0) = (self.params.stiffness, self.params.rest_density);
-        let suction = self.params.negative_pressure_scale;
+        let (k, suction) = (params.stiffness, params.negative_pressure_scale);
         let f = particles.fields_mut();
         f.densities.copy_from_slice(&rho);
         f.pressures
@@ -274,20 +289,12 @@ impl Processor for DensityPressure {
 /// Walls within h push back with the pressure force of fluid at rest density and
 /// the particle's own pressure behind them (see [`crate::boundary`]).
 #[derive(Debug, Clone)]
-pub struct Forces {
-    params: FluidParams,
-    kernels: Kernels,
-    boundary: Boundary,
-}
+pub struct Forces(FluidModel);
 
 impl Forces {
     /// For these parameters (validated by [`World::new`]) and walls.
     pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
-        Ok(Self {
-            params,
-            kernels: Kernels::new(params.h)?,
-            boundary,
-        })
+        FluidModel::new(params, boundary).map(Self)
     }
 }
 
@@ -307,10 +314,8 @@ impl Processor for Forces {
             poly6,
             spiky,
             viscosity,
-        } = self.kernels;
-        let prm = self.params;
-        let wall = WallKernel::new(prm.h);
-        let b = &self.boundary;
+        } = self.0.kernels;
+        let (prm, wall, b) = (self.0.params, self.0.wall, &self.0.boundary);
         let out = grid.par_map(|i, nb| {
             let pi = p[i] / (rho[i] * rho[i]);
             let mut a_p = Vec3::ZERO;

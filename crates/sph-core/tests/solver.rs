@@ -173,7 +173,7 @@ fn dam_break_soak_stays_contained_and_subcritical() {
                 ritter * t
             );
         }
-        if step % 1000 == 0 {
+        if step % 1000 == 0 || step == 19_999 {
             let outside = world
                 .particles
                 .positions()
@@ -183,13 +183,6 @@ fn dam_break_soak_stays_contained_and_subcritical() {
             assert_eq!(outside, 0, "step {step}: particles outside the domain");
         }
     }
-    let outside = world
-        .particles
-        .positions()
-        .iter()
-        .filter(|&&x| !boundary.admits(x))
-        .count();
-    assert_eq!(outside, 0);
     assert!(world.particles.positions().iter().all(|x| x.is_finite()));
     println!(
         "{} particles, {} steps, t = {:.3} s; front speed (minus h) at most {fastest:.3} m/s vs Ritter {ritter:.3} m/s",
