@@ -13,6 +13,7 @@
 
 pub mod boundary;
 pub mod error;
+pub mod export;
 pub mod grid;
 pub mod kernels;
 pub mod particles;
@@ -22,6 +23,7 @@ pub mod solver;
 
 pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
+pub use export::{FrameWriter, PointCloud};
 pub use grid::{NeighbourGrid, Neighbourhood};
 pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
