@@ -266,13 +266,15 @@ fn bad(what: &str, reason: impl Into<String>) -> Error {
     }
 }
 
-fn header_line(r: &mut impl BufRead, what: &str) -> Result<String> {
+/// The next text line, `None` at the end of the input.
+fn next_line(r: &mut impl BufRead, what: &str) -> Result<Option<String>> {
     let mut line = String::new();
     let n = r.read_line(&mut line).map_err(|e| io_err(what, e))?;
-    if n == 0 {
-        return Err(bad(what, "unexpected end of header"));
-    }
-    Ok(line.trim_end().to_string())
+    Ok((n > 0).then(|| line.trim_end().to_string()))
+}
+
+fn header_line(r: &mut impl BufRead, what: &str) -> Result<String> {
+    next_line(r, what)?.ok_or_else(|| bad(what, "unexpected end of header"))
 }
 
 fn floats(r: &mut impl Read, n: usize, big_endian: bool, what: &str) -> Result<Vec<f32>> {
@@ -377,11 +379,7 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
     }
     let mut cloud = LoadedCloud::default();
     let mut n = 0usize;
-    loop {
-        let line = match header_line(&mut r, what) {
-            Ok(l) => l,
-            Err(_) => break, // end of file
-        };
+    while let Some(line) = next_line(&mut r, what)? {
         let words: Vec<&str> = line.split_whitespace().collect();
         let count = |s: &str| {
             s.parse::<usize>()
