@@ -29,7 +29,7 @@ pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program};
 pub use scene::Scene;
-pub use solver::{FluidParams, TimeStepping, World};
+pub use solver::{FluidParams, PressureKernel, TimeStepping, World};
 
 /// Re-export of the vector maths crate used in the public API.
 pub use glam;

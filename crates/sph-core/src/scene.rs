@@ -92,6 +92,9 @@ pub struct FluidSpec {
     /// Factor on negative pressures in [0, 1] (0 = clamp, the default).
     #[serde(default)]
     pub negative_pressure_scale: f32,
+    /// Kernel of the pressure force: `"poly6"` (default) or `"spiky"`.
+    #[serde(default)]
+    pub pressure_kernel: crate::solver::PressureKernel,
 }
 
 /// An obstacle.
@@ -350,6 +353,7 @@ impl Scene {
             surface_threshold: f.surface_threshold,
             gravity: Vec3::from(f.gravity),
             negative_pressure_scale: f.negative_pressure_scale,
+            pressure_kernel: f.pressure_kernel,
         }
     }
 
@@ -440,6 +444,7 @@ impl Scene {
                 surface_threshold: 0.1 / h,
                 gravity: [0.0, -9.81, 0.0],
                 negative_pressure_scale: 0.0,
+                pressure_kernel: Default::default(),
             },
             spacing,
             blocks: Vec::new(),
