@@ -1,0 +1,279 @@
+//! The extractor against the field it samples: placement residuals, normals,
+//! coverage of independently found iso-surface points, degenerate inputs and
+//! determinism.
+
+use glam::Vec3;
+use sph_core::Scene;
+use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
+use surfel_extract::ldc::extract_ldc;
+use surfel_extract::{ColourField, ExtractParams, Mode, extract_field, extract_points};
+
+const SPACING: f32 = 0.01;
+const H: f32 = 2.0 * SPACING;
+
+/// Deterministic pseudo-random numbers in [-1, 1).
+fn noise(seed: &mut u64) -> f32 {
+    *seed = seed
+        .wrapping_mul(6_364_136_223_846_793_005)
+        .wrapping_add(1_442_695_040_888_963_407);
+    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+}
+
+/// A cubic lattice of `SPACING` cut by `keep`, each point moved by up to
+/// `JITTER` × spacing per axis (a fluid is never a perfect lattice).
+fn lattice(n: i32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec3> {
+    const JITTER: f32 = 0.3;
+    let mut seed = 11;
+    let mut out = Vec::new();
+    for k in -n..=n {
+        for j in -n..=n {
+            for i in -n..=n {
+                let x = Vec3::new(i as f32, j as f32, k as f32) * SPACING;
+                let j = Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed));
+                if keep(x) {
+                    out.push(x + JITTER * SPACING * j);
+                }
+            }
+        }
+    }
+    out
+}
+
+fn sphere() -> Vec<Vec3> {
+    lattice(9, |x| x.length() <= 8.5 * SPACING)
+}
+
+fn block() -> Vec<Vec3> {
+    lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING)
+}
+
+/// A dam-break frame: the thin-slab scene after 0.4 s of collapse.
+fn dam_break_frame() -> sph_core::Particles {
+    let mut world = Scene::dam_break(0.2, 0.06, 0.02).build_world().unwrap();
+    world.advance(0.4).unwrap();
+    world.particles
+}
+
+struct Quality {
+    surfels: usize,
+    coverage: f64,
+    efficiency: f64,
+}
+
+fn check(name: &str, field: &ColourField, params: &ExtractParams) -> Quality {
+    let out = extract_field(field, params).unwrap();
+    let r = residuals(field, params.iso, &out.surfels);
+    let points = iso_points(field, params.iso, 0.25 * H);
+    let coverage = covered_fraction(&out.surfels, &points, 0.1 * H);
+    println!(
+        "{name} {:?}: {} surfels from {} particles, residual median {:.2e} p95 {:.2e}, normal median {:.2}°, coverage {:.2} % of {} iso points, efficiency {:.2}, stats {:?}",
+        params.mode,
+        out.surfels.len(),
+        field.len(),
+        r.median,
+        r.p95,
+        r.median_angle_deg,
+        100.0 * coverage,
+        points.len(),
+        out.stats.efficiency(),
+        out.stats
+    );
+    assert!(r.median < 0.01, "{name}: median residual {}", r.median);
+    assert!(r.p95 < 0.05, "{name}: p95 residual {}", r.p95);
+    assert!(
+        r.median_angle_deg < 5.0,
+        "{name}: median angle {}",
+        r.median_angle_deg
+    );
+    Quality {
+        surfels: out.surfels.len(),
+        coverage,
+        efficiency: out.stats.efficiency(),
+    }
+}
+
+fn compare_modes(name: &str, field: &ColourField) {
+    let params = ExtractParams::new(H);
+    let covered = check(name, field, &params);
+    let thesis = check(name, field, &params.thesis());
+    println!(
+        "{name}: coverage {:.2} % covered mode ({} surfels, efficiency {:.2}) vs {:.2} % thesis mode ({} surfels, efficiency {:.2})",
+        100.0 * covered.coverage,
+        covered.surfels,
+        covered.efficiency,
+        100.0 * thesis.coverage,
+        thesis.surfels,
+        thesis.efficiency
+    );
+    assert!(
+        covered.coverage >= 0.99,
+        "{name}: coverage {}",
+        covered.coverage
+    );
+    assert!(covered.coverage >= thesis.coverage);
+}
+
+#[test]
+fn sphere_of_particles() {
+    compare_modes(
+        "sphere",
+        &ColourField::from_positions(&sphere(), H).unwrap(),
+    );
+}
+
+#[test]
+fn block_of_particles() {
+    compare_modes("block", &ColourField::from_positions(&block(), H).unwrap());
+}
+
+#[test]
+fn dam_break_frame_is_covered() {
+    let p = dam_break_frame();
+    let field = ColourField::from_particles(&p, 0.04).unwrap();
+    let params = ExtractParams::new(0.04);
+    let points = iso_points(&field, 0.5, 0.01);
+    let mut figures = Vec::new();
+    for mode in [Mode::Covered, Mode::Thesis] {
+        let out = extract_field(&field, &ExtractParams { mode, ..params }).unwrap();
+        let r = residuals(&field, 0.5, &out.surfels);
+        let coverage = covered_fraction(&out.surfels, &points, 0.004);
+        println!(
+            "dam break {mode:?}: {} surfels from {} particles, residual median {:.2e} p95 {:.2e}, normal {:.2}°, coverage {:.2} %, efficiency {:.2}",
+            out.surfels.len(),
+            p.len(),
+            r.median,
+            r.p95,
+            r.median_angle_deg,
+            100.0 * coverage,
+            out.stats.efficiency()
+        );
+        assert!(
+            r.median < 0.01 && r.p95 < 0.05 && r.median_angle_deg < 5.0,
+            "{r:?}"
+        );
+        figures.push(coverage);
+    }
+    assert!(figures[0] >= 0.99, "covered mode: {}", figures[0]);
+}
+
+#[test]
+fn iterations_and_ldc_stay_on_the_surface() {
+    let field = ColourField::from_positions(&sphere(), H).unwrap();
+    for iterations in 1..=3 {
+        let params = ExtractParams {
+            iterations,
+            ..ExtractParams::new(H)
+        };
+        let out = extract_field(&field, &params).unwrap();
+        let r = residuals(&field, 0.5, &out.surfels);
+        println!(
+            "{iterations} iterations: {} surfels, {r:?}",
+            out.surfels.len()
+        );
+        assert!(r.p95 < 0.05, "{iterations} iterations: {r:?}");
+    }
+    let ldc = extract_ldc(&field, &ExtractParams::new(H), 0.25 * H).unwrap();
+    let r = residuals(&field, 0.5, &ldc.surfels);
+    let points = iso_points(&field, 0.5, 0.25 * H);
+    let coverage = covered_fraction(&ldc.surfels, &points, 0.1 * H);
+    println!(
+        "LDC: {} surfels, {r:?}, coverage {coverage}",
+        ldc.surfels.len()
+    );
+    assert!(r.median < 0.01 && r.median_angle_deg < 5.0, "{r:?}");
+    assert!(coverage > 0.99, "LDC coverage {coverage}");
+}
+
+#[test]
+fn lone_particle_gets_its_analytic_iso_sphere() {
+    let centre = Vec3::new(0.3, -0.2, 0.1);
+    let out = extract_points(&[centre], &ExtractParams::new(H)).unwrap();
+    let radius = H * (1.0 - 0.5f32.cbrt()).sqrt();
+    assert_eq!(out.stats.lone, 1);
+    assert_eq!(out.surfels.len(), 14);
+    for s in &out.surfels {
+        let d = s.position - centre;
+        assert!((d.length() - radius).abs() < 1e-4 * H, "{}", d.length());
+        assert!((d.normalize() - s.normal).length() < 1e-5);
+    }
+    let points = iso_points(
+        &ColourField::from_positions(&[centre], H).unwrap(),
+        0.5,
+        0.05 * H,
+    );
+    assert!(covered_fraction(&out.surfels, &points, 0.1 * H) >= 0.99);
+}
+
+#[test]
+fn degenerate_sets_give_surfels_on_the_surface() {
+    let two = vec![Vec3::ZERO, Vec3::new(0.6 * H, 0.0, 0.0)];
+    let line: Vec<Vec3> = (0..20)
+        .map(|i| Vec3::new(i as f32 * SPACING, 0.0, 0.0))
+        .collect();
+    let plane: Vec<Vec3> = (0..400)
+        .map(|i| Vec3::new((i % 20) as f32, 0.0, (i / 20) as f32) * SPACING)
+        .collect();
+    let coincident = vec![Vec3::splat(0.5); 200];
+    for (name, set) in [
+        ("two", two),
+        ("line", line),
+        ("plane", plane),
+        ("coincident", coincident),
+    ] {
+        let field = ColourField::from_positions(&set, H).unwrap();
+        let out = extract_field(&field, &ExtractParams::new(H)).unwrap();
+        let r = residuals(&field, 0.5, &out.surfels);
+        let points = iso_points(&field, 0.5, 0.25 * H);
+        let coverage = covered_fraction(&out.surfels, &points, 0.1 * H);
+        println!(
+            "{name}: {} surfels, {r:?}, coverage {coverage:.4}",
+            out.surfels.len()
+        );
+        assert!(!out.surfels.is_empty(), "{name}");
+        assert!(r.median < 0.02 && r.p95 < 0.05, "{name}: {r:?}");
+        assert!(coverage >= 0.95, "{name}: coverage {coverage}");
+    }
+    let empty = extract_points(&[], &ExtractParams::new(H)).unwrap();
+    assert!(empty.surfels.is_empty());
+}
+
+#[test]
+fn bad_input_is_an_error() {
+    let params = ExtractParams::new(H);
+    assert!(extract_points(&[Vec3::ZERO, Vec3::NAN], &params).is_err());
+    assert!(extract_points(&[Vec3::ZERO], &ExtractParams::new(0.0)).is_err());
+    assert!(extract_points(&[Vec3::ZERO], &ExtractParams::new(-1.0)).is_err());
+    let err = extract_points(
+        &[Vec3::ZERO],
+        &ExtractParams {
+            iterations: 7,
+            ..params
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("iterations"), "{err}");
+    assert!(
+        extract_ldc(
+            &ColourField::from_positions(&[Vec3::ZERO], H).unwrap(),
+            &params,
+            0.0
+        )
+        .is_err()
+    );
+}
+
+#[test]
+fn identical_for_any_thread_count() {
+    let points = sphere();
+    let run = |threads| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| extract_points(&points, &ExtractParams::new(H)).unwrap())
+    };
+    let (a, b) = (run(1), run(3));
+    assert_eq!(a.surfels, b.surfels);
+    assert_eq!(a.stats.evaluations, b.stats.evaluations);
+}
