@@ -45,9 +45,10 @@ fn extraction(c: &mut Criterion) {
                 s.efficiency()
             );
             group.throughput(Throughput::Elements(s.surfels as u64));
-            group.bench_function(BenchmarkId::new(format!("{label}/iterations"), iterations), |b| {
-                b.iter(|| black_box(extract(&particles, &params).expect("extraction")))
-            });
+            group.bench_function(
+                BenchmarkId::new(format!("{label}/iterations"), iterations),
+                |b| b.iter(|| black_box(extract(&particles, &params).expect("extraction"))),
+            );
         }
         let params = ExtractParams::new(h);
         let ldc = |p: &Particles| {
