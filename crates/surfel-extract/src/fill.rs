@@ -100,7 +100,7 @@ pub fn close_holes(field: &ColourField, p: &ExtractParams, surfels: &mut Vec<Sur
                 let index = &index;
                 (0..6).filter_map(move |k| {
                     let a = k as f32 * std::f32::consts::FRAC_PI_3;
-                    let q = s.position + 1.5 * s.radius * (a.cos() * t1 + a.sin() * t2);
+                    let q = s.position + 1.2 * s.radius * (a.cos() * t1 + a.sin() * t2);
                     if index.covered(all, q) {
                         return None;
                     }
