@@ -15,15 +15,12 @@ use crate::fill::SurfelIndex;
 /// change of c − iso found by marching in steps of `spacing` and located by 40
 /// bisections.
 pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Vec<Vec3> {
-    let h = field.h();
-    let (lo, hi) = field.positions().iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &x| (lo.min(x), hi.max(x)),
-    );
-    if !(lo.is_finite() && hi.is_finite() && spacing.is_finite() && spacing > 0.0) {
+    let Some((lo, hi)) = field.support_bounds() else {
+        return Vec::new();
+    };
+    if !(spacing.is_finite() && spacing > 0.0) {
         return Vec::new();
     }
-    let (lo, hi) = (lo - Vec3::splat(h), hi + Vec3::splat(h));
     let n = ((hi - lo) / spacing).ceil().as_uvec3() + 1;
     let f = |x: Vec3| field.sample(x).c - iso;
     let mut rays = Vec::new();

@@ -118,6 +118,18 @@ impl ColourField {
         &self.positions
     }
 
+    /// The particles' bounding box grown by h, outside which c = 0; `None` when
+    /// there are no particles.
+    pub fn support_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let first = *self.positions.first()?;
+        let (lo, hi) = self
+            .positions
+            .iter()
+            .fold((first, first), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        let h = Vec3::splat(self.h());
+        Some((lo - h, hi + h))
+    }
+
     /// The particle volumes m/ρ.
     pub fn volumes(&self) -> &[f32] {
         &self.volumes

@@ -30,20 +30,14 @@ pub fn extract_ldc(field: &ColourField, params: &ExtractParams, spacing: f32) ->
         particles: field.len(),
         ..Default::default()
     };
-    if field.is_empty() {
+    let Some((lo, hi)) = field.support_bounds() else {
         return Ok(Surfels {
             surfels: Vec::new(),
             stats,
         });
-    }
+    };
     let start = Instant::now();
-    let h = field.h();
-    let (lo, hi) = field.positions().iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &x| (lo.min(x), hi.max(x)),
-    );
-    let lo = lo - Vec3::splat(h);
-    let n = (((hi + Vec3::splat(h) - lo) / spacing).ceil().as_dvec3() + 1.0).as_u64vec3();
+    let n = (((hi - lo) / spacing).ceil().as_dvec3() + 1.0).as_u64vec3();
     if n.x * n.y * n.z > MAX_GRID_POINTS {
         return Err(Error::InvalidParameter {
             name: "spacing",
