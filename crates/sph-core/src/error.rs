@@ -127,3 +127,29 @@ pub(crate) fn check_h(h: f32) -> Result<()> {
         })
     }
 }
+
+/// `Ok` if `v` is finite and > 0, else [`Error::InvalidParameter`] naming `name`.
+pub fn positive(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v > 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name,
+            value: v.to_string(),
+            reason: "must be finite and > 0",
+        })
+    }
+}
+
+/// `Ok` if `v` is finite and ≥ 0, else [`Error::InvalidParameter`] naming `name`.
+pub fn non_negative(name: &'static str, v: f32) -> Result<()> {
+    if v.is_finite() && v >= 0.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name,
+            value: v.to_string(),
+            reason: "must be finite and >= 0",
+        })
+    }
+}

@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::boundary::{Boundary, WallKernel};
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, non_negative, positive};
 use crate::kernels::{Kernel, Kernels};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
@@ -135,30 +135,6 @@ impl FluidParams {
             }
         }
         Ok((self.rest_density as f64 / sum) as f32)
-    }
-}
-
-fn positive(name: &'static str, v: f32) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::InvalidParameter {
-            name,
-            value: v.to_string(),
-            reason: "must be finite and > 0",
-        })
-    }
-}
-
-fn non_negative(name: &'static str, v: f32) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(Error::InvalidParameter {
-            name,
-            value: v.to_string(),
-            reason: "must be finite and >= 0",
-        })
     }
 }
 

@@ -38,6 +38,18 @@ impl ColourField {
                 expected: positions.len(),
             });
         }
+        let poly6 = Poly6::new(h)?;
+        let grid = NeighbourGrid::build(positions, h)?;
+        Self::from_parts(grid, positions, volumes.to_vec(), poly6)
+    }
+
+    /// Assembles a field, checking the volumes.
+    fn from_parts(
+        grid: NeighbourGrid,
+        positions: &[Vec3],
+        volumes: Vec<f32>,
+        poly6: Poly6,
+    ) -> Result<Self> {
         if let Some(i) = volumes.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
             return Err(Error::InvalidParameter {
                 name: "volume",
@@ -45,12 +57,10 @@ impl ColourField {
                 reason: "particle volumes m/ρ must be finite and positive",
             });
         }
-        let poly6 = Poly6::new(h)?;
-        let grid = NeighbourGrid::build(positions, h)?;
         Ok(Self {
             grid,
             positions: positions.to_vec(),
-            volumes: volumes.to_vec(),
+            volumes,
             poly6,
             evaluations: AtomicU64::new(0),
         })
@@ -67,13 +77,7 @@ impl ColourField {
             nb.for_each(|_, _, r2| sum += poly6.value_r2(r2));
             1.0 / sum
         });
-        Ok(Self {
-            grid,
-            positions: positions.to_vec(),
-            volumes,
-            poly6,
-            evaluations: AtomicU64::new(0),
-        })
+        Self::from_parts(grid, positions, volumes, poly6)
     }
 
     /// The field of simulated particles, V = m/ρ with the solver's densities, or,
@@ -95,7 +99,7 @@ impl ColourField {
             nb.for_each(|j, _, r2| rho += m[j] * poly6.value_r2(r2));
             m[i] / rho
         });
-        Self::with_volumes(x, &volumes, h)
+        Self::from_parts(grid, x, volumes, poly6)
     }
 
     /// The smoothing length.

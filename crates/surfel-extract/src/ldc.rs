@@ -19,13 +19,7 @@ pub const MAX_GRID_POINTS: u64 = 1 << 27;
 /// LDC surfels at grid `spacing` (m); radius 0.75 × spacing so neighbouring
 /// intersections overlap. `params` gives the iso value and the camera (culling).
 pub fn extract_ldc(field: &ColourField, params: &ExtractParams, spacing: f32) -> Result<Surfels> {
-    if !(spacing.is_finite() && spacing > 0.0) {
-        return Err(Error::InvalidParameter {
-            name: "spacing",
-            value: spacing.to_string(),
-            reason: "must be finite and positive",
-        });
-    }
+    sph_core::error::positive("spacing", spacing)?;
     let mut stats = Stats {
         particles: field.len(),
         ..Default::default()

@@ -38,6 +38,7 @@ mod thesis;
 use std::time::Duration;
 
 use glam::Vec3;
+use sph_core::error::positive;
 use sph_core::{Error, Particles, Result};
 
 pub use field::{ColourField, Sample};
@@ -132,17 +133,6 @@ impl ExtractParams {
 
     /// Checks every field; the error names it.
     pub fn validate(&self) -> Result<()> {
-        let positive = |name: &'static str, v: f32| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(Error::InvalidParameter {
-                    name,
-                    value: v.to_string(),
-                    reason: "must be finite and positive",
-                })
-            }
-        };
         positive("h", self.h)?;
         positive("interior_step", self.interior_step)?;
         positive("discard_step", self.discard_step)?;
