@@ -1,9 +1,50 @@
 //! # splat-render
 //!
-//! Will draw any set of surfels with wgpu by two-pass point splatting: a visibility
-//! pass, an additive attribute pass with the thesis's alpha mask, then per-pixel
-//! normalisation and deferred shading in a compute pass (Vesterlund 2004, 3.2.2,
-//! 3.2.3 and 4.2.2), with a headless backend for tests.
+//! Draws any set of surfels with wgpu by two-pass point splatting (Vesterlund
+//! 2004, 3.2.2, 3.2.3 and 4.2.2; Botsch et al. 2005):
 //!
-//! Not yet implemented: this crate is an empty placeholder in the workspace until
-//! the renderer issue lands. It knows nothing of SPH.
+//! 1. **visibility pass**: each [`Splat`] is drawn as the screen-space rectangle
+//!    bounding its projected disc; the fragment shader intersects the view ray
+//!    with the disc (an exact, perspective-correct ellipse and depth) and writes
+//!    the depth pushed back by ε;
+//! 2. **attribute pass**: the same splats, depth-tested against pass 1 without
+//!    writing depth, add w·(normal, 1) into a float target, w the alpha mask of
+//!    eq. 37;
+//! 3. **normalise and shade** (a compute pass): A = Σ Aᵢwᵢ / Σ wᵢ per pixel and
+//!    the image-based shading of eq. 38–40, or a debug [`View`].
+//!
+//! A [`GpuContext`] is created headless (tests, frame writers) or for a window
+//! surface. The crate knows nothing of SPH.
+//!
+//! ```no_run
+//! use glam::Vec3;
+//! use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer};
+//!
+//! let ctx = GpuContext::headless()?;
+//! let mut renderer = SplatRenderer::new(&ctx, 640, 480, &Environment::procedural())?;
+//! renderer.upload(&ctx, &[Splat::new(Vec3::ZERO, Vec3::Z, 0.5)])?;
+//! let camera = Camera::looking_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO);
+//! renderer.render(&ctx, &camera, &Shading::default())?;
+//! renderer.read_image(&ctx)?.save("splat.png").expect("writable");
+//! # Ok::<(), splat_render::RenderError>(())
+//! ```
+
+mod camera;
+mod context;
+mod error;
+mod readback;
+mod renderer;
+pub mod shading;
+mod splat;
+pub mod textures;
+
+pub use camera::Camera;
+pub use context::{GpuContext, instance_from_env};
+pub use error::{RenderError, Result};
+pub use readback::{Accumulation, read_texture_rgba8};
+pub use renderer::{OUTPUT_FORMAT, SplatRenderer};
+pub use shading::{Shading, View};
+pub use splat::{Splat, alpha_mask};
+pub use textures::Environment;
+
+pub use wgpu;

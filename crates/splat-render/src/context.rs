@@ -1,0 +1,137 @@
+//! [`GpuContext`]: one owner of the wgpu instance, adapter, device and queue.
+
+use crate::error::{RenderError, Result};
+
+/// The device and queue every renderer object is created on, for a window surface
+/// or headless.
+///
+/// Adapter choice honours wgpu's environment variables: `WGPU_BACKEND` (e.g.
+/// `vulkan`, `gl`) restricts the backends, `WGPU_ADAPTER_NAME` picks the first
+/// adapter whose name contains the (case-insensitive) value, `WGPU_POWER_PREF`
+/// (`low`/`high`) steers the default choice.
+#[derive(Debug)]
+pub struct GpuContext {
+    /// The wgpu instance (needed to create window surfaces).
+    pub instance: wgpu::Instance,
+    /// The chosen adapter.
+    pub adapter: wgpu::Adapter,
+    /// The logical device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+}
+
+impl GpuContext {
+    /// A context without a window: render into textures and read them back.
+    ///
+    /// # Errors
+    /// [`RenderError::NoAdapter`] when no adapter exists (with the hint to install
+    /// a software Vulkan driver), [`RenderError::AdapterNotFound`] when
+    /// `WGPU_ADAPTER_NAME` matches none, [`RenderError::RequestDevice`] when the
+    /// adapter refuses a device.
+    pub fn headless() -> Result<Self> {
+        let instance = instance_from_env();
+        pollster::block_on(Self::with_instance(instance, None))
+    }
+
+    /// A context whose adapter can present to `surface`, which must have been
+    /// created from `instance` (see [`instance_from_env`]).
+    ///
+    /// # Errors
+    /// As [`GpuContext::headless`].
+    pub async fn for_surface(
+        instance: wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+    ) -> Result<Self> {
+        Self::with_instance(instance, Some(surface)).await
+    }
+
+    async fn with_instance(
+        instance: wgpu::Instance,
+        surface: Option<&wgpu::Surface<'_>>,
+    ) -> Result<Self> {
+        let adapter = choose_adapter(&instance, surface).await?;
+        let info = adapter.get_info();
+        log::info!(
+            "GPU adapter: {} ({:?}, {:?})",
+            info.name,
+            info.device_type,
+            info.backend
+        );
+        // Float32 blending lets the attribute pass accumulate in full precision;
+        // without it the renderer falls back to Rgba16Float.
+        let wanted = wgpu::Features::FLOAT32_BLENDABLE;
+        let required_features = adapter.features() & wanted;
+        let (device, queue) = adapter
+            .request_device(&wgpu::DeviceDescriptor {
+                label: Some("splat-render device"),
+                required_features,
+                required_limits: adapter.limits(),
+                ..Default::default()
+            })
+            .await
+            .map_err(|source| RenderError::RequestDevice {
+                adapter: info.name.clone(),
+                source,
+            })?;
+        Ok(Self {
+            instance,
+            adapter,
+            device,
+            queue,
+        })
+    }
+
+    /// The adapter's name and backend, for logs and reports.
+    pub fn adapter_summary(&self) -> String {
+        let info = self.adapter.get_info();
+        format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend)
+    }
+
+    /// Whether the adapter is a CPU rasteriser (lavapipe, llvmpipe, WARP).
+    pub fn is_software(&self) -> bool {
+        self.adapter.get_info().device_type == wgpu::DeviceType::Cpu
+    }
+}
+
+/// A wgpu instance configured from the environment (`WGPU_BACKEND`, `WGPU_DEBUG`, …).
+pub fn instance_from_env() -> wgpu::Instance {
+    wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env())
+}
+
+async fn choose_adapter(
+    instance: &wgpu::Instance,
+    surface: Option<&wgpu::Surface<'_>>,
+) -> Result<wgpu::Adapter> {
+    let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
+    let compatible = |a: &wgpu::Adapter| surface.is_none_or(|s| a.is_surface_supported(s));
+    if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME") {
+        let wanted = wanted.to_lowercase();
+        let adapters = instance.enumerate_adapters(backends).await;
+        let available: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
+        return adapters
+            .into_iter()
+            .find(|a| compatible(a) && a.get_info().name.to_lowercase().contains(&wanted))
+            .ok_or(RenderError::AdapterNotFound { wanted, available });
+    }
+    let options = wgpu::RequestAdapterOptions {
+        power_preference: wgpu::PowerPreference::from_env().unwrap_or_default(),
+        force_fallback_adapter: false,
+        compatible_surface: surface,
+        apply_limit_buckets: false,
+    };
+    match instance.request_adapter(&options).await {
+        Ok(adapter) => Ok(adapter),
+        Err(err) => {
+            // request_adapter may skip CPU adapters on some backends; take any
+            // compatible one before giving up.
+            let adapters = instance.enumerate_adapters(backends).await;
+            adapters
+                .into_iter()
+                .find(compatible)
+                .ok_or_else(|| RenderError::NoAdapter {
+                    detail: format!(" (backends {backends:?}: {err})"),
+                })
+        }
+    }
+}

@@ -1,0 +1,169 @@
+//! Copying textures back to the CPU, and the float view of the accumulation target.
+
+use glam::Vec3;
+
+use crate::context::GpuContext;
+use crate::error::{RenderError, Result};
+
+/// The attribute pass's accumulation target read back: per pixel Σ wᵢ nᵢ (world
+/// normals) and Σ wᵢ, row-major from the top-left pixel.
+#[derive(Clone, Debug)]
+pub struct Accumulation {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `[Σ w n_x, Σ w n_y, Σ w n_z, Σ w]` per pixel.
+    pub texels: Vec<[f32; 4]>,
+}
+
+impl Accumulation {
+    pub(crate) fn from_bytes(
+        width: u32,
+        height: u32,
+        format: wgpu::TextureFormat,
+        bytes: &[u8],
+    ) -> Result<Self> {
+        let texels: Vec<[f32; 4]> = match format {
+            wgpu::TextureFormat::Rgba32Float => bytemuck::pod_collect_to_vec(bytes),
+            wgpu::TextureFormat::Rgba16Float => bytes
+                .chunks_exact(8)
+                .map(|t| {
+                    let h = |i: usize| f16_to_f32(u16::from_le_bytes([t[2 * i], t[2 * i + 1]]));
+                    [h(0), h(1), h(2), h(3)]
+                })
+                .collect(),
+            other => {
+                return Err(RenderError::Readback(format!(
+                    "unexpected accumulation format {other:?}"
+                )));
+            }
+        };
+        if texels.len() != (width * height) as usize {
+            return Err(RenderError::Readback("accumulation size mismatch".into()));
+        }
+        Ok(Self {
+            width,
+            height,
+            texels,
+        })
+    }
+
+    /// Σ w at pixel `(x, y)`.
+    pub fn weight(&self, x: u32, y: u32) -> f32 {
+        self.texels[(y * self.width + x) as usize][3]
+    }
+
+    /// The normalised attribute A = Σ wᵢ nᵢ / Σ wᵢ at `(x, y)` (not renormalised
+    /// to unit length), or `None` where Σ w = 0.
+    pub fn normalised(&self, x: u32, y: u32) -> Option<Vec3> {
+        let [a, b, c, w] = self.texels[(y * self.width + x) as usize];
+        (w > 0.0).then(|| Vec3::new(a, b, c) / w)
+    }
+
+    /// Pixels with Σ w > 0.
+    pub fn covered(&self) -> usize {
+        self.texels.iter().filter(|t| t[3] > 0.0).count()
+    }
+}
+
+/// Reads any 4-byte-per-texel colour texture (`Rgba8Unorm`, `Rgba8UnormSrgb`,
+/// …) of the device back as an image, bytes unchanged. Useful to check what
+/// was drawn onto an offscreen stand-in for a window surface.
+///
+/// # Errors
+/// [`RenderError::Readback`] when the texture is not 4 bytes per texel or the copy fails.
+pub fn read_texture_rgba8(ctx: &GpuContext, texture: &wgpu::Texture) -> Result<image::RgbaImage> {
+    if texture.format().block_copy_size(None) != Some(4) {
+        return Err(RenderError::Readback(format!(
+            "{:?} is not 4 bytes per texel",
+            texture.format()
+        )));
+    }
+    let bytes = read_texture(ctx, texture, wgpu::TextureAspect::All, 4)?;
+    image::RgbaImage::from_raw(texture.width(), texture.height(), bytes)
+        .ok_or_else(|| RenderError::Readback("image size mismatch".into()))
+}
+
+/// IEEE half → single precision.
+fn f16_to_f32(h: u16) -> f32 {
+    let sign = if h & 0x8000 != 0 { -1.0 } else { 1.0 };
+    let exp = (h >> 10) & 0x1f;
+    let frac = f32::from(h & 0x3ff);
+    sign * match exp {
+        0 => frac * 2f32.powi(-24),
+        31 if frac == 0.0 => f32::INFINITY,
+        31 => f32::NAN,
+        e => (1.0 + frac / 1024.0) * 2f32.powi(i32::from(e) - 15),
+    }
+}
+
+/// Copies a whole 2D texture to the CPU, removing the 256-byte row padding.
+pub(crate) fn read_texture(
+    ctx: &GpuContext,
+    texture: &wgpu::Texture,
+    aspect: wgpu::TextureAspect,
+    bytes_per_texel: u32,
+) -> Result<Vec<u8>> {
+    let (width, height) = (texture.width(), texture.height());
+    let row = width * bytes_per_texel;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: u64::from(padded) * u64::from(height),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(height),
+            },
+        },
+        texture.size(),
+    );
+    ctx.queue.submit([encoder.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| RenderError::Readback(e.to_string()))?
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let mapped = buffer
+        .get_mapped_range(..)
+        .map_err(|e| RenderError::Readback(e.to_string()))?;
+    let mut out = Vec::with_capacity((row * height) as usize);
+    for r in 0..height as usize {
+        let start = r * padded as usize;
+        out.extend_from_slice(&mapped[start..start + row as usize]);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn half_floats_decode() {
+        assert_eq!(f16_to_f32(0x3c00), 1.0);
+        assert_eq!(f16_to_f32(0xc000), -2.0);
+        assert_eq!(f16_to_f32(0x3555), 0.333_251_95);
+        assert_eq!(f16_to_f32(0x0001), 2f32.powi(-24));
+    }
+}

@@ -1,0 +1,68 @@
+// Per-pixel normalisation and deferred shading as a compute pass (eq. 38-40).
+
+@group(0) @binding(1) var accum_tex: texture_2d<f32>;
+@group(0) @binding(2) var depth_tex: texture_depth_2d;
+@group(0) @binding(3) var env_tex: texture_2d<f32>;
+@group(0) @binding(4) var env_sampler: sampler;
+@group(0) @binding(5) var back_tex: texture_2d<f32>;
+@group(0) @binding(6) var back_sampler: sampler;
+@group(0) @binding(7) var out_tex: texture_storage_2d<rgba8unorm, write>;
+
+const PI: f32 = 3.14159265358979;
+
+fn equirect_uv(d: vec3<f32>) -> vec2<f32> {
+    return vec2<f32>(0.5 + atan2(d.x, -d.z) / (2.0 * PI), acos(clamp(d.y, -1.0, 1.0)) / PI);
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if id.x >= size.x || id.y >= size.y {
+        return;
+    }
+    let px = vec2<i32>(id.xy);
+    let xy = vec2<f32>(id.xy) + 0.5;
+    let uv = xy * frame.viewport.zw;
+    let a = textureLoad(accum_tex, px, 0);
+    let mode = u32(frame.params.w);
+    let dir = normalize((frame.inv_view * vec4<f32>(view_ray(xy), 0.0)).xyz);
+
+    var colour = vec3<f32>(0.0);
+    if a.w <= 0.0 {
+        if mode == 0u {
+            colour = textureSampleLevel(back_tex, back_sampler, uv, 0.0).rgb;
+        }
+    } else {
+        // A = sum(A_i w_i) / sum(w_i), then renormalised to a unit normal.
+        let avg = a.xyz / a.w;
+        var n = -dir;
+        if dot(avg, avg) > 1e-20 {
+            n = normalize(avg);
+        }
+        switch mode {
+            case 1u: {
+                colour = n * 0.5 + 0.5;
+            }
+            case 2u: {
+                colour = vec3<f32>(min(a.w / frame.params.z, 1.0));
+            }
+            case 3u: {
+                let d = textureLoad(depth_tex, px, 0);
+                let near = frame.ray.z;
+                let far = frame.ray.w;
+                let linear = near * far / (far - d * (far - near));
+                colour = vec3<f32>(clamp(1.0 - log(linear / near) / log(far / near), 0.0, 1.0));
+            }
+            default: {
+                let r = reflect(dir, n);
+                let f = 0.5 + 0.5 * dot(r, dir);
+                let reflected = textureSampleLevel(env_tex, env_sampler, equirect_uv(r), 0.0).rgb;
+                let rv = (frame.view * vec4<f32>(r, 0.0)).xyz;
+                let offset = frame.params.y * vec2<f32>(-rv.x, rv.y);
+                let refracted = textureSampleLevel(back_tex, back_sampler, uv + offset, 0.0).rgb;
+                colour = f * f * reflected + frame.fluid.rgb * refracted;
+            }
+        }
+    }
+    textureStore(out_tex, px, vec4<f32>(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0));
+}

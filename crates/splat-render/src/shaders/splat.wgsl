@@ -1,0 +1,114 @@
+// Visibility and attribute passes (Botsch et al. 2005; Vesterlund 2004, 4.2.2).
+// Each splat is drawn as the screen-space rectangle bounding its projected disc;
+// the fragment shader intersects the pixel's view ray with the disc plane.
+
+struct Splat {
+    position_radius: vec4<f32>,
+    normal: vec4<f32>,
+};
+
+@group(0) @binding(1) var<storage, read> splats: array<Splat>;
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    // View-space centre and radius.
+    @location(0) @interpolate(flat) centre: vec4<f32>,
+    // World-space unit normal.
+    @location(1) @interpolate(flat) normal: vec4<f32>,
+};
+
+@vertex
+fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    let s = splats[ii];
+    let r = s.position_radius.w;
+    let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
+    let n = (frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz;
+    var a = vec3<f32>(1.0, 0.0, 0.0);
+    if abs(n.x) > 0.9 {
+        a = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let u = normalize(cross(n, a)) * r;
+    let v = cross(n, u);
+    // The disc lies inside the square c ± u ± v; the projected square's bounding
+    // rectangle bounds the projected ellipse.
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    var clipped = false;
+    for (var k = 0u; k < 4u; k++) {
+        let su = select(-1.0, 1.0, (k & 1u) != 0u);
+        let sv = select(-1.0, 1.0, (k & 2u) != 0u);
+        let p = c + su * u + sv * v;
+        if -p.z < frame.ray.z {
+            clipped = true;
+        }
+        let q = frame.proj * vec4<f32>(p, 1.0);
+        let ndc = q.xy / q.w;
+        lo = min(lo, ndc);
+        hi = max(hi, ndc);
+    }
+    let corner = vec2<f32>(f32(vi & 1u), f32((vi >> 1u) & 1u));
+    var xy = mix(lo, hi, corner);
+    if clipped {
+        // Splats reaching in front of the near plane are dropped (zero-area quad).
+        xy = vec2<f32>(-2.0, -2.0);
+    }
+    var out: VsOut;
+    out.clip = vec4<f32>(xy, 0.5, 1.0);
+    out.centre = vec4<f32>(c, r);
+    out.normal = vec4<f32>(s.normal.xyz, 0.0);
+    return out;
+}
+
+// Ray-disc intersection for the pixel at `xy`: (view-space hit, r^2/h^2), or w < 0 on a miss.
+fn hit_disc(xy: vec2<f32>, centre: vec4<f32>, normal_world: vec3<f32>) -> vec4<f32> {
+    let n = (frame.view * vec4<f32>(normal_world, 0.0)).xyz;
+    let d = view_ray(xy);
+    let denom = dot(d, n);
+    if abs(denom) < 1e-12 {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    let t = dot(centre.xyz, n) / denom;
+    let q = d * t;
+    let e = q - centre.xyz;
+    let s = dot(e, e) / (centre.w * centre.w);
+    if t <= 0.0 || s > 1.0 {
+        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
+    }
+    return vec4<f32>(q, s);
+}
+
+fn depth_of(q: vec3<f32>) -> f32 {
+    let c = frame.proj * vec4<f32>(q, 1.0);
+    return c.z / c.w;
+}
+
+// Pass 1: nearest surface depth, pushed back by epsilon along the view ray.
+@fragment
+fn fs_visibility(in: VsOut) -> @builtin(frag_depth) f32 {
+    let h = hit_disc(in.clip.xy, in.centre, in.normal.xyz);
+    if h.w < 0.0 {
+        discard;
+    }
+    return depth_of(h.xyz + normalize(h.xyz) * frame.params.x);
+}
+
+struct AttributeOut {
+    @location(0) accum: vec4<f32>,
+    @builtin(frag_depth) depth: f32,
+};
+
+// Pass 2: additive w * (normal, 1) with w the alpha mask of eq. 37, for the
+// splats that pass the depth test against pass 1.
+@fragment
+fn fs_attribute(in: VsOut) -> AttributeOut {
+    let h = hit_disc(in.clip.xy, in.centre, in.normal.xyz);
+    if h.w < 0.0 {
+        discard;
+    }
+    let m = 1.0 - h.w;
+    let w = m * m * m;
+    var out: AttributeOut;
+    out.accum = vec4<f32>(in.normal.xyz * w, w);
+    out.depth = depth_of(h.xyz);
+    return out;
+}

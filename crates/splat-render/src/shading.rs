@@ -1,0 +1,117 @@
+//! Shading parameters, debug views, and a CPU reference of the per-pixel shading
+//! (eq. 38–40) that the compute pass evaluates.
+
+use glam::{Mat4, Vec2, Vec3};
+
+use crate::textures::{Environment, equirect_uv, sample_bilinear};
+
+/// What the shade pass writes per pixel.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum View {
+    /// Eq. 40: Fresnel-weighted environment reflection plus absorbed, refracted background.
+    #[default]
+    Shaded,
+    /// The normalised normal as colour (n · 0.5 + 0.5); black where nothing is drawn.
+    Normals,
+    /// The weight sum Σw as grey (scaled by [`Shading::weight_scale`]); holes are black.
+    Weights,
+    /// Linear depth of the visible surface on a log scale between the camera's clip planes; background black.
+    Depth,
+}
+
+impl View {
+    /// All views, in the order a UI cycles through them.
+    pub const ALL: [View; 4] = [View::Shaded, View::Normals, View::Weights, View::Depth];
+
+    pub(crate) fn code(self) -> f32 {
+        match self {
+            View::Shaded => 0.0,
+            View::Normals => 1.0,
+            View::Weights => 2.0,
+            View::Depth => 3.0,
+        }
+    }
+}
+
+/// Parameters of the splat passes and of the shading.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Shading {
+    /// Debug view or the shaded image.
+    pub view: View,
+    /// ε: the visibility pass pushes depth back by this world-space distance along
+    /// the view ray; splats within ε behind the front surface blend with it.
+    pub depth_epsilon: f32,
+    /// μ of eq. 39: background offset per unit of reflection-vector x/y, in
+    /// fractions of the viewport.
+    pub refraction: f32,
+    /// c_fluid of eq. 40: the fraction of background light that passes the fluid, per channel.
+    pub fluid_colour: Vec3,
+    /// Σw shown as white in [`View::Weights`].
+    pub weight_scale: f32,
+}
+
+impl Default for Shading {
+    fn default() -> Self {
+        Self {
+            view: View::Shaded,
+            depth_epsilon: 0.01,
+            refraction: 0.05,
+            fluid_colour: Vec3::new(0.55, 0.75, 0.85),
+            weight_scale: 2.0,
+        }
+    }
+}
+
+/// The Fresnel approximation of eq. 38, R = (0.5 + 0.5 r·l)², with `l` the unit
+/// viewing direction from the eye: 0 looking straight onto the surface, 1 at
+/// grazing incidence, as the thesis describes.
+pub fn fresnel(r: Vec3, l: Vec3) -> f32 {
+    let f = 0.5 + 0.5 * r.dot(l);
+    f * f
+}
+
+/// Eq. 40 at one pixel, exactly as the compute pass evaluates it:
+/// `normal` is the (normalised) splatted world normal, `dir` the unit world
+/// direction of the pixel's view ray, `uv` the pixel centre in viewport
+/// fractions, `view` the camera's world → view matrix. `None` for `normal` is a
+/// pixel no splat covers: the plain background.
+pub fn shade_pixel(
+    normal: Option<Vec3>,
+    dir: Vec3,
+    uv: Vec2,
+    view: &Mat4,
+    env: &Environment,
+    shading: &Shading,
+) -> Vec3 {
+    let Some(n) = normal else {
+        return sample_bilinear(&env.background, uv, false);
+    };
+    let r = reflect(dir, n);
+    let reflected = sample_bilinear(&env.environment, equirect_uv(r), true);
+    let rv = view.transform_vector3(r);
+    let offset = shading.refraction * Vec2::new(-rv.x, rv.y);
+    let refracted = sample_bilinear(&env.background, uv + offset, false);
+    fresnel(r, dir) * reflected + shading.fluid_colour * refracted
+}
+
+/// Mirror reflection of direction `d` about unit normal `n` (WGSL `reflect`).
+pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
+    d - 2.0 * d.dot(n) * n
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fresnel_limits_follow_the_thesis() {
+        let down = -Vec3::Y;
+        let r = reflect(down, Vec3::Y);
+        assert!(
+            fresnel(r, down).abs() < 1e-6,
+            "straight down: no reflection"
+        );
+        let grazing = Vec3::new(1.0, -1e-3, 0.0).normalize();
+        assert!(fresnel(reflect(grazing, Vec3::Y), grazing) > 0.999);
+    }
+}

@@ -1,0 +1,365 @@
+//! Headless checks of the splat passes against analytic expectations (lavapipe
+//! in CI). Without an adapter they print "skipped: no GPU adapter" and pass,
+//! unless `SPH_REQUIRE_GPU=1`.
+
+use std::sync::OnceLock;
+
+use glam::{Vec2, Vec3};
+use splat_render::{
+    Accumulation, Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, View, alpha_mask,
+    wgpu,
+};
+
+fn gpu() -> Option<&'static GpuContext> {
+    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
+    let ctx = CTX.get_or_init(|| match GpuContext::headless() {
+        Ok(ctx) => {
+            eprintln!("GPU adapter: {}", ctx.adapter_summary());
+            Some(ctx)
+        }
+        Err(err) => {
+            if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") {
+                panic!("SPH_REQUIRE_GPU=1 but: {err}");
+            }
+            None
+        }
+    });
+    if ctx.is_none() {
+        eprintln!("skipped: no GPU adapter");
+    }
+    ctx.as_ref()
+}
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+fn render(
+    ctx: &GpuContext,
+    splats: &[Splat],
+    camera: &Camera,
+    shading: &Shading,
+) -> (SplatRenderer, Accumulation) {
+    let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    r.upload(ctx, splats).unwrap();
+    r.render(ctx, camera, shading).unwrap();
+    let acc = r.read_accumulation(ctx).unwrap();
+    (r, acc)
+}
+
+/// CPU ray–disc intersection: (hit distance along the unit ray, eq. 37 weight).
+fn disc_hit(camera: &Camera, x: u32, y: u32, s: &Splat) -> Option<(f32, f32)> {
+    let (o, d) = camera.pixel_ray(x, y, W, H);
+    let n = s.normal.normalize();
+    let denom = d.dot(n);
+    if denom.abs() < 1e-9 {
+        return None;
+    }
+    let t = (s.position - o).dot(n) / denom;
+    let r = (o + t * d - s.position).length();
+    (t > 0.0 && r <= s.radius).then(|| (t, alpha_mask(r, s.radius)))
+}
+
+fn camera() -> Camera {
+    Camera::looking_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO)
+}
+
+#[test]
+fn one_surfel_weight_matches_eq_37() {
+    let Some(ctx) = gpu() else { return };
+    let s = Splat::new(Vec3::ZERO, Vec3::Z, 0.5);
+    let cam = camera();
+    let (_, acc) = render(ctx, &[s], &cam, &Shading::default());
+    let (mut worst, mut covered, mut analytic) = (0f32, 0usize, 0usize);
+    for y in 0..H {
+        for x in 0..W {
+            let expected = disc_hit(&cam, x, y, &s).map_or(0.0, |(_, w)| w);
+            analytic += usize::from(expected > 0.0);
+            worst = worst.max((acc.weight(x, y) - expected).abs());
+            if let Some(n) = acc.normalised(x, y) {
+                covered += 1;
+                assert!((n - Vec3::Z).length() < 1e-5, "normal {n} at ({x},{y})");
+            }
+        }
+    }
+    // Projected radius 0.5 / (3 tan 22.5°) × H/2 ≈ 24 px: about 1,800 pixels;
+    // only rim pixels (w ≈ 0) may differ.
+    assert!(analytic > 1_700, "analytic coverage {analytic}");
+    assert!(
+        covered.abs_diff(analytic) <= 8,
+        "covered {covered} vs analytic {analytic}"
+    );
+    assert!(worst < 1e-3, "max |w − eq. 37| = {worst}");
+}
+
+#[test]
+fn two_overlapping_surfels_average_their_normals() {
+    let Some(ctx) = gpu() else { return };
+    let a = Splat::new(
+        Vec3::new(-0.2, 0.0, 0.0),
+        Vec3::new(0.3, 0.0, 1.0).normalize(),
+        0.45,
+    );
+    let b = Splat::new(
+        Vec3::new(0.2, 0.05, 0.0),
+        Vec3::new(-0.3, 0.2, 1.0).normalize(),
+        0.45,
+    );
+    let cam = camera();
+    let shading = Shading {
+        depth_epsilon: 0.5,
+        ..Default::default()
+    };
+    let (_, acc) = render(ctx, &[a, b], &cam, &shading);
+    let (mut worst, mut both) = (0f32, 0);
+    for y in 0..H {
+        for x in 0..W {
+            let (wa, wb) = (
+                disc_hit(&cam, x, y, &a).map_or(0.0, |h| h.1),
+                disc_hit(&cam, x, y, &b).map_or(0.0, |h| h.1),
+            );
+            let sum = wa + wb;
+            assert!((acc.weight(x, y) - sum).abs() < 1e-3, "weight at ({x},{y})");
+            if sum > 1e-2 {
+                let expected = (wa * a.normal + wb * b.normal) / sum;
+                let got = acc.normalised(x, y).expect("covered");
+                worst = worst.max((got - expected).length());
+                both += usize::from(wa > 1e-2 && wb > 1e-2);
+            }
+        }
+    }
+    assert!(both > 300, "overlap pixels {both}");
+    assert!(worst < 1e-3, "max |A − analytic average| = {worst}");
+}
+
+#[test]
+fn surfel_behind_beyond_epsilon_is_hidden_within_epsilon_blends() {
+    let Some(ctx) = gpu() else { return };
+    let front = Splat::new(Vec3::ZERO, Vec3::Z, 0.5);
+    // The back disc's depth varies by ±0.07 across it: it lies 0.23–0.37 behind.
+    let back = Splat::new(
+        Vec3::new(0.05, 0.0, -0.3),
+        Vec3::new(0.1, 0.1, 1.0).normalize(),
+        0.5,
+    );
+    let cam = camera();
+    for (epsilon, blends) in [(0.15, false), (0.5, true)] {
+        let shading = Shading {
+            depth_epsilon: epsilon,
+            ..Default::default()
+        };
+        let (_, acc) = render(ctx, &[front, back], &cam, &shading);
+        let mut checked = 0;
+        for y in 0..H {
+            for x in 0..W {
+                let Some((_, wf)) = disc_hit(&cam, x, y, &front) else {
+                    continue;
+                };
+                let wb = disc_hit(&cam, x, y, &back).map_or(0.0, |h| h.1);
+                if wf < 1e-3 {
+                    continue;
+                }
+                let expected_w = if blends { wf + wb } else { wf };
+                assert!(
+                    (acc.weight(x, y) - expected_w).abs() < 1e-3,
+                    "ε={epsilon}: weight at ({x},{y})"
+                );
+                let n = acc.normalised(x, y).unwrap();
+                let expected_n = if blends {
+                    (wf * front.normal + wb * back.normal.normalize()) / (wf + wb)
+                } else {
+                    Vec3::Z
+                };
+                assert!(
+                    (n - expected_n).length() < 1e-3,
+                    "ε={epsilon}: normal {n} at ({x},{y})"
+                );
+                checked += usize::from(wb > 1e-2);
+            }
+        }
+        assert!(checked > 1_000, "pixels where both overlap: {checked}");
+    }
+}
+
+#[test]
+fn tiled_plane_has_no_holes_and_a_constant_normal() {
+    let Some(ctx) = gpu() else { return };
+    // Square grid of spacing s with radius s: every point lies within 0.71 s of a centre.
+    let s = 0.1;
+    let normal = Vec3::new(0.0, 1.0, 0.2).normalize();
+    let (u, v) = (Vec3::X, normal.cross(Vec3::X));
+    let splats: Vec<Splat> = (-10..=10)
+        .flat_map(|i| (-10..=10).map(move |j| (i, j)))
+        .map(|(i, j)| Splat::new(u * (i as f32 * s) + v * (j as f32 * s), normal, s))
+        .collect();
+    let cam = Camera::looking_at(Vec3::new(0.6, 2.0, 1.5), Vec3::ZERO);
+    let (_, acc) = render(ctx, &splats, &cam, &Shading::default());
+    let mut inside = 0;
+    for y in 0..H {
+        for x in 0..W {
+            let (o, d) = cam.pixel_ray(x, y, W, H);
+            let t = -o.dot(normal) / d.dot(normal);
+            let p = o + t * d;
+            if p.dot(u).abs() > 0.9 || p.dot(v).abs() > 0.9 {
+                continue;
+            }
+            inside += 1;
+            assert!(acc.weight(x, y) > 0.0, "hole at ({x},{y})");
+            let n = acc.normalised(x, y).unwrap();
+            assert!((n - normal).length() < 1e-5, "normal {n} at ({x},{y})");
+        }
+    }
+    assert!(inside > 5_000, "pixels inside the tiled square: {inside}");
+}
+
+#[test]
+fn empty_scene_shows_the_background_and_debug_views_differ() {
+    let Some(ctx) = gpu() else { return };
+    let env = Environment::procedural();
+    let mut r = SplatRenderer::new(ctx, W, H, &env).unwrap();
+    let cam = camera();
+    r.upload(ctx, &[]).unwrap();
+    r.render(ctx, &cam, &Shading::default()).unwrap();
+    let img = r.read_image(ctx).unwrap();
+    assert_eq!(r.read_accumulation(ctx).unwrap().covered(), 0);
+    let expected = splat_render::textures::sample_bilinear(
+        &env.background,
+        Vec2::new(0.5 / W as f32, 0.5 / H as f32),
+        false,
+    );
+    let p = img.get_pixel(0, 0).0;
+    assert!(
+        (Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32) / 255.0 - expected)
+            .abs()
+            .max_element()
+            < 2.0 / 255.0
+    );
+
+    r.upload(ctx, &[Splat::new(Vec3::ZERO, Vec3::Z, 0.5)])
+        .unwrap();
+    let mut centre = Vec::new();
+    for view in View::ALL {
+        r.render(
+            ctx,
+            &cam,
+            &Shading {
+                view,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let img = r.read_image(ctx).unwrap();
+        centre.push(img.get_pixel(W / 2, H / 2).0);
+        if view != View::Shaded {
+            assert_eq!(
+                img.get_pixel(0, 0).0,
+                [0, 0, 0, 255],
+                "{view:?}: background is black"
+            );
+        }
+    }
+    // Normals view: +z → (0.5, 0.5, 1.0); weights view at the centre: w = 1 over scale 2 → 0.5.
+    assert_eq!(centre[1], [128, 128, 255, 255]);
+    assert!(
+        (i32::from(centre[2][0]) - 128).abs() <= 1,
+        "{:?}",
+        centre[2]
+    );
+    let distinct: std::collections::HashSet<_> = centre.iter().collect();
+    assert_eq!(distinct.len(), 4, "{centre:?}");
+}
+
+#[test]
+fn uploads_reuse_the_buffer_until_it_must_grow() {
+    let Some(ctx) = gpu() else { return };
+    let mut r = SplatRenderer::new(ctx, 32, 32, &Environment::procedural()).unwrap();
+    let many = |n: usize| vec![Splat::new(Vec3::ZERO, Vec3::Z, 0.1); n];
+    for n in [10, 1024, 500] {
+        r.upload(ctx, &many(n)).unwrap();
+    }
+    assert_eq!(r.buffer_allocations(), 1);
+    r.upload(ctx, &many(3000)).unwrap();
+    r.upload(ctx, &many(4096)).unwrap();
+    r.upload(ctx, &many(100)).unwrap();
+    assert_eq!(r.buffer_allocations(), 2);
+    assert_eq!(r.splat_count(), 100);
+}
+
+#[test]
+fn bad_input_is_an_error() {
+    let Some(ctx) = gpu() else { return };
+    let env = Environment::procedural();
+    assert!(SplatRenderer::new(ctx, 0, 10, &env).is_err());
+    let mut r = SplatRenderer::new(ctx, 16, 16, &env).unwrap();
+    r.upload(ctx, &[Splat::new(Vec3::ZERO, Vec3::Z, 0.1)])
+        .unwrap();
+    let err = r
+        .upload(
+            ctx,
+            &[
+                Splat::new(Vec3::ZERO, Vec3::Z, 0.1),
+                Splat::new(Vec3::NAN, Vec3::Z, 0.1),
+            ],
+        )
+        .unwrap_err();
+    assert!(err.to_string().contains("splat 1"), "{err}");
+    assert_eq!(
+        r.splat_count(),
+        1,
+        "a failed upload keeps the previous splats"
+    );
+    let bad_cam = Camera::looking_at(Vec3::ZERO, Vec3::ZERO);
+    assert!(r.render(ctx, &bad_cam, &Shading::default()).is_err());
+}
+
+#[test]
+fn surface_blit_reproduces_the_image() {
+    let Some(ctx) = gpu() else { return };
+    let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    r.upload(
+        ctx,
+        &[Splat::new(Vec3::ZERO, Vec3::new(0.3, 0.2, 1.0), 0.6)],
+    )
+    .unwrap();
+    let cam = camera();
+    r.render(ctx, &cam, &Shading::default()).unwrap();
+    let direct = r.read_image(ctx).unwrap();
+    for format in [
+        wgpu::TextureFormat::Rgba8Unorm,
+        wgpu::TextureFormat::Rgba8UnormSrgb,
+    ] {
+        let target = ctx.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("fake surface"),
+            size: wgpu::Extent3d {
+                width: W,
+                height: H,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        r.render_to_surface(
+            ctx,
+            &cam,
+            &Shading::default(),
+            &target.create_view(&Default::default()),
+            format,
+        )
+        .unwrap();
+        let copy = splat_render::read_texture_rgba8(ctx, &target).unwrap();
+        let worst = copy
+            .as_raw()
+            .iter()
+            .zip(direct.as_raw())
+            .map(|(a, b)| a.abs_diff(*b))
+            .max()
+            .unwrap();
+        assert!(
+            worst <= 1,
+            "{format:?}: surface differs from the image by {worst} levels"
+        );
+    }
+}
