@@ -2,7 +2,6 @@
 //! normalise-and-shade compute pass, with their targets and readback.
 
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
 use image::RgbaImage;
 
 use crate::camera::Camera;
@@ -398,7 +397,10 @@ impl SplatRenderer {
             .map(|(i, s)| GpuSplat::from_splat(i, s))
             .collect::<Result<_>>()?;
         let bytes = std::mem::size_of_val(gpu.as_slice()) as u64;
-        let max = u64::from(ctx.device.limits().max_storage_buffer_binding_size)
+        let max = ctx
+            .device
+            .limits()
+            .max_storage_buffer_binding_size
             .min(ctx.device.limits().max_buffer_size);
         if bytes > max || u32::try_from(gpu.len()).is_err() {
             return Err(RenderError::TooManySplats {
@@ -461,7 +463,7 @@ impl SplatRenderer {
                 shading.weight_scale.max(f32::MIN_POSITIVE),
                 shading.view.code(),
             ],
-            fluid: Vec3::from(shading.fluid_colour).extend(1.0).to_array(),
+            fluid: shading.fluid_colour.extend(1.0).to_array(),
         };
         ctx.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
