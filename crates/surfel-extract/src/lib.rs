@@ -33,6 +33,7 @@ pub mod coverage;
 pub mod field;
 pub mod fill;
 pub mod ldc;
+pub mod raycast;
 mod thesis;
 
 use std::time::Duration;
