@@ -62,7 +62,7 @@ impl<'a> Raycaster<'a> {
         let (t0, t1) = ((lo - origin) * inv, (hi - origin) * inv);
         let enter = t0.min(t1).max_element().max(0.0);
         let exit = t0.max(t1).min_element();
-        if !(enter <= exit) {
+        if enter.is_nan() || exit.is_nan() || enter > exit {
             return None;
         }
         let f = |t: f32| self.field.sample(origin + t * dir).c - self.iso;
