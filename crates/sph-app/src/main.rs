@@ -1,16 +1,36 @@
-//! The sph-splat demo.
+//! The sph-splat demo: scene → simulate → extract → render, every frame.
 //!
-//! Until the extractor and renderer land, it runs the default scene (the slab dam
-//! break, or a scene file given as the first argument) headless for two seconds of
-//! simulated time and prints what it did.
+//! `cargo run --release` opens a window where a display exists and otherwise
+//! renders a short clip headless; `--help` lists the options.
 
+mod cli;
+mod error;
+mod headless;
+mod orbit;
+mod pipeline;
+mod scenes;
+mod window;
+
+use std::path::Path;
 use std::process::ExitCode;
-use std::time::Instant;
 
-use sph_core::Scene;
+use clap::Parser;
+use splat_render::Environment;
+
+use crate::cli::Args;
+use crate::error::AppError;
+use crate::pipeline::Pipeline;
 
 fn main() -> ExitCode {
-    match run() {
+    let args = Args::parse();
+    let level = match args.verbose {
+        0 => "warn",
+        1 => "info",
+        2 => "debug",
+        _ => "trace",
+    };
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level)).init();
+    match run(&args) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
@@ -19,46 +39,35 @@ fn main() -> ExitCode {
     }
 }
 
-fn run() -> Result<(), sph_core::Error> {
-    let scene = match std::env::args().nth(1) {
-        Some(path) => Scene::load(path)?,
-        None => Scene::dam_break(0.25, 0.08, 0.02),
-    };
-    let mut world = scene.build_world()?;
-    println!(
-        "scene `{}`: {} particles, h = {} m, spacing = {} m, k = {} m²/s², μ = {} Pa·s",
-        scene.name,
-        world.particles.len(),
-        scene.fluid.h,
-        scene.spacing,
-        scene.fluid.stiffness,
-        scene.fluid.viscosity
-    );
-    let start = Instant::now();
-    let frames = (2.0 / scene.time_step.frame_dt).round() as u32;
-    let mut substeps = 0u64;
-    for frame in 0..frames {
-        let report = world.advance(scene.time_step.frame_dt)?;
-        substeps += report.substeps as u64;
-        if (frame + 1) % 30 == 0 {
-            let front = world
-                .particles
-                .positions()
-                .iter()
-                .map(|x| x.x)
-                .fold(f32::MIN, f32::max);
-            println!(
-                "t = {:.2} s: {} substeps so far, dt in [{:.2e}, {:.2e}] s, surge front at x = {front:.3} m",
-                report.time, substeps, report.dt_range.0, report.dt_range.1
-            );
-        }
+fn run(args: &Args) -> Result<(), AppError> {
+    if args.list_scenes {
+        print!("{}", scenes::listing());
+        return Ok(());
     }
-    let wall = start.elapsed().as_secs_f64();
-    println!(
-        "simulated {:.2} s in {substeps} steps, {wall:.2} s of wall time ({:.2} M particle-steps/s)",
-        world.time(),
-        world.particles.len() as f64 * substeps as f64 / wall / 1e6
-    );
-    println!("surfel extraction and rendering are not implemented yet (see README.md)");
-    Ok(())
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(usize::from(n))
+            .build_global()
+            .map_err(|e| AppError::Threads(e.to_string()))?;
+    }
+    let (name, scene) = scenes::resolve(&args.scene)?;
+    let pipeline = Pipeline::new(name, scene, args.iterations)?;
+    if args.headless {
+        return headless::run(args, pipeline);
+    }
+    if !window::display_available() {
+        println!("no display found (DISPLAY and WAYLAND_DISPLAY are unset): rendering headless");
+        return headless::run(args, pipeline);
+    }
+    window::run(args, pipeline)
+}
+
+/// The environment map and background from `assets/textures/`, or the same
+/// images generated procedurally when the folder is not there.
+pub fn environment() -> Environment {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/textures");
+    Environment::load(&dir).unwrap_or_else(|e| {
+        log::info!("{e}; using the procedural environment");
+        Environment::procedural()
+    })
 }

@@ -401,7 +401,13 @@ impl Scene {
 
     /// A ready-to-run world: particles, default program, emitters appended.
     pub fn build_world(&self) -> Result<World> {
-        let particles = self.particles()?;
+        self.world_with(self.particles()?)
+    }
+
+    /// A world of this scene's parameters, boundary, time stepping and emitters
+    /// around the given `particles` (e.g. to change parameters mid-run).
+    pub fn world_with(&self, particles: Particles) -> Result<World> {
+        self.validate()?;
         let t = &self.time_step;
         let stepping = TimeStepping {
             max_dt: t.max_dt,

@@ -1,0 +1,51 @@
+//! The demo's error type: every failure is one line and a non-zero exit.
+
+use std::path::PathBuf;
+
+use thiserror::Error;
+
+/// Everything that stops the demo.
+#[derive(Debug, Error)]
+pub enum AppError {
+    /// `--scene` is neither a built-in name nor a file.
+    #[error("unknown scene `{0}` (try --list-scenes, or give a .toml file)")]
+    UnknownScene(String),
+    /// The scene file could not be read, parsed or validated.
+    #[error("scene `{scene}`: {source}")]
+    Scene {
+        /// What was asked for.
+        scene: String,
+        /// sph-core's reason (names the field, line and column).
+        source: sph_core::Error,
+    },
+    /// The simulation stopped (blow-up, NaN) or export failed.
+    #[error("{0}")]
+    Simulation(#[from] sph_core::Error),
+    /// The output folder cannot be created or written.
+    #[error("cannot write to {path}: {reason}")]
+    Output {
+        /// The path.
+        path: PathBuf,
+        /// The OS's reason.
+        reason: String,
+    },
+    /// The renderer failed.
+    #[error("{0}")]
+    Render(#[from] splat_render::RenderError),
+    /// The window could not be created.
+    #[error("window: {0}")]
+    Window(String),
+    /// The thread pool could not be built.
+    #[error("--threads: {0}")]
+    Threads(String),
+}
+
+impl AppError {
+    /// An output error for `path`.
+    pub fn output(path: impl Into<PathBuf>, err: impl std::fmt::Display) -> Self {
+        Self::Output {
+            path: path.into(),
+            reason: err.to_string(),
+        }
+    }
+}

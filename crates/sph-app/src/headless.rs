@@ -1,0 +1,149 @@
+//! Headless mode: simulate, extract, render each frame to PNG, write `frames.csv`
+//! and optional particle/surfel exports.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressStyle};
+use sph_core::export::{FrameWriter, PointCloud};
+use splat_render::{GpuContext, SplatRenderer};
+
+use crate::cli::Args;
+use crate::error::AppError;
+use crate::pipeline::Pipeline;
+
+/// Runs `args.frame_count()` frames of `pipeline` and writes them to `args.out`.
+pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
+    let out = &args.out;
+    std::fs::create_dir_all(out).map_err(|e| AppError::output(out, e))?;
+    let csv_path = out.join("frames.csv");
+    let mut csv =
+        BufWriter::new(File::create(&csv_path).map_err(|e| AppError::output(&csv_path, e))?);
+    writeln!(
+        csv,
+        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms"
+    )
+    .map_err(|e| AppError::output(&csv_path, e))?;
+
+    let gpu = match GpuContext::headless() {
+        Ok(ctx) => {
+            log::info!("rendering on {}", ctx.adapter_summary());
+            Some(ctx)
+        }
+        Err(err) => {
+            eprintln!(
+                "{err}\nno images will be written; simulating, extracting and exporting only"
+            );
+            None
+        }
+    };
+    let mut renderer = match &gpu {
+        Some(ctx) => Some(SplatRenderer::new(
+            ctx,
+            args.width,
+            args.height,
+            &crate::environment(),
+        )?),
+        None => None,
+    };
+    let export = |prefix: &str, format: Option<crate::cli::ExportFormat>| {
+        format
+            .map(|f| FrameWriter::new(out, prefix, f.into()).map_err(|e| AppError::output(out, e)))
+            .transpose()
+    };
+    let mut particles_out = export("particles", args.export_particles)?;
+    let mut surfels_out = export("surfels", args.export_surfels)?;
+
+    let frames = args.frame_count();
+    let frame_dt = 1.0 / args.fps;
+    println!(
+        "scene `{}`: {} particles, {frames} frames at {} fps of simulated time, {}×{} → {}",
+        pipeline.name,
+        pipeline.world.particles.len(),
+        args.fps,
+        args.width,
+        args.height,
+        out.display()
+    );
+    let bar = ProgressBar::new(u64::from(frames));
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{bar:40} {pos}/{len} frames, {elapsed} elapsed, eta {eta} {msg}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let camera = pipeline.camera();
+    let shading = pipeline.shading();
+    for frame in 0..frames {
+        pipeline.advance(frame_dt)?;
+        pipeline.extract_surfels()?;
+        let mut render_ms = 0.0;
+        if let (Some(ctx), Some(renderer)) = (&gpu, renderer.as_mut()) {
+            let start = Instant::now();
+            renderer.upload(ctx, &pipeline.splats())?;
+            renderer.render(ctx, &camera, &shading)?;
+            let image = renderer.read_image(ctx)?;
+            render_ms = start.elapsed().as_secs_f64() * 1e3;
+            let path = out.join(format!("frame_{frame:05}.png"));
+            image.save(&path).map_err(|e| AppError::output(&path, e))?;
+        }
+        pipeline.stats.render_ms = render_ms;
+        let time = pipeline.stats.time;
+        if let Some(w) = particles_out.as_mut() {
+            w.write(&PointCloud::from_particles(&pipeline.world.particles), time)?;
+        }
+        if let Some(w) = surfels_out.as_mut() {
+            write_surfels(w, &pipeline, time)?;
+        }
+        let s = pipeline.stats;
+        writeln!(
+            csv,
+            "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3}",
+            s.time, s.particles, s.surfels, s.evaluations, s.step_ms, s.extract_ms, s.render_ms
+        )
+        .and_then(|()| csv.flush())
+        .map_err(|e| AppError::output(&csv_path, e))?;
+        bar.set_message(format!("{} surfels", s.surfels));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    let what = if gpu.is_some() { "PNG frames, " } else { "" };
+    println!(
+        "wrote {frames} frames ({what}frames.csv{}{}) to {}",
+        if particles_out.is_some() {
+            ", particle files"
+        } else {
+            ""
+        },
+        if surfels_out.is_some() {
+            ", surfel files"
+        } else {
+            ""
+        },
+        display(out)
+    );
+    Ok(())
+}
+
+fn write_surfels(w: &mut FrameWriter, pipeline: &Pipeline, time: f64) -> Result<(), AppError> {
+    let s = &pipeline.surfels;
+    let positions: Vec<_> = s.iter().map(|s| s.position).collect();
+    let normals: Vec<_> = s.iter().map(|s| s.normal).collect();
+    let radii: Vec<_> = s.iter().map(|s| s.radius).collect();
+    let cloud = PointCloud {
+        positions: &positions,
+        vectors: vec![("normal", &normals)],
+        scalars: vec![("radius", &radii)],
+    };
+    w.write(&cloud, time)?;
+    Ok(())
+}
+
+fn display(p: &Path) -> String {
+    std::fs::canonicalize(p)
+        .unwrap_or_else(|_| p.to_path_buf())
+        .display()
+        .to_string()
+}

@@ -1,0 +1,565 @@
+//! Windowed mode: winit window, wgpu surface, splat renderer, egui panel.
+//!
+//! Controls: drag to rotate, scroll to zoom, right-drag to pan, Ctrl+drag to
+//! push the fluid; Space pause, N single step, R reset, 1–9 built-in scenes,
+//! S screenshot, F cycle views, Esc quit.
+
+use std::sync::{Arc, RwLock};
+use std::time::Instant;
+
+use glam::{Vec2, Vec3};
+use sph_core::solver::ExternalAcceleration;
+use splat_render::{GpuContext, Shading, SplatRenderer, View, wgpu};
+use winit::application::ApplicationHandler;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{Key, ModifiersState, NamedKey};
+use winit::window::{Window, WindowId};
+
+use crate::cli::Args;
+use crate::error::AppError;
+use crate::orbit::Orbit;
+use crate::pipeline::Pipeline;
+use crate::scenes;
+
+/// Whether a window system is reachable.
+pub fn display_available() -> bool {
+    if cfg!(any(target_os = "windows", target_os = "macos")) {
+        return true;
+    }
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+}
+
+/// Opens the window and runs until it is closed.
+pub fn run(args: &Args, pipeline: Pipeline) -> Result<(), AppError> {
+    let event_loop = EventLoop::new().map_err(|e| AppError::Window(e.to_string()))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut app = App::new(args, pipeline);
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| AppError::Window(e.to_string()))?;
+    app.error.map_or(Ok(()), Err)
+}
+
+/// A push of the fluid near the cursor ray (Ctrl+drag).
+#[derive(Clone, Copy, Debug)]
+struct Push {
+    origin: Vec3,
+    dir: Vec3,
+    acceleration: Vec3,
+    radius: f32,
+}
+
+/// The processor applying [`Push`]: acceleration falling off smoothly with the
+/// distance from the cursor ray.
+fn push_processor(push: Arc<RwLock<Option<Push>>>) -> impl sph_core::processor::Processor {
+    ExternalAcceleration::new("push", move |x: Vec3, _t: f64| {
+        let Some(p) = *push.read().unwrap_or_else(|e| e.into_inner()) else {
+            return Vec3::ZERO;
+        };
+        let d = x - p.origin;
+        let off = d - d.dot(p.dir) * p.dir;
+        let q = off.length_squared() / (p.radius * p.radius);
+        if q >= 1.0 {
+            Vec3::ZERO
+        } else {
+            p.acceleration * (1.0 - q).powi(2)
+        }
+    })
+}
+
+/// Live settings edited in the panel.
+struct Settings {
+    shading: Shading,
+    /// Debug view index: the renderer's views, then "particles".
+    view: usize,
+    paused: bool,
+    step_once: bool,
+}
+
+const VIEW_NAMES: [&str; 5] = ["shaded", "normals", "weights", "depth", "particles"];
+
+struct Gfx {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    ctx: GpuContext,
+    renderer: SplatRenderer,
+    egui_state: egui_winit::State,
+    egui_renderer: egui_wgpu::Renderer,
+}
+
+struct App {
+    size: (u32, u32),
+    args_screenshot_after: Option<u64>,
+    out: std::path::PathBuf,
+    iterations: u32,
+    pipeline: Pipeline,
+    orbit: Orbit,
+    settings: Settings,
+    push: Arc<RwLock<Option<Push>>>,
+    gfx: Option<Gfx>,
+    egui: egui::Context,
+    cursor: Vec2,
+    dragging: Option<MouseButton>,
+    modifiers: ModifiersState,
+    last: Instant,
+    sim_debt: f64,
+    fps: f64,
+    render_ms: f64,
+    screenshots: u32,
+    frames_drawn: u64,
+    error: Option<AppError>,
+}
+
+impl App {
+    fn new(args: &Args, mut pipeline: Pipeline) -> Self {
+        let push = Arc::new(RwLock::new(None));
+        pipeline
+            .world
+            .program_mut()
+            .insert_after("forces", push_processor(push.clone()));
+        let mut shading = pipeline.shading();
+        shading.view = View::Shaded;
+        Self {
+            size: (args.width, args.height),
+            args_screenshot_after: args.screenshot_after,
+            out: args.out.clone(),
+            iterations: args.iterations,
+            orbit: Orbit::from_camera(&pipeline.camera()),
+            pipeline,
+            settings: Settings {
+                shading,
+                view: 0,
+                paused: false,
+                step_once: false,
+            },
+            push,
+            gfx: None,
+            egui: egui::Context::default(),
+            cursor: Vec2::ZERO,
+            dragging: None,
+            modifiers: ModifiersState::empty(),
+            last: Instant::now(),
+            sim_debt: 0.0,
+            fps: 0.0,
+            render_ms: 0.0,
+            screenshots: 0,
+            frames_drawn: 0,
+            error: None,
+        }
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, err: AppError) {
+        self.error = Some(err);
+        event_loop.exit();
+    }
+
+    fn init_gfx(&mut self, event_loop: &ActiveEventLoop) -> Result<Gfx, AppError> {
+        let attrs = Window::default_attributes()
+            .with_title("sph-splat")
+            .with_inner_size(winit::dpi::PhysicalSize::new(self.size.0, self.size.1));
+        let window = Arc::new(
+            event_loop
+                .create_window(attrs)
+                .map_err(|e| AppError::Window(e.to_string()))?,
+        );
+        let instance = splat_render::instance_from_env();
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|e| AppError::Window(e.to_string()))?;
+        let ctx = pollster::block_on(GpuContext::for_surface(instance, &surface))?;
+        let size = window.inner_size();
+        let config = surface
+            .get_default_config(&ctx.adapter, size.width.max(1), size.height.max(1))
+            .ok_or_else(|| {
+                AppError::Window("the surface is not supported by the adapter".into())
+            })?;
+        surface.configure(&ctx.device, &config);
+        let renderer =
+            SplatRenderer::new(&ctx, config.width, config.height, &crate::environment())?;
+        let egui_state = egui_winit::State::new(
+            self.egui.clone(),
+            egui::ViewportId::ROOT,
+            &window,
+            Some(window.scale_factor() as f32),
+            None,
+            Some(ctx.device.limits().max_texture_dimension_2d as usize),
+        );
+        let egui_renderer =
+            egui_wgpu::Renderer::new(&ctx.device, config.format, Default::default());
+        log::info!("window on {}", ctx.adapter_summary());
+        Ok(Gfx {
+            window,
+            surface,
+            config,
+            ctx,
+            renderer,
+            egui_state,
+            egui_renderer,
+        })
+    }
+
+    fn switch_scene(&mut self, index: usize) -> Result<(), AppError> {
+        let Some((name, _, make)) = scenes::BUILT_IN.get(index) else {
+            return Ok(());
+        };
+        let mut pipeline = Pipeline::new(name.to_string(), make(), self.iterations)?;
+        pipeline.extract = self.pipeline.extract;
+        pipeline.extract.h = pipeline.world.params().h;
+        pipeline
+            .world
+            .program_mut()
+            .insert_after("forces", push_processor(self.push.clone()));
+        self.orbit = Orbit::from_camera(&pipeline.camera());
+        self.settings.shading.depth_epsilon = pipeline.shading().depth_epsilon;
+        self.pipeline = pipeline;
+        Ok(())
+    }
+
+    fn reset(&mut self) -> Result<(), AppError> {
+        self.pipeline.reset()?;
+        self.pipeline
+            .world
+            .program_mut()
+            .insert_after("forces", push_processor(self.push.clone()));
+        Ok(())
+    }
+
+    /// Rebuilds the world around the current particles after a parameter change.
+    fn apply_fluid_params(&mut self) -> Result<(), AppError> {
+        let particles = self.pipeline.world.particles.clone();
+        self.pipeline.world = self.pipeline.scene.world_with(particles)?;
+        self.pipeline
+            .world
+            .program_mut()
+            .insert_after("forces", push_processor(self.push.clone()));
+        Ok(())
+    }
+
+    fn key(&mut self, event_loop: &ActiveEventLoop, key: &Key) -> Result<(), AppError> {
+        match key {
+            Key::Named(NamedKey::Space) => self.settings.paused = !self.settings.paused,
+            Key::Named(NamedKey::Escape) => event_loop.exit(),
+            Key::Character(c) => match c.as_str() {
+                "n" | "N" => self.settings.step_once = true,
+                "r" | "R" => self.reset()?,
+                "s" | "S" => self.screenshot()?,
+                "f" | "F" => self.settings.view = (self.settings.view + 1) % VIEW_NAMES.len(),
+                d => {
+                    if let Some(n) = d.parse::<usize>().ok().filter(|n| (1..=9).contains(n)) {
+                        self.switch_scene(n - 1)?;
+                    }
+                }
+            },
+            _ => {}
+        }
+        Ok(())
+    }
+
+    fn screenshot(&mut self) -> Result<(), AppError> {
+        let Some(gfx) = &self.gfx else { return Ok(()) };
+        std::fs::create_dir_all(&self.out).map_err(|e| AppError::output(&self.out, e))?;
+        let path = self
+            .out
+            .join(format!("screenshot_{:03}.png", self.screenshots));
+        gfx.renderer
+            .read_image(&gfx.ctx)?
+            .save(&path)
+            .map_err(|e| AppError::output(&path, e))?;
+        self.screenshots += 1;
+        println!("screenshot: {}", path.display());
+        Ok(())
+    }
+
+    fn simulate(&mut self) -> Result<(), AppError> {
+        let now = Instant::now();
+        let real = now.duration_since(self.last).as_secs_f64();
+        self.last = now;
+        self.fps = 0.9 * self.fps + 0.1 / real.max(1e-6);
+        let frame_dt = f64::from(self.pipeline.scene.time_step.frame_dt);
+        let mut advanced = false;
+        if self.settings.paused {
+            self.sim_debt = 0.0;
+            if std::mem::take(&mut self.settings.step_once) {
+                self.pipeline.advance(frame_dt)?;
+                advanced = true;
+            }
+        } else {
+            // Fixed simulated rate, independent of the frame rate; at most two
+            // frames of catch-up so a slow machine slows down instead of stalling.
+            self.sim_debt = (self.sim_debt + real).min(2.0 * frame_dt);
+            while self.sim_debt >= frame_dt {
+                self.pipeline.advance(frame_dt)?;
+                self.sim_debt -= frame_dt;
+                advanced = true;
+            }
+        }
+        if advanced || self.pipeline.surfels.is_empty() {
+            self.pipeline.extract_surfels()?;
+        }
+        Ok(())
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<(), AppError> {
+        self.simulate()?;
+        let camera = self.orbit.camera();
+        let Some(gfx) = self.gfx.as_mut() else {
+            return Ok(());
+        };
+        let start = Instant::now();
+        let particles_view = self.settings.view == 4;
+        let splats = if particles_view {
+            self.pipeline.particle_splats(camera.eye)
+        } else {
+            self.pipeline.splats()
+        };
+        let mut shading = self.settings.shading;
+        shading.view = if particles_view {
+            View::Normals
+        } else {
+            View::ALL[self.settings.view]
+        };
+        gfx.renderer.upload(&gfx.ctx, &splats)?;
+        let frame = match gfx.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                gfx.surface.configure(&gfx.ctx.device, &gfx.config);
+                return Ok(());
+            }
+            other => {
+                log::warn!("surface: {other:?}");
+                return Ok(());
+            }
+        };
+        let view = frame.texture.create_view(&Default::default());
+        gfx.renderer
+            .render_to_surface(&gfx.ctx, &camera, &shading, &view, gfx.config.format)?;
+
+        // The panel, drawn over the splats.
+        let raw = gfx.egui_state.take_egui_input(&gfx.window);
+        let mut changed = false;
+        let mut scene_choice = None;
+        let stats = self.pipeline.stats;
+        let (fps, render_ms) = (self.fps, self.render_ms);
+        let settings = &mut self.settings;
+        let extract = &mut self.pipeline.extract;
+        let fluid = &mut self.pipeline.scene.fluid;
+        let name = self.pipeline.name.clone();
+        let full = self.egui.run_pass(raw, |ctx| {
+            egui::Window::new("sph-splat").default_pos([10.0, 10.0]).show(ctx, |ui| {
+                ui.label(format!("scene: {name}"));
+                ui.horizontal(|ui| {
+                    for (i, (n, _, _)) in scenes::BUILT_IN.iter().enumerate() {
+                        if ui.small_button(format!("{}", i + 1)).on_hover_text(*n).clicked() {
+                            scene_choice = Some(i);
+                        }
+                    }
+                });
+                ui.separator();
+                ui.label(format!("{fps:.1} fps, t = {:.2} s, frame {}", stats.time, stats.frame));
+                ui.label(format!(
+                    "simulate {:.1} ms ({} substeps), extract {:.1} ms, render {render_ms:.1} ms",
+                    stats.step_ms, stats.substeps, stats.extract_ms
+                ));
+                ui.label(format!(
+                    "{} particles, {} surfels, {} evaluations",
+                    stats.particles, stats.surfels, stats.evaluations
+                ));
+                ui.separator();
+                ui.checkbox(&mut settings.paused, "paused (space; N steps)");
+                egui::ComboBox::from_label("view (F)")
+                    .selected_text(VIEW_NAMES[settings.view])
+                    .show_ui(ui, |ui| {
+                        for (i, v) in VIEW_NAMES.iter().enumerate() {
+                            ui.selectable_value(&mut settings.view, i, *v);
+                        }
+                    });
+                ui.collapsing("fluid", |ui| {
+                    changed |= ui.add(egui::Slider::new(&mut fluid.stiffness, 100.0..=20_000.0).logarithmic(true).text("k (m²/s²)")).changed();
+                    changed |= ui.add(egui::Slider::new(&mut fluid.viscosity, 0.0..=5.0).text("μ (Pa·s)")).changed();
+                    changed |= ui.add(egui::Slider::new(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)")).changed();
+                    changed |= ui.add(egui::Slider::new(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)")).changed();
+                });
+                ui.collapsing("extraction", |ui| {
+                    ui.add(egui::Slider::new(&mut extract.iterations, 1..=3).text("iterations"));
+                    ui.add(egui::Slider::new(&mut extract.iso, 0.2..=0.8).text("iso value"));
+                    ui.add(egui::Slider::new(&mut extract.radius, 0.2..=1.0).text("initial radius (h)"));
+                });
+                ui.collapsing("shading", |ui| {
+                    ui.add(egui::Slider::new(&mut settings.shading.refraction, 0.0..=0.2).text("refraction μ"));
+                    ui.add(egui::Slider::new(&mut settings.shading.depth_epsilon, 0.0..=0.1).text("depth ε (m)"));
+                    let mut c = settings.shading.fluid_colour.to_array();
+                    if ui.color_edit_button_rgb(&mut c).changed() {
+                        settings.shading.fluid_colour = Vec3::from(c);
+                    }
+                });
+                ui.small("drag rotate · scroll zoom · right-drag pan · ctrl+drag push · R reset · S screenshot");
+            });
+        });
+        gfx.egui_state
+            .handle_platform_output(&gfx.window, full.platform_output);
+        let prims = self.egui.tessellate(full.shapes, full.pixels_per_point);
+        let device = &gfx.ctx.device;
+        let queue = &gfx.ctx.queue;
+        for (id, deltas) in &full.textures_delta.set {
+            for delta in deltas {
+                gfx.egui_renderer.update_texture(device, queue, *id, delta);
+            }
+        }
+        let screen = egui_wgpu::ScreenDescriptor {
+            size_in_pixels: [gfx.config.width, gfx.config.height],
+            pixels_per_point: full.pixels_per_point,
+        };
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let extra = gfx
+            .egui_renderer
+            .update_buffers(device, queue, &mut encoder, &prims, &screen);
+        {
+            let mut pass = encoder
+                .begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("egui"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Load,
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    ..Default::default()
+                })
+                .forget_lifetime();
+            gfx.egui_renderer.render(&mut pass, &prims, &screen);
+        }
+        queue.submit(extra.into_iter().chain([encoder.finish()]));
+        for id in &full.textures_delta.free {
+            gfx.egui_renderer.free_texture(id);
+        }
+        gfx.window.pre_present_notify();
+        queue.present(frame);
+        self.render_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.frames_drawn += 1;
+
+        if changed {
+            self.apply_fluid_params()?;
+        }
+        if let Some(i) = scene_choice {
+            self.switch_scene(i)?;
+        }
+        if self.args_screenshot_after == Some(self.frames_drawn) {
+            self.screenshot()?;
+            event_loop.exit();
+        }
+        Ok(())
+    }
+
+    fn mouse_moved(&mut self, pos: Vec2) {
+        let delta = pos - self.cursor;
+        self.cursor = pos;
+        let height = self.gfx.as_ref().map_or(1.0, |g| g.config.height as f32);
+        match self.dragging {
+            Some(MouseButton::Left) if self.modifiers.control_key() => {
+                let camera = self.orbit.camera();
+                let (w, h) = self
+                    .gfx
+                    .as_ref()
+                    .map_or((1, 1), |g| (g.config.width, g.config.height));
+                let (origin, dir) = camera.pixel_ray(pos.x as u32, pos.y as u32, w, h);
+                let (right, up) = self.orbit.screen_axes();
+                let push = Push {
+                    origin,
+                    dir,
+                    acceleration: (delta.x * right - delta.y * up) * 40.0,
+                    radius: 4.0 * self.pipeline.world.params().h,
+                };
+                *self.push.write().unwrap_or_else(|e| e.into_inner()) = Some(push);
+            }
+            Some(MouseButton::Left) => self.orbit.rotate(delta),
+            Some(MouseButton::Right) => self.orbit.pan(delta, height),
+            _ => {}
+        }
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gfx.is_some() {
+            return;
+        }
+        match self.init_gfx(event_loop) {
+            Ok(gfx) => self.gfx = Some(gfx),
+            Err(e) => self.fail(event_loop, e),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let consumed = match self.gfx.as_mut() {
+            Some(gfx) => gfx.egui_state.on_window_event(&gfx.window, &event).consumed,
+            None => false,
+        };
+        let result = match event {
+            WindowEvent::CloseRequested => {
+                event_loop.exit();
+                Ok(())
+            }
+            WindowEvent::Resized(size) => {
+                if let Some(gfx) = self.gfx.as_mut() {
+                    gfx.config.width = size.width.max(1);
+                    gfx.config.height = size.height.max(1);
+                    gfx.surface.configure(&gfx.ctx.device, &gfx.config);
+                    gfx.renderer
+                        .resize(&gfx.ctx, gfx.config.width, gfx.config.height)
+                        .map_err(AppError::from)
+                } else {
+                    Ok(())
+                }
+            }
+            WindowEvent::RedrawRequested => self.redraw(event_loop),
+            WindowEvent::ModifiersChanged(m) => {
+                self.modifiers = m.state();
+                Ok(())
+            }
+            WindowEvent::KeyboardInput { event, .. }
+                if !consumed && event.state == ElementState::Pressed =>
+            {
+                self.key(event_loop, &event.logical_key)
+            }
+            WindowEvent::MouseInput { state, button, .. }
+                if !consumed || state == ElementState::Released =>
+            {
+                self.dragging = (state == ElementState::Pressed).then_some(button);
+                if state == ElementState::Released {
+                    *self.push.write().unwrap_or_else(|e| e.into_inner()) = None;
+                }
+                Ok(())
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                self.mouse_moved(Vec2::new(position.x as f32, position.y as f32));
+                Ok(())
+            }
+            WindowEvent::MouseWheel { delta, .. } if !consumed => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                self.orbit.zoom(lines);
+                Ok(())
+            }
+            _ => Ok(()),
+        };
+        if let Err(e) = result {
+            self.fail(event_loop, e);
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        if let Some(gfx) = &self.gfx {
+            gfx.window.request_redraw();
+        }
+    }
+}

@@ -1,0 +1,184 @@
+//! End-to-end tests of the `sph-app` binary: headless frames, CSV, exports, and
+//! one-line errors with a non-zero exit.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::Vec2;
+use sph_core::export::{read_ply, read_vtk};
+use splat_render::textures::{procedural_background, sample_bilinear};
+
+fn app(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_sph-app"))
+        .args(args)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("the binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    dir
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn headless_frames_csv_and_exports() {
+    let out = scratch("headless");
+    let o = app(&[
+        "--headless",
+        "--scene",
+        "dam-break",
+        "--frames",
+        "3",
+        "--fps",
+        "30",
+        "--width",
+        "160",
+        "--height",
+        "120",
+        "--out",
+        out.to_str().unwrap(),
+        "--export-particles",
+        "ply",
+        "--export-surfels",
+        "vtk",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms"
+    );
+    assert_eq!(rows.len(), 3, "{csv}");
+    for (i, row) in rows.iter().enumerate() {
+        assert_eq!(row[0], i.to_string());
+        let time: f64 = row[1].parse().unwrap();
+        assert!((time - (i + 1) as f64 / 30.0).abs() < 1e-4, "time {time}");
+        let particles: usize = row[2].parse().unwrap();
+        let surfels: usize = row[3].parse().unwrap();
+        assert!(particles > 1000 && surfels > 100, "{row:?}");
+        let p = read_ply(std::fs::File::open(out.join(format!("particles_{i:05}.ply"))).unwrap())
+            .unwrap();
+        assert_eq!(p.positions.len(), particles);
+        assert!(p.vector("velocity").is_some() && p.scalar("density").is_some());
+        let s = read_vtk(std::fs::File::open(out.join(format!("surfels_{i:05}.vtk"))).unwrap())
+            .unwrap();
+        assert_eq!(s.positions.len(), surfels);
+        assert!(s.vector("normal").is_some() && s.scalar("radius").is_some());
+    }
+
+    let png = out.join("frame_00002.png");
+    if !png.exists() {
+        assert!(
+            std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
+            "no PNG: {}",
+            stderr(&o)
+        );
+        assert!(stderr(&o).contains("mesa-vulkan-drivers"), "{}", stderr(&o));
+        eprintln!("skipped image checks: no GPU adapter");
+        return;
+    }
+    for i in 0..3 {
+        let img = image::open(out.join(format!("frame_{i:05}.png")))
+            .unwrap()
+            .into_rgba8();
+        assert_eq!(img.dimensions(), (160, 120));
+        // The fluid is visible: pixels differ from the plain background.
+        let back = procedural_background(1024, 1024);
+        let differing = img
+            .enumerate_pixels()
+            .filter(|(x, y, p)| {
+                let uv = Vec2::new((*x as f32 + 0.5) / 160.0, (*y as f32 + 0.5) / 120.0);
+                let b = sample_bilinear(&back, uv, false) * 255.0;
+                (0..3).any(|c| (f32::from(p.0[c]) - b[c]).abs() > 12.0)
+            })
+            .count();
+        assert!(
+            differing > 160 * 120 / 50,
+            "frame {i}: only {differing} pixels show fluid"
+        );
+    }
+}
+
+#[test]
+fn list_scenes_names_the_built_ins() {
+    let o = app(&["--list-scenes"]);
+    assert!(o.status.success());
+    let text = String::from_utf8_lossy(&o.stdout);
+    for name in ["dam-break", "dam-break-3d", "double-dam-break", "drop"] {
+        assert!(text.contains(name), "{text}");
+    }
+}
+
+/// Runs a failing command: non-zero exit, a message containing `expected`, no panic.
+fn fails_with(args: &[&str], expected: &str) {
+    let o = app(args);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{args:?} succeeded");
+    assert!(err.contains(expected), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+}
+
+#[test]
+fn bad_input_is_one_line_and_a_failure() {
+    let dir = scratch("errors");
+    std::fs::create_dir_all(&dir).unwrap();
+    fails_with(
+        &["--headless", "--scene", "atlantis"],
+        "unknown scene `atlantis`",
+    );
+    fails_with(&["--iterations", "7"], "--iterations");
+    fails_with(&["--fps", "0"], "fps must be > 0");
+
+    let syntax = dir.join("broken.toml");
+    std::fs::write(&syntax, "name = \"x\"\nspacing = = 0.02\n").unwrap();
+    fails_with(
+        &["--headless", "--scene", syntax.to_str().unwrap()],
+        "line 2",
+    );
+
+    let unknown = dir.join("unknown.toml");
+    let mut text = sph_core::Scene::dam_break(0.1, 0.04, 0.02).to_toml();
+    text.push_str("\n[wibble]\nx = 1\n");
+    std::fs::write(&unknown, text).unwrap();
+    fails_with(
+        &["--headless", "--scene", unknown.to_str().unwrap()],
+        "wibble",
+    );
+
+    let bad_h = dir.join("bad_h.toml");
+    let text = sph_core::Scene::dam_break(0.1, 0.04, 0.02)
+        .to_toml()
+        .replace("h = 0.04", "h = -1.0");
+    std::fs::write(&bad_h, text).unwrap();
+    fails_with(
+        &["--headless", "--scene", bad_h.to_str().unwrap()],
+        "fluid.h",
+    );
+
+    // A folder below a regular file cannot be created, even by root.
+    let file = dir.join("a-file");
+    std::fs::write(&file, "").unwrap();
+    let out = file.join("frames");
+    fails_with(
+        &[
+            "--headless",
+            "--frames",
+            "1",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        "cannot write to",
+    );
+}

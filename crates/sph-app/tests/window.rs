@@ -1,0 +1,82 @@
+//! The windowed mode starts and draws under Xvfb (lavapipe in CI): it runs a few
+//! frames, takes its `S` screenshot (`--screenshot-after`) and quits; the
+//! screenshot must show the fluid. Skipped when `xvfb-run` is missing unless
+//! `SPH_REQUIRE_GPU=1`.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use glam::Vec2;
+use splat_render::textures::{procedural_background, sample_bilinear};
+
+#[test]
+fn window_draws_under_xvfb() {
+    let has_xvfb = Command::new("sh")
+        .args(["-c", "command -v xvfb-run"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !has_xvfb {
+        assert!(
+            std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
+            "SPH_REQUIRE_GPU=1 but xvfb-run is missing (apt-get install -y xvfb xauth)"
+        );
+        eprintln!("skipped: xvfb-run not installed");
+        return;
+    }
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("window");
+    let _ = std::fs::remove_dir_all(&out);
+    let mut child = Command::new("xvfb-run")
+        .args([
+            "-a",
+            "-s",
+            "-screen 0 1280x800x24",
+            env!("CARGO_BIN_EXE_sph-app"),
+        ])
+        .args(["--scene", "dam-break", "--width", "480", "--height", "270"])
+        .args(["--screenshot-after", "5", "--out", out.to_str().unwrap()])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("xvfb-run starts");
+    let start = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if start.elapsed() > Duration::from_secs(300) {
+            let _ = child.kill();
+            panic!("the window did not quit within 300 s");
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    let output = child.wait_with_output().unwrap();
+    let log = format!(
+        "{}{}",
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(status.success(), "{log}");
+    assert!(
+        !log.contains("rendering headless"),
+        "fell back to headless: {log}"
+    );
+    let shot = image::open(out.join("screenshot_000.png"))
+        .unwrap_or_else(|e| panic!("{e}: {log}"))
+        .into_rgba8();
+    let (w, h) = shot.dimensions();
+    let back = procedural_background(1024, 1024);
+    let differing = shot
+        .enumerate_pixels()
+        .filter(|(x, y, p)| {
+            let uv = Vec2::new((*x as f32 + 0.5) / w as f32, (*y as f32 + 0.5) / h as f32);
+            let b = sample_bilinear(&back, uv, false) * 255.0;
+            (0..3).any(|c| (f32::from(p.0[c]) - b[c]).abs() > 12.0)
+        })
+        .count();
+    assert!(
+        differing > (w * h) as usize / 50,
+        "screenshot shows only {differing} fluid pixels"
+    );
+}
