@@ -652,8 +652,21 @@ impl World {
 
     /// Takes one step of the stable length; returns it.
     pub fn step(&mut self) -> Result<f32> {
-        let dt = self.stable_dt();
+        let dt = self.checked_stable_dt()?;
         self.step_by(dt)?;
+        Ok(dt)
+    }
+
+    /// [`stable_dt`](Self::stable_dt), or the blow-up error when it is NaN or
+    /// below `min_dt`.
+    fn checked_stable_dt(&self) -> Result<f32> {
+        let dt = self.stable_dt();
+        if dt.is_nan() || dt < self.stepping.min_dt {
+            return Err(self.unstable(format!(
+                "the stable step fell to {dt:e} s, below min_dt = {:e} s",
+                self.stepping.min_dt
+            )));
+        }
         Ok(dt)
     }
 
@@ -667,9 +680,23 @@ impl World {
             dt_range: (f32::INFINITY, 0.0),
             time: self.time,
         };
-        while self.time < end - 1e-9 {
-            let dt = self.stable_dt().min((end - self.time) as f32);
+        while self.time < end {
+            let stable = self.checked_stable_dt()?;
+            let remaining = (end - self.time) as f32;
+            // Land on the frame time without a sliver step: the last two steps
+            // share what is left when it is under two stable steps.
+            let last = remaining <= stable;
+            let dt = if last {
+                remaining
+            } else if remaining < 2.0 * stable {
+                0.5 * remaining
+            } else {
+                stable
+            };
             self.step_by(dt)?;
+            if last {
+                self.time = end;
+            }
             report.substeps += 1;
             report.dt_range = (report.dt_range.0.min(dt), report.dt_range.1.max(dt));
         }
@@ -678,12 +705,6 @@ impl World {
     }
 
     fn step_by(&mut self, dt: f32) -> Result<()> {
-        if dt.is_nan() || dt < self.stepping.min_dt {
-            return Err(self.unstable(format!(
-                "the stable step fell to {dt:e} s, below min_dt = {:e} s",
-                self.stepping.min_dt
-            )));
-        }
         let mut ctx = Context {
             dt,
             time: self.time,

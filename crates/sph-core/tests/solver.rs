@@ -251,3 +251,20 @@ fn identical_for_1_2_and_4_threads() {
     assert_eq!(one, run(2));
     assert_eq!(one, run(4));
 }
+
+/// Regression: `advance` used to end a frame with a sliver substep (frame time
+/// minus the stable steps) and reject it as "below min_dt"; this scene at 30
+/// frames/s died at t = 0.467 s.
+#[test]
+fn frames_end_without_sliver_steps() {
+    let mut world = Scene::dam_break(0.25, 0.08, 0.02).build_world().unwrap();
+    let mut smallest = f32::INFINITY;
+    for frame in 1..=18 {
+        let report = world.advance(1.0 / 30.0).unwrap();
+        smallest = smallest.min(report.dt_range.0);
+        assert_eq!(world.time(), report.time);
+        assert!((report.time - frame as f64 / 30.0).abs() < 1e-6, "t = {}", report.time);
+    }
+    // The shortest substep is at least half a typical one, never a sliver.
+    assert!(smallest > 1e-5, "shortest substep {smallest:e} s");
+}
