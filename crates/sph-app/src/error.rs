@@ -35,6 +35,16 @@ pub enum AppError {
     /// The window could not be created.
     #[error("window: {0}")]
     Window(String),
+    /// A headless run stopped part-way; the files of earlier frames are complete.
+    #[error("frame {frame} failed: {source} ({frame} complete frames are listed in {})", csv.display())]
+    Incomplete {
+        /// The failing frame (0-based) = number of complete frames.
+        frame: u32,
+        /// The `frames.csv` listing the complete frames.
+        csv: PathBuf,
+        /// What went wrong.
+        source: Box<AppError>,
+    },
     /// The thread pool could not be built.
     #[error("--threads: {0}")]
     Threads(String),

@@ -77,36 +77,44 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     let camera = pipeline.camera();
     let shading = pipeline.shading();
     for frame in 0..frames {
-        pipeline.advance(frame_dt)?;
-        pipeline.extract_surfels()?;
-        let mut render_ms = 0.0;
-        if let (Some(ctx), Some(renderer)) = (&gpu, renderer.as_mut()) {
-            let start = Instant::now();
-            renderer.upload(ctx, &pipeline.splats())?;
-            renderer.render(ctx, &camera, &shading)?;
-            let image = renderer.read_image(ctx)?;
-            render_ms = start.elapsed().as_secs_f64() * 1e3;
-            let path = out.join(format!("frame_{frame:05}.png"));
-            image.save(&path).map_err(|e| AppError::output(&path, e))?;
-        }
-        pipeline.stats.render_ms = render_ms;
-        let time = pipeline.stats.time;
-        if let Some(w) = particles_out.as_mut() {
-            w.write(&PointCloud::from_particles(&pipeline.world.particles), time)?;
-        }
-        if let Some(w) = surfels_out.as_mut() {
-            write_surfels(w, &pipeline, time)?;
-        }
-        let s = pipeline.stats;
-        writeln!(
-            csv,
-            "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3}",
-            s.time, s.particles, s.surfels, s.evaluations, s.step_ms, s.extract_ms, s.render_ms
-        )
-        .and_then(|()| csv.flush())
-        .map_err(|e| AppError::output(&csv_path, e))?;
-        bar.set_message(format!("{} surfels", s.surfels));
-        bar.inc(1);
+        let result = (|| -> Result<(), AppError> {
+            pipeline.advance(frame_dt)?;
+            pipeline.extract_surfels()?;
+            let mut render_ms = 0.0;
+            if let (Some(ctx), Some(renderer)) = (&gpu, renderer.as_mut()) {
+                let start = Instant::now();
+                renderer.upload(ctx, &pipeline.splats())?;
+                renderer.render(ctx, &camera, &shading)?;
+                let image = renderer.read_image(ctx)?;
+                render_ms = start.elapsed().as_secs_f64() * 1e3;
+                let path = out.join(format!("frame_{frame:05}.png"));
+                image.save(&path).map_err(|e| AppError::output(&path, e))?;
+            }
+            pipeline.stats.render_ms = render_ms;
+            let time = pipeline.stats.time;
+            if let Some(w) = particles_out.as_mut() {
+                w.write(&PointCloud::from_particles(&pipeline.world.particles), time)?;
+            }
+            if let Some(w) = surfels_out.as_mut() {
+                write_surfels(w, &pipeline, time)?;
+            }
+            let s = pipeline.stats;
+            writeln!(
+                csv,
+                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3}",
+                s.time, s.particles, s.surfels, s.evaluations, s.step_ms, s.extract_ms, s.render_ms
+            )
+            .and_then(|()| csv.flush())
+            .map_err(|e| AppError::output(&csv_path, e))?;
+            bar.set_message(format!("{} surfels", s.surfels));
+            bar.inc(1);
+            Ok(())
+        })();
+        result.map_err(|source| AppError::Incomplete {
+            frame,
+            csv: csv_path.clone(),
+            source: Box::new(source),
+        })?;
     }
     bar.finish_and_clear();
     let what = if gpu.is_some() { "PNG frames, " } else { "" };

@@ -388,8 +388,11 @@ impl App {
                     ui.add(egui::Slider::new(&mut extract.iterations, 1..=3).text("iterations"));
                     ui.add(egui::Slider::new(&mut extract.iso, 0.2..=0.8).text("iso value"));
                     ui.add(egui::Slider::new(&mut extract.radius, 0.2..=1.0).text("initial radius (h)"));
+                    ui.add(egui::Slider::new(&mut extract.interior_step, 0.3..=1.5).text("interior step (h)"));
+                    ui.add(egui::Slider::new(&mut extract.discard_step, 0.05..=0.5).text("discard step (h)"));
                 });
                 ui.collapsing("shading", |ui| {
+                    ui.add(egui::Slider::new(&mut settings.shading.reflectivity, 0.0..=2.0).text("reflectivity (Fresnel ×)"));
                     ui.add(egui::Slider::new(&mut settings.shading.refraction, 0.0..=0.2).text("refraction μ"));
                     ui.add(egui::Slider::new(&mut settings.shading.depth_epsilon, 0.0..=0.1).text("depth ε (m)"));
                     let mut c = settings.shading.fluid_colour.to_array();

@@ -182,3 +182,29 @@ fn bad_input_is_one_line_and_a_failure() {
         "cannot write to",
     );
 }
+
+#[test]
+fn without_an_adapter_it_still_simulates_extracts_and_exports() {
+    let out = scratch("no-adapter");
+    // No Metal backend exists on Linux: wgpu finds no adapter at all.
+    let o = Command::new(env!("CARGO_BIN_EXE_sph-app"))
+        .args([
+            "--headless",
+            "--frames",
+            "2",
+            "--export-particles",
+            "vtk",
+            "--out",
+        ])
+        .arg(&out)
+        .env("WGPU_BACKEND", "metal")
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("mesa-vulkan-drivers"), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 3, "{csv}");
+    assert!(out.join("particles_00001.vtk").exists());
+    assert!(!out.join("frame_00000.png").exists());
+}

@@ -263,7 +263,11 @@ fn frames_end_without_sliver_steps() {
         let report = world.advance(1.0 / 30.0).unwrap();
         smallest = smallest.min(report.dt_range.0);
         assert_eq!(world.time(), report.time);
-        assert!((report.time - frame as f64 / 30.0).abs() < 1e-6, "t = {}", report.time);
+        assert!(
+            (report.time - frame as f64 / 30.0).abs() < 1e-6,
+            "t = {}",
+            report.time
+        );
     }
     // The shortest substep is at least half a typical one, never a sliver.
     assert!(smallest > 1e-5, "shortest substep {smallest:e} s");

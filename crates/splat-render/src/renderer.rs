@@ -463,7 +463,7 @@ impl SplatRenderer {
                 shading.weight_scale.max(f32::MIN_POSITIVE),
                 shading.view.code(),
             ],
-            fluid: shading.fluid_colour.extend(1.0).to_array(),
+            fluid: shading.fluid_colour.extend(shading.reflectivity).to_array(),
         };
         ctx.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));

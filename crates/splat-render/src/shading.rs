@@ -48,6 +48,8 @@ pub struct Shading {
     pub fluid_colour: Vec3,
     /// Σw shown as white in [`View::Weights`].
     pub weight_scale: f32,
+    /// Multiplies the Fresnel term of eq. 38–40 (1 = the thesis).
+    pub reflectivity: f32,
 }
 
 impl Default for Shading {
@@ -58,6 +60,7 @@ impl Default for Shading {
             refraction: 0.05,
             fluid_colour: Vec3::new(0.55, 0.75, 0.85),
             weight_scale: 2.0,
+            reflectivity: 1.0,
         }
     }
 }
@@ -91,7 +94,7 @@ pub fn shade_pixel(
     let rv = view.transform_vector3(r);
     let offset = shading.refraction * Vec2::new(-rv.x, rv.y);
     let refracted = sample_bilinear(&env.background, uv + offset, false);
-    fresnel(r, dir) * reflected + shading.fluid_colour * refracted
+    shading.reflectivity * fresnel(r, dir) * reflected + shading.fluid_colour * refracted
 }
 
 /// Mirror reflection of direction `d` about unit normal `n` (WGSL `reflect`).

@@ -6,7 +6,7 @@ struct Frame {
     viewport: vec4<f32>,    // width, height, 1/width, 1/height
     ray: vec4<f32>,         // 1/proj[0][0], 1/proj[1][1], near, far
     params: vec4<f32>,      // depth epsilon, refraction mu, weight scale, view code
-    fluid: vec4<f32>,       // fluid colour (rgb)
+    fluid: vec4<f32>,       // fluid colour (rgb), reflectivity (w)
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;

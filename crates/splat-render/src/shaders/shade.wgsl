@@ -60,7 +60,7 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
                 let rv = (frame.view * vec4<f32>(r, 0.0)).xyz;
                 let offset = frame.params.y * vec2<f32>(-rv.x, rv.y);
                 let refracted = textureSampleLevel(back_tex, back_sampler, uv + offset, 0.0).rgb;
-                colour = f * f * reflected + frame.fluid.rgb * refracted;
+                colour = frame.fluid.w * f * f * reflected + frame.fluid.rgb * refracted;
             }
         }
     }
