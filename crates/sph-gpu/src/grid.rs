@@ -1,0 +1,352 @@
+//! [`GpuGrid`]: the neighbour grid as compute passes.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use thiserror::Error;
+
+/// What can go wrong building or reading the GPU grid.
+#[derive(Debug, Error)]
+pub enum GridError {
+    /// More positions than the grid was created for.
+    #[error("{given} positions exceed the grid's capacity of {capacity}")]
+    Capacity {
+        /// Positions given.
+        given: usize,
+        /// Capacity.
+        capacity: usize,
+    },
+    /// A smoothing length that is not finite and positive, or a non-finite position.
+    #[error("invalid input: {0}")]
+    Invalid(&'static str),
+    /// Reading results back failed.
+    #[error("GPU readback failed: {0}")]
+    Readback(String),
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Params {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    table: u32,
+    max_neighbours: u32,
+    pad: [u32; 3],
+}
+
+const PASSES: [&str; 7] = [
+    "clear_counts",
+    "count_cells",
+    "scan_blocks",
+    "scan_block_sums",
+    "add_block_sums",
+    "scatter",
+    "sort_buckets",
+];
+
+/// A uniform grid of cell size h over particles kept on the GPU, rebuilt by
+/// [`encode_build`](Self::encode_build) without leaving the GPU.
+///
+/// Cells are hashed into a power-of-two table (≥ 2 × capacity buckets), so an
+/// unbounded domain costs no memory; each bucket's particles are sorted by
+/// index, making every later sum over a neighbourhood deterministic.
+pub struct GpuGrid {
+    capacity: usize,
+    n: u32,
+    table: u32,
+    h: f32,
+    params: wgpu::Buffer,
+    positions: wgpu::Buffer,
+    counts: wgpu::Buffer,
+    starts: wgpu::Buffer,
+    sorted: wgpu::Buffer,
+    lists: wgpu::Buffer,
+    list_len: wgpu::Buffer,
+    max_neighbours: u32,
+    bind_group: wgpu::BindGroup,
+    pipelines: Vec<wgpu::ComputePipeline>,
+    query: wgpu::ComputePipeline,
+}
+
+fn storage(
+    device: &wgpu::Device,
+    label: &str,
+    bytes: u64,
+    extra: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE | extra,
+        mapped_at_creation: false,
+    })
+}
+
+impl GpuGrid {
+    /// A grid for up to `capacity` particles with cell size (and search radius) `h`;
+    /// [`neighbour_lists`](Self::neighbour_lists) keeps up to `max_neighbours` per particle.
+    ///
+    /// # Errors
+    /// [`GridError::Invalid`] for a non-finite or non-positive `h` or a zero capacity.
+    pub fn new(
+        device: &wgpu::Device,
+        capacity: usize,
+        h: f32,
+        max_neighbours: u32,
+    ) -> Result<Self, GridError> {
+        if !(h.is_finite() && h > 0.0) {
+            return Err(GridError::Invalid("h must be finite and > 0"));
+        }
+        if capacity == 0 || max_neighbours == 0 {
+            return Err(GridError::Invalid(
+                "capacity and max_neighbours must be > 0",
+            ));
+        }
+        let table = (2 * capacity).next_power_of_two().max(256) as u32;
+        let n_bytes = 4 * capacity as u64;
+        let t_bytes = 4 * u64::from(table);
+        use wgpu::BufferUsages as U;
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("grid params"),
+            size: size_of::<Params>() as u64,
+            usage: U::UNIFORM | U::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let positions = storage(device, "grid positions", 16 * capacity as u64, U::COPY_DST);
+        let keys = storage(device, "grid keys", n_bytes, U::empty());
+        let ranks = storage(device, "grid ranks", n_bytes, U::empty());
+        let counts = storage(device, "grid counts", t_bytes, U::COPY_SRC);
+        let starts = storage(device, "grid starts", t_bytes, U::COPY_SRC);
+        let block_sums = storage(device, "grid block sums", t_bytes / 256, U::empty());
+        let sorted = storage(device, "grid sorted", n_bytes, U::COPY_SRC);
+        let lists = storage(
+            device,
+            "neighbour lists",
+            n_bytes * u64::from(max_neighbours),
+            U::COPY_SRC,
+        );
+        let list_len = storage(device, "neighbour counts", n_bytes, U::COPY_SRC);
+
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("grid.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/grid.wgsl").into()),
+        });
+        let entry = |binding, read_only| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer {
+                ty: if binding == 0 {
+                    wgpu::BufferBindingType::Uniform
+                } else {
+                    wgpu::BufferBindingType::Storage { read_only }
+                },
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("grid layout"),
+            entries: &(0..10).map(|b| entry(b, b == 1)).collect::<Vec<_>>(),
+        });
+        let buffers = [
+            &params,
+            &positions,
+            &keys,
+            &ranks,
+            &counts,
+            &starts,
+            &block_sums,
+            &sorted,
+            &lists,
+            &list_len,
+        ];
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("grid bind group"),
+            layout: &layout,
+            entries: &buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect::<Vec<_>>(),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("grid pipeline layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        Ok(Self {
+            capacity,
+            n: 0,
+            table,
+            h,
+            params,
+            positions,
+            counts,
+            starts,
+            sorted,
+            lists,
+            list_len,
+            max_neighbours,
+            bind_group,
+            pipelines: PASSES.iter().map(|e| pipeline(e)).collect(),
+            query: pipeline("neighbour_lists"),
+        })
+    }
+
+    /// Hash buckets in the table.
+    pub fn table_size(&self) -> u32 {
+        self.table
+    }
+
+    /// Uploads particle positions (up to the capacity).
+    ///
+    /// # Errors
+    /// [`GridError::Capacity`], or [`GridError::Invalid`] for a non-finite position.
+    pub fn upload(&mut self, queue: &wgpu::Queue, positions: &[Vec3]) -> Result<(), GridError> {
+        if positions.len() > self.capacity {
+            return Err(GridError::Capacity {
+                given: positions.len(),
+                capacity: self.capacity,
+            });
+        }
+        if positions.iter().any(|x| !x.is_finite()) {
+            return Err(GridError::Invalid("a position is not finite"));
+        }
+        let data: Vec<[f32; 4]> = positions.iter().map(|x| x.extend(1.0).to_array()).collect();
+        if !data.is_empty() {
+            queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(&data));
+        }
+        self.n = positions.len() as u32;
+        let params = Params {
+            h: self.h,
+            inv_h: 1.0 / self.h,
+            n: self.n,
+            table: self.table,
+            max_neighbours: self.max_neighbours,
+            pad: [0; 3],
+        };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        Ok(())
+    }
+
+    /// Records the build: clear, count, scan, scatter, per-bucket sort.
+    pub fn encode_build(&self, encoder: &mut wgpu::CommandEncoder) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("grid build"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        let particles = self.n.div_ceil(256).max(1);
+        let buckets = self.table / 256;
+        for (pipeline, groups) in self
+            .pipelines
+            .iter()
+            .zip([buckets, particles, buckets, 1, buckets, particles, buckets])
+        {
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+    }
+
+    /// The particle indices sorted by bucket (a storage buffer of `u32`).
+    pub fn sorted_buffer(&self) -> &wgpu::Buffer {
+        &self.sorted
+    }
+
+    /// Per bucket: the first slot in [`sorted_buffer`](Self::sorted_buffer).
+    pub fn starts_buffer(&self) -> &wgpu::Buffer {
+        &self.starts
+    }
+
+    /// Per bucket: how many particles it holds (`atomic<u32>` on the GPU).
+    pub fn counts_buffer(&self) -> &wgpu::Buffer {
+        &self.counts
+    }
+
+    /// Builds the grid and returns, per particle, every j with |x_i − x_j| ≤ h
+    /// (i included) in the grid's deterministic order, and how many there were
+    /// in all (more than `max_neighbours` means the list was cut). For tests and
+    /// debugging: it reads back to the CPU.
+    ///
+    /// # Errors
+    /// [`GridError::Readback`].
+    pub fn neighbour_lists(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<Vec<(u32, Vec<u32>)>, GridError> {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        self.encode_build(&mut encoder);
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_pipeline(&self.query);
+            pass.dispatch_workgroups(self.n.div_ceil(64).max(1), 1, 1);
+        }
+        let n = self.n as u64;
+        let k = u64::from(self.max_neighbours);
+        let lens = read(device, queue, encoder, &self.list_len, 4 * n)?;
+        let encoder = device.create_command_encoder(&Default::default());
+        let lists = read(device, queue, encoder, &self.lists, 4 * n * k)?;
+        let lens: Vec<u32> = bytemuck::pod_collect_to_vec(&lens);
+        let lists: Vec<u32> = bytemuck::pod_collect_to_vec(&lists);
+        Ok(lens
+            .iter()
+            .enumerate()
+            .map(|(i, &len)| {
+                let start = i * k as usize;
+                (
+                    len,
+                    lists[start..start + (len as usize).min(k as usize)].to_vec(),
+                )
+            })
+            .collect())
+    }
+}
+
+/// Submits `encoder` plus a copy of `bytes` of `buffer` and reads them back.
+fn read(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    mut encoder: wgpu::CommandEncoder,
+    buffer: &wgpu::Buffer,
+    bytes: u64,
+) -> Result<Vec<u8>, GridError> {
+    let size = bytes.max(4).next_multiple_of(4);
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("grid readback"),
+        size,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, Some(size.min(buffer.size())));
+    queue.submit([encoder.finish()]);
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GridError::Readback(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GridError::Readback(e.to_string()))?
+        .map_err(|e| GridError::Readback(e.to_string()))?;
+    let view = staging
+        .get_mapped_range(..)
+        .map_err(|e| GridError::Readback(e.to_string()))?;
+    Ok(view[..bytes as usize].to_vec())
+}

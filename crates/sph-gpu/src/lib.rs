@@ -1,0 +1,15 @@
+//! # sph-gpu
+//!
+//! The GPU compute path (the thesis's future work, section 6) with wgpu compute
+//! shaders, beside the CPU reference in `sph-core`. It takes a `wgpu::Device`
+//! and `Queue` (e.g. from `splat_render::GpuContext`) and keeps its buffers on
+//! the GPU.
+//!
+//! Built so far: [`GpuGrid`], the uniform-grid neighbour search — cell keys,
+//! counting sort (atomic counts, prefix sum, scatter), cell start table and a
+//! deterministic order inside each cell — all compute passes with no CPU
+//! readback. The SPH step and surfel extraction on the GPU are not built yet.
+
+mod grid;
+
+pub use grid::{GpuGrid, GridError};
