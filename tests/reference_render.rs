@@ -26,19 +26,6 @@ const H_PX: u32 = 384;
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
 
-fn gpu() -> Option<GpuContext> {
-    match GpuContext::headless() {
-        Ok(ctx) => Some(ctx),
-        Err(err) if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("SPH_REQUIRE_GPU=1 but: {err}")
-        }
-        Err(_) => {
-            eprintln!("skipped: no GPU adapter");
-            None
-        }
-    }
-}
-
 /// Deterministic pseudo-random numbers in [-1, 1).
 fn noise(seed: &mut u64) -> f32 {
     *seed = seed
@@ -154,7 +141,9 @@ fn flip(reference: &RgbaImage, test: &RgbaImage) -> (f32, RgbaImage) {
 
 #[test]
 fn splats_match_the_ray_cast_iso_surface() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let env = Environment::procedural();
     let shading = Shading {
         depth_epsilon: 0.5 * H,

@@ -7,19 +7,6 @@ use sph_core::NeighbourGrid;
 use sph_gpu::GpuGrid;
 use splat_render::GpuContext;
 
-fn gpu() -> Option<GpuContext> {
-    match GpuContext::headless() {
-        Ok(ctx) => Some(ctx),
-        Err(err) if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-            panic!("SPH_REQUIRE_GPU=1 but: {err}")
-        }
-        Err(_) => {
-            eprintln!("skipped: no GPU adapter");
-            None
-        }
-    }
-}
-
 /// A jittered lattice with a far-away straggler and negative coordinates.
 fn particles() -> Vec<Vec3> {
     let mut seed = 3u64;
@@ -44,7 +31,9 @@ fn particles() -> Vec<Vec3> {
 
 #[test]
 fn gpu_grid_finds_the_cpu_grids_neighbour_sets() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let h = 0.02;
     let x = particles();
     let cpu = NeighbourGrid::build(&x, h).unwrap();
@@ -94,7 +83,9 @@ fn gpu_grid_finds_the_cpu_grids_neighbour_sets() {
 
 #[test]
 fn bad_input_is_an_error() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     assert!(GpuGrid::new(&ctx.device, 10, 0.0, 8).is_err());
     let mut grid = GpuGrid::new(&ctx.device, 2, 0.1, 8).unwrap();
     assert!(grid.upload(&ctx.queue, &[Vec3::ZERO; 3]).is_err());

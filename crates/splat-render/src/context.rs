@@ -82,6 +82,25 @@ impl GpuContext {
         })
     }
 
+    /// For GPU tests: a headless context, or `None` after printing
+    /// `skipped: no GPU adapter (…)` when there is no adapter.
+    ///
+    /// # Panics
+    /// When there is no adapter and `SPH_REQUIRE_GPU=1` (as CI sets it), so a
+    /// machine that should have a (software) GPU cannot skip silently.
+    pub fn headless_or_skip() -> Option<Self> {
+        match Self::headless() {
+            Ok(ctx) => Some(ctx),
+            Err(err) if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+                panic!("SPH_REQUIRE_GPU=1 but: {err}")
+            }
+            Err(err) => {
+                eprintln!("skipped: no GPU adapter ({err})");
+                None
+            }
+        }
+    }
+
     /// The adapter's name and backend, for logs and reports.
     pub fn adapter_summary(&self) -> String {
         let info = self.adapter.get_info();

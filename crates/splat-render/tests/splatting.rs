@@ -12,22 +12,7 @@ use splat_render::{
 
 fn gpu() -> Option<&'static GpuContext> {
     static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-    let ctx = CTX.get_or_init(|| match GpuContext::headless() {
-        Ok(ctx) => {
-            eprintln!("GPU adapter: {}", ctx.adapter_summary());
-            Some(ctx)
-        }
-        Err(err) => {
-            if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") {
-                panic!("SPH_REQUIRE_GPU=1 but: {err}");
-            }
-            None
-        }
-    });
-    if ctx.is_none() {
-        eprintln!("skipped: no GPU adapter");
-    }
-    ctx.as_ref()
+    CTX.get_or_init(GpuContext::headless_or_skip).as_ref()
 }
 
 const W: u32 = 160;
