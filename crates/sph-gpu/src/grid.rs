@@ -4,9 +4,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use thiserror::Error;
 
-/// What can go wrong building or reading the GPU grid.
+/// What can go wrong on the GPU path.
 #[derive(Debug, Error)]
-pub enum GridError {
+pub enum GpuError {
     /// More positions than the grid was created for.
     #[error("{given} positions exceed the grid's capacity of {capacity}")]
     Capacity {
@@ -87,20 +87,18 @@ impl GpuGrid {
     /// [`neighbour_lists`](Self::neighbour_lists) keeps up to `max_neighbours` per particle.
     ///
     /// # Errors
-    /// [`GridError::Invalid`] for a non-finite or non-positive `h` or a zero capacity.
+    /// [`GpuError::Invalid`] for a non-finite or non-positive `h` or a zero capacity.
     pub fn new(
         device: &wgpu::Device,
         capacity: usize,
         h: f32,
         max_neighbours: u32,
-    ) -> Result<Self, GridError> {
+    ) -> Result<Self, GpuError> {
         if !(h.is_finite() && h > 0.0) {
-            return Err(GridError::Invalid("h must be finite and > 0"));
+            return Err(GpuError::Invalid("h must be finite and > 0"));
         }
         if capacity == 0 || max_neighbours == 0 {
-            return Err(GridError::Invalid(
-                "capacity and max_neighbours must be > 0",
-            ));
+            return Err(GpuError::Invalid("capacity and max_neighbours must be > 0"));
         }
         let table = (2 * capacity).next_power_of_two().max(256) as u32;
         let n_bytes = 4 * capacity as u64;
@@ -129,7 +127,13 @@ impl GpuGrid {
 
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("grid.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/grid.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(
+                    include_str!("shaders/hash.wgsl"),
+                    include_str!("shaders/grid.wgsl")
+                )
+                .into(),
+            ),
         });
         let entry = |binding, read_only| wgpu::BindGroupLayoutEntry {
             binding,
@@ -215,18 +219,40 @@ impl GpuGrid {
     /// Uploads particle positions (up to the capacity).
     ///
     /// # Errors
-    /// [`GridError::Capacity`], or [`GridError::Invalid`] for a non-finite position.
-    pub fn upload(&mut self, queue: &wgpu::Queue, positions: &[Vec3]) -> Result<(), GridError> {
+    /// [`GpuError::Capacity`], or [`GpuError::Invalid`] for a non-finite position.
+    pub fn upload(&mut self, queue: &wgpu::Queue, positions: &[Vec3]) -> Result<(), GpuError> {
+        self.upload_with_masses(queue, positions, None)
+    }
+
+    /// Uploads positions and, for the SPH passes, masses (stored in the
+    /// position's w; 1 without masses).
+    ///
+    /// # Errors
+    /// [`GpuError::Capacity`], or [`GpuError::Invalid`] for a non-finite
+    /// position or mass, or a mass count that differs from the positions'.
+    pub fn upload_with_masses(
+        &mut self,
+        queue: &wgpu::Queue,
+        positions: &[Vec3],
+        masses: Option<&[f32]>,
+    ) -> Result<(), GpuError> {
+        if masses.is_some_and(|m| m.len() != positions.len() || m.iter().any(|m| !m.is_finite())) {
+            return Err(GpuError::Invalid("need one finite mass per position"));
+        }
         if positions.len() > self.capacity {
-            return Err(GridError::Capacity {
+            return Err(GpuError::Capacity {
                 given: positions.len(),
                 capacity: self.capacity,
             });
         }
         if positions.iter().any(|x| !x.is_finite()) {
-            return Err(GridError::Invalid("a position is not finite"));
+            return Err(GpuError::Invalid("a position is not finite"));
         }
-        let data: Vec<[f32; 4]> = positions.iter().map(|x| x.extend(1.0).to_array()).collect();
+        let data: Vec<[f32; 4]> = positions
+            .iter()
+            .enumerate()
+            .map(|(i, x)| x.extend(masses.map_or(1.0, |m| m[i])).to_array())
+            .collect();
         if !data.is_empty() {
             queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(&data));
         }
@@ -262,6 +288,26 @@ impl GpuGrid {
         }
     }
 
+    /// Particles in the last upload.
+    pub fn len(&self) -> usize {
+        self.n as usize
+    }
+
+    /// Whether the last upload was empty.
+    pub fn is_empty(&self) -> bool {
+        self.n == 0
+    }
+
+    /// Smoothing length (cell size).
+    pub fn h(&self) -> f32 {
+        self.h
+    }
+
+    /// Positions (xyz) and masses (w), `vec4<f32>` per particle.
+    pub fn positions_buffer(&self) -> &wgpu::Buffer {
+        &self.positions
+    }
+
     /// The particle indices sorted by bucket (a storage buffer of `u32`).
     pub fn sorted_buffer(&self) -> &wgpu::Buffer {
         &self.sorted
@@ -283,12 +329,12 @@ impl GpuGrid {
     /// debugging: it reads back to the CPU.
     ///
     /// # Errors
-    /// [`GridError::Readback`].
+    /// [`GpuError::Readback`].
     pub fn neighbour_lists(
         &self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
-    ) -> Result<Vec<(u32, Vec<u32>)>, GridError> {
+    ) -> Result<Vec<(u32, Vec<u32>)>, GpuError> {
         let mut encoder = device.create_command_encoder(&Default::default());
         self.encode_build(&mut encoder);
         {
@@ -319,13 +365,13 @@ impl GpuGrid {
 }
 
 /// Submits `encoder` plus a copy of `bytes` of `buffer` and reads them back.
-fn read(
+pub(crate) fn read(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
     mut encoder: wgpu::CommandEncoder,
     buffer: &wgpu::Buffer,
     bytes: u64,
-) -> Result<Vec<u8>, GridError> {
+) -> Result<Vec<u8>, GpuError> {
     let size = bytes.max(4).next_multiple_of(4);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("grid readback"),
@@ -341,12 +387,12 @@ fn read(
     });
     device
         .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GridError::Readback(e.to_string()))?;
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
     rx.recv()
-        .map_err(|e| GridError::Readback(e.to_string()))?
-        .map_err(|e| GridError::Readback(e.to_string()))?;
+        .map_err(|e| GpuError::Readback(e.to_string()))?
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
     let view = staging
         .get_mapped_range(..)
-        .map_err(|e| GridError::Readback(e.to_string()))?;
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
     Ok(view[..bytes as usize].to_vec())
 }

@@ -8,8 +8,12 @@
 //! Built so far: [`GpuGrid`], the uniform-grid neighbour search — cell keys,
 //! counting sort (atomic counts, prefix sum, scatter), cell start table and a
 //! deterministic order inside each cell — all compute passes with no CPU
-//! readback. The SPH step and surfel extraction on the GPU are not built yet.
+//! readback; [`GpuDensity`], sph-core's density and pressure (with the box walls'
+//! density) as a compute pass over it. The forces, integration and surfel
+//! extraction on the GPU are not built yet.
 
+mod density;
 mod grid;
 
-pub use grid::{GpuGrid, GridError};
+pub use density::GpuDensity;
+pub use grid::{GpuError, GpuGrid};

@@ -23,12 +23,11 @@ struct Params {
 @group(0) @binding(7) var<storage, read_write> sorted: array<u32>;
 
 fn cell_of(x: vec3<f32>) -> vec3<i32> {
-    return vec3<i32>(floor(x * p.inv_h));
+    return cell_at(x, p.inv_h);
 }
 
 fn bucket(c: vec3<i32>) -> u32 {
-    let u = bitcast<vec3<u32>>(c);
-    return ((u.x * 73856093u) ^ (u.y * 19349663u) ^ (u.z * 83492791u)) & (p.table - 1u);
+    return bucket_of(c, p.table);
 }
 
 @compute @workgroup_size(256)

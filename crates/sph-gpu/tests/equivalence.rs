@@ -1,5 +1,6 @@
-//! The GPU neighbour grid against the CPU grid of sph-core: same neighbour set
-//! for every particle, in a deterministic order. On lavapipe in CI; skipped
+//! The GPU path against the CPU reference of sph-core: the grid gives the same
+//! neighbour set for every particle, in a deterministic order; the density pass
+//! the same densities and pressures. On lavapipe in CI; skipped
 //! without an adapter unless `SPH_REQUIRE_GPU=1`.
 
 use glam::Vec3;
@@ -96,4 +97,54 @@ fn bad_input_is_an_error() {
             .unwrap()
             .is_empty()
     );
+}
+
+#[test]
+fn gpu_density_matches_the_cpu_processor() {
+    use sph_core::processor::Processor;
+    use sph_core::solver::{BuildGrid, DensityPressure};
+    use sph_core::{Context, Scene};
+    use sph_gpu::GpuDensity;
+
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02);
+    let mut world = scene.build_world().unwrap();
+    world.advance(0.3).unwrap();
+    let (params, boundary) = (*world.params(), scene.boundary());
+    let mut cpu = world.particles.clone();
+    let mut c = Context::new(1e-3);
+    BuildGrid::new(params.h, 0)
+        .process(&mut cpu, &mut c)
+        .unwrap();
+    DensityPressure::new(params, boundary.clone())
+        .unwrap()
+        .process(&mut cpu, &mut c)
+        .unwrap();
+
+    let n = cpu.len();
+    let mut grid = GpuGrid::new(&ctx.device, n, params.h, 1).unwrap();
+    grid.upload_with_masses(&ctx.queue, cpu.positions(), Some(cpu.masses()))
+        .unwrap();
+    let mut density = GpuDensity::new(&ctx.device, &grid, n, &params, &boundary).unwrap();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    grid.encode_build(&mut encoder);
+    density.encode(&ctx.queue, &mut encoder, &grid);
+    ctx.queue.submit([encoder.finish()]);
+    let (rho, p) = density.read(&ctx.device, &ctx.queue).unwrap();
+    let mut worst = 0f32;
+    for i in 0..n {
+        let e = (rho[i] - cpu.densities()[i]).abs() / cpu.densities()[i];
+        worst = worst.max(e);
+        let dp = (p[i] - cpu.pressures()[i]).abs();
+        assert!(
+            dp <= 2e-5 * params.stiffness * params.rest_density,
+            "pressure {i}: {} vs {}",
+            p[i],
+            cpu.pressures()[i]
+        );
+    }
+    println!("{n} particles: worst relative density difference GPU vs CPU {worst:.2e}");
+    assert!(worst < 5e-3, "worst relative density difference {worst}");
 }

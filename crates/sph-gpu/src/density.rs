@@ -1,0 +1,183 @@
+//! [`GpuDensity`]: density and pressure as a compute pass over a [`GpuGrid`].
+
+use bytemuck::{Pod, Zeroable};
+use sph_core::{Boundary, FluidParams};
+
+use crate::grid::{GpuError, GpuGrid, read};
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Fluid {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    table: u32,
+    rest_density: f32,
+    stiffness: f32,
+    suction: f32,
+    poly6: f32,
+    domain_min: [f32; 4],
+    domain_max: [f32; 4],
+}
+
+/// Density by poly6 summation plus the box walls' density (eq. 4 and
+/// `sph_core::boundary`), pressure by eq. 16 — sph-core's `DensityPressure`
+/// on the GPU, reading the grid's buffers and writing its own.
+pub struct GpuDensity {
+    fluid: Fluid,
+    uniform: wgpu::Buffer,
+    densities: wgpu::Buffer,
+    pressures: wgpu::Buffer,
+    bind_group: wgpu::BindGroup,
+    pipeline: wgpu::ComputePipeline,
+}
+
+impl GpuDensity {
+    /// The pass for `grid`'s particles with these parameters and walls.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for parameters sph-core rejects, an `h` different
+    /// from the grid's, or obstacles (not on the GPU yet).
+    pub fn new(
+        device: &wgpu::Device,
+        grid: &GpuGrid,
+        capacity: usize,
+        params: &FluidParams,
+        boundary: &Boundary,
+    ) -> Result<Self, GpuError> {
+        params
+            .validate()
+            .map_err(|_| GpuError::Invalid("fluid parameters rejected by sph-core"))?;
+        if params.h != grid.h() {
+            return Err(GpuError::Invalid(
+                "the density's h must be the grid's cell size",
+            ));
+        }
+        if !boundary.obstacles.is_empty() {
+            return Err(GpuError::Invalid("obstacles are not on the GPU path yet"));
+        }
+        let h = params.h;
+        let fluid = Fluid {
+            h,
+            inv_h: 1.0 / h,
+            n: 0,
+            table: grid.table_size(),
+            rest_density: params.rest_density,
+            stiffness: params.stiffness,
+            suction: params.negative_pressure_scale,
+            poly6: 315.0 / (64.0 * std::f32::consts::PI * h.powi(9)),
+            domain_min: boundary.domain.min.extend(0.0).to_array(),
+            domain_max: boundary.domain.max.extend(0.0).to_array(),
+        };
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("density params"),
+            size: size_of::<Fluid>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let field = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (4 * capacity as u64).max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let (densities, pressures) = (field("densities"), field("pressures"));
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("density.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(
+                    include_str!("shaders/hash.wgsl"),
+                    include_str!("shaders/density.wgsl")
+                )
+                .into(),
+            ),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("density"),
+            layout: None,
+            module: &module,
+            entry_point: Some("density"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let buffers = [
+            &uniform,
+            grid.positions_buffer(),
+            grid.counts_buffer(),
+            grid.starts_buffer(),
+            grid.sorted_buffer(),
+            &densities,
+            &pressures,
+        ];
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("density bind group"),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect::<Vec<_>>(),
+        });
+        Ok(Self {
+            fluid,
+            uniform,
+            densities,
+            pressures,
+            bind_group,
+            pipeline,
+        })
+    }
+
+    /// Records the pass for the grid's current particles (build the grid first,
+    /// in the same or an earlier submission).
+    pub fn encode(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        grid: &GpuGrid,
+    ) {
+        self.fluid.n = grid.len() as u32;
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.fluid));
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("density"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.dispatch_workgroups((self.fluid.n).div_ceil(64).max(1), 1, 1);
+    }
+
+    /// Densities (storage buffer of `f32`, one per particle).
+    pub fn densities_buffer(&self) -> &wgpu::Buffer {
+        &self.densities
+    }
+
+    /// Pressures (storage buffer of `f32`, one per particle).
+    pub fn pressures_buffer(&self) -> &wgpu::Buffer {
+        &self.pressures
+    }
+
+    /// Reads densities and pressures back (tests, debugging).
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`].
+    pub fn read(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
+        let bytes = 4 * u64::from(self.fluid.n);
+        let enc = || device.create_command_encoder(&Default::default());
+        let rho = read(device, queue, enc(), &self.densities, bytes)?;
+        let p = read(device, queue, enc(), &self.pressures, bytes)?;
+        Ok((
+            bytemuck::pod_collect_to_vec(&rho),
+            bytemuck::pod_collect_to_vec(&p),
+        ))
+    }
+}
