@@ -110,7 +110,12 @@ impl GpuGrid {
             usage: U::UNIFORM | U::COPY_DST,
             mapped_at_creation: false,
         });
-        let positions = storage(device, "grid positions", 16 * capacity as u64, U::COPY_DST);
+        let positions = storage(
+            device,
+            "grid positions",
+            16 * capacity as u64,
+            U::COPY_DST | U::COPY_SRC,
+        );
         let keys = storage(device, "grid keys", n_bytes, U::empty());
         let ranks = storage(device, "grid ranks", n_bytes, U::empty());
         let counts = storage(device, "grid counts", t_bytes, U::COPY_SRC);

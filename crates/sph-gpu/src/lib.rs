@@ -14,6 +14,8 @@
 
 mod density;
 mod grid;
+mod solver;
 
 pub use density::GpuDensity;
 pub use grid::{GpuError, GpuGrid};
+pub use solver::{GpuSolver, GpuState};

@@ -1,0 +1,291 @@
+//! [`GpuSolver`]: sph-core's default program (grid → density/pressure → forces
+//! → integrate → walls) as compute passes, particles resident on the GPU.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use sph_core::{Boundary, FluidParams, Particles, PressureKernel};
+
+use crate::density::GpuDensity;
+use crate::grid::{GpuError, GpuGrid, read};
+
+/// Mirrors `struct Params` in `shaders/forces.wgsl` and `integrate.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Params {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    table: u32,
+    rest_density: f32,
+    viscosity: f32,
+    surface_tension: f32,
+    surface_threshold: f32,
+    gravity: [f32; 4],
+    domain_min: [f32; 4],
+    domain_max: [f32; 4],
+    poly6_grad: f32,
+    visc_lap: f32,
+    spiky_grad: f32,
+    spiky_pressure: u32,
+    dt: f32,
+    restitution: f32,
+    pad: [f32; 2],
+}
+
+/// The particle state read back from the GPU.
+#[derive(Debug, Clone, Default)]
+pub struct GpuState {
+    /// Positions.
+    pub positions: Vec<Vec3>,
+    /// Velocities.
+    pub velocities: Vec<Vec3>,
+    /// Densities of the last step.
+    pub densities: Vec<f32>,
+    /// Pressures of the last step.
+    pub pressures: Vec<f32>,
+}
+
+/// The SPH step on the GPU with the same equations and parameters as
+/// `sph_core::solver::default_program` (box walls; obstacles, emitters and
+/// sinks stay on the CPU path for now). Particle order never changes, so
+/// index i is the same particle on both paths.
+pub struct GpuSolver {
+    params: Params,
+    grid: GpuGrid,
+    density: GpuDensity,
+    uniform: wgpu::Buffer,
+    velocities: wgpu::Buffer,
+    forces: (wgpu::ComputePipeline, wgpu::BindGroup),
+    integrate: (wgpu::ComputePipeline, wgpu::BindGroup),
+    steps: u64,
+}
+
+fn pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    source: String,
+    buffers: &[&wgpu::Buffer],
+) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: &module,
+        entry_point: Some(label),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect::<Vec<_>>(),
+    });
+    (pipeline, bind_group)
+}
+
+impl GpuSolver {
+    /// Uploads `particles` (positions, velocities, masses) and prepares the passes.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for parameters sph-core rejects, obstacles, or
+    /// non-finite particle data.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        particles: &Particles,
+        params: &FluidParams,
+        boundary: &Boundary,
+    ) -> Result<Self, GpuError> {
+        let n = particles.len();
+        let capacity = n.max(1);
+        let mut grid = GpuGrid::new(device, capacity, params.h, 1)?;
+        grid.upload_with_masses(queue, particles.positions(), Some(particles.masses()))?;
+        let density = GpuDensity::new(device, &grid, capacity, params, boundary)?;
+        if particles.velocities().iter().any(|v| !v.is_finite()) {
+            return Err(GpuError::Invalid("a velocity is not finite"));
+        }
+        let vec4s = |label, data: &[Vec3]| {
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (16 * capacity) as u64,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let v: Vec<[f32; 4]> = data.iter().map(|v| v.extend(0.0).to_array()).collect();
+            if !v.is_empty() {
+                queue.write_buffer(&buffer, 0, bytemuck::cast_slice(&v));
+            }
+            buffer
+        };
+        let velocities = vec4s("velocities", particles.velocities());
+        let accelerations = vec4s("accelerations", &vec![Vec3::ZERO; n]);
+        let h = params.h;
+        let pi = std::f32::consts::PI;
+        let p = Params {
+            h,
+            inv_h: 1.0 / h,
+            n: n as u32,
+            table: grid.table_size(),
+            rest_density: params.rest_density,
+            viscosity: params.viscosity,
+            surface_tension: params.surface_tension,
+            surface_threshold: params.surface_threshold,
+            gravity: params.gravity.extend(0.0).to_array(),
+            domain_min: boundary.domain.min.extend(0.0).to_array(),
+            domain_max: boundary.domain.max.extend(0.0).to_array(),
+            poly6_grad: 945.0 / (32.0 * pi * h.powi(9)),
+            visc_lap: 45.0 / (pi * h.powi(6)),
+            spiky_grad: 45.0 / (pi * h.powi(6)),
+            spiky_pressure: u32::from(params.pressure_kernel == PressureKernel::Spiky),
+            dt: 0.0,
+            restitution: boundary.restitution,
+            pad: [0.0; 2],
+        };
+        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("solver params"),
+            size: size_of::<Params>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let hash = include_str!("shaders/hash.wgsl");
+        let forces = pipeline(
+            device,
+            "forces",
+            format!("{hash}{}", include_str!("shaders/forces.wgsl")),
+            &[
+                &uniform,
+                grid.positions_buffer(),
+                grid.counts_buffer(),
+                grid.starts_buffer(),
+                grid.sorted_buffer(),
+                density.densities_buffer(),
+                density.pressures_buffer(),
+                &velocities,
+                &accelerations,
+            ],
+        );
+        let integrate = pipeline(
+            device,
+            "integrate",
+            include_str!("shaders/integrate.wgsl").to_string(),
+            &[
+                &uniform,
+                grid.positions_buffer(),
+                &velocities,
+                &accelerations,
+            ],
+        );
+        Ok(Self {
+            params: p,
+            grid,
+            density,
+            uniform,
+            velocities,
+            forces,
+            integrate,
+            steps: 0,
+        })
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.params.n as usize
+    }
+
+    /// Whether there are no particles.
+    pub fn is_empty(&self) -> bool {
+        self.params.n == 0
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Positions (xyz) and masses (w), `vec4<f32>` per particle: what a
+    /// renderer can read without a round trip to the CPU.
+    pub fn positions_buffer(&self) -> &wgpu::Buffer {
+        self.grid.positions_buffer()
+    }
+
+    /// Velocities, `vec4<f32>` per particle.
+    pub fn velocities_buffer(&self) -> &wgpu::Buffer {
+        &self.velocities
+    }
+
+    /// Takes one step of `dt` seconds (submitted; nothing read back).
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a `dt` that is not finite and positive.
+    pub fn step(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        dt: f32,
+    ) -> Result<(), GpuError> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(GpuError::Invalid("dt must be finite and > 0"));
+        }
+        self.params.dt = dt;
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.params));
+        let mut encoder = device.create_command_encoder(&Default::default());
+        self.grid.encode_build(&mut encoder);
+        self.density.encode(queue, &mut encoder, &self.grid);
+        let groups = self.params.n.div_ceil(64).max(1);
+        for (pipeline, bind_group) in [&self.forces, &self.integrate] {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind_group, &[]);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+        queue.submit([encoder.finish()]);
+        self.steps += 1;
+        Ok(())
+    }
+
+    /// Reads positions, velocities, densities and pressures back.
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`].
+    pub fn read_state(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<GpuState, GpuError> {
+        let n = u64::from(self.params.n);
+        let enc = || device.create_command_encoder(&Default::default());
+        let vec3s = |bytes: Vec<u8>| -> Vec<Vec3> {
+            bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+                .into_iter()
+                .map(|v| Vec3::new(v[0], v[1], v[2]))
+                .collect()
+        };
+        let positions = vec3s(read(
+            device,
+            queue,
+            enc(),
+            self.grid.positions_buffer(),
+            16 * n,
+        )?);
+        let velocities = vec3s(read(device, queue, enc(), &self.velocities, 16 * n)?);
+        let (densities, pressures) = self.density.read(device, queue)?;
+        Ok(GpuState {
+            positions,
+            velocities,
+            densities,
+            pressures,
+        })
+    }
+}
