@@ -9,8 +9,10 @@
 //! counting sort (atomic counts, prefix sum, scatter), cell start table and a
 //! deterministic order inside each cell — all compute passes with no CPU
 //! readback; [`GpuDensity`], sph-core's density and pressure (with the box walls'
-//! density) as a compute pass over it. The forces, integration and surfel
-//! extraction on the GPU are not built yet.
+//! density) as a compute pass over it; [`GpuSolver`], the whole step of
+//! `sph_core::solver::default_program` (box walls) with the particles resident
+//! on the GPU. Adaptive dt on the GPU, obstacles and surfel extraction are not
+//! built yet.
 
 mod density;
 mod grid;
