@@ -4,11 +4,14 @@
 //! includes building the colour field (grid and volumes) from the particles.
 //! Throughput is in surfels. Before timing, one untimed run per configuration
 //! prints surfels, evaluations and efficiency (surfels per surfel evaluation).
+//! In the same run, splashsurf's `reconstruct_surface` (marching cubes) on the
+//! same particles is the peer.
 
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use sph_core::{Particles, Scene};
+use splashsurf_lib::nalgebra::Vector3;
 use surfel_extract::ldc::extract_ldc;
 use surfel_extract::{ColourField, ExtractParams, extract};
 
@@ -65,6 +68,30 @@ fn extraction(c: &mut Criterion) {
         group.throughput(Throughput::Elements(out.stats.surfels as u64));
         group.bench_function(BenchmarkId::new(label, "ldc"), |b| {
             b.iter(|| black_box(ldc(&particles)))
+        });
+
+        // The peer: splashsurf's marching cubes on the same particles, kernel
+        // support h (= 4 particle radii at spacing h/2) and cubes of one particle
+        // radius (h/4), multi-threaded; throughput counts mesh vertices.
+        let positions: Vec<Vector3<f32>> = particles
+            .positions()
+            .iter()
+            .map(|x| Vector3::new(x.x, x.y, x.z))
+            .collect();
+        let mut sp = splashsurf_lib::Parameters::new(0.25 * h, h, 0.25 * h);
+        sp.iso_surface_threshold = 0.6;
+        let mc = |x: &[Vector3<f32>]| {
+            splashsurf_lib::reconstruct_surface::<i64, f32>(x, &sp).expect("splashsurf")
+        };
+        let mesh = mc(&positions).mesh;
+        println!(
+            "{label} splashsurf (cube h/4): {} vertices, {} triangles",
+            mesh.vertices.len(),
+            mesh.triangles.len()
+        );
+        group.throughput(Throughput::Elements(mesh.vertices.len() as u64));
+        group.bench_function(BenchmarkId::new(label, "splashsurf"), |b| {
+            b.iter(|| black_box(mc(&positions)))
         });
     }
     group.finish();
