@@ -74,6 +74,7 @@ impl Pipeline {
     /// Back to the scene's initial state.
     pub fn reset(&mut self) -> Result<(), AppError> {
         self.world = self.scene.build_world()?;
+        self.surfels.clear(); // stale: the next frame extracts again
         self.stats = FrameStats {
             particles: self.world.particles.len(),
             ..Default::default()

@@ -70,6 +70,15 @@ fn push_processor(push: Arc<RwLock<Option<Push>>>) -> impl sph_core::processor::
     })
 }
 
+/// Adds the push processor after the forces of `pipeline`'s world (every
+/// rebuilt world needs it again).
+fn install_push(pipeline: &mut Pipeline, push: &Arc<RwLock<Option<Push>>>) {
+    pipeline
+        .world
+        .program_mut()
+        .insert_after("forces", push_processor(push.clone()));
+}
+
 /// Live settings edited in the panel.
 struct Settings {
     shading: Shading,
@@ -101,6 +110,8 @@ struct App {
     settings: Settings,
     push: Arc<RwLock<Option<Push>>>,
     gfx: Option<Gfx>,
+    /// What the renderer holds: `Some(particles_view)` until the next extraction.
+    uploaded: Option<bool>,
     egui: egui::Context,
     cursor: Vec2,
     dragging: Option<MouseButton>,
@@ -117,10 +128,7 @@ struct App {
 impl App {
     fn new(args: &Args, mut pipeline: Pipeline) -> Self {
         let push = Arc::new(RwLock::new(None));
-        pipeline
-            .world
-            .program_mut()
-            .insert_after("forces", push_processor(push.clone()));
+        install_push(&mut pipeline, &push);
         let mut shading = pipeline.shading();
         shading.view = View::Shaded;
         Self {
@@ -138,6 +146,7 @@ impl App {
             },
             push,
             gfx: None,
+            uploaded: None,
             egui: egui::Context::default(),
             cursor: Vec2::ZERO,
             dragging: None,
@@ -209,10 +218,7 @@ impl App {
         let mut pipeline = Pipeline::new(name.to_string(), make(), self.iterations)?;
         pipeline.extract = self.pipeline.extract;
         pipeline.extract.h = pipeline.world.params().h;
-        pipeline
-            .world
-            .program_mut()
-            .insert_after("forces", push_processor(self.push.clone()));
+        install_push(&mut pipeline, &self.push);
         self.orbit = Orbit::from_camera(&pipeline.camera());
         self.settings.shading.depth_epsilon = pipeline.shading().depth_epsilon;
         self.pipeline = pipeline;
@@ -221,10 +227,7 @@ impl App {
 
     fn reset(&mut self) -> Result<(), AppError> {
         self.pipeline.reset()?;
-        self.pipeline
-            .world
-            .program_mut()
-            .insert_after("forces", push_processor(self.push.clone()));
+        install_push(&mut self.pipeline, &self.push);
         Ok(())
     }
 
@@ -232,10 +235,7 @@ impl App {
     fn apply_fluid_params(&mut self) -> Result<(), AppError> {
         let particles = self.pipeline.world.particles.clone();
         self.pipeline.world = self.pipeline.scene.world_with(particles)?;
-        self.pipeline
-            .world
-            .program_mut()
-            .insert_after("forces", push_processor(self.push.clone()));
+        install_push(&mut self.pipeline, &self.push);
         Ok(())
     }
 
@@ -299,6 +299,7 @@ impl App {
         }
         if advanced || self.pipeline.surfels.is_empty() {
             self.pipeline.extract_surfels()?;
+            self.uploaded = None;
         }
         Ok(())
     }
@@ -311,18 +312,23 @@ impl App {
         };
         let start = Instant::now();
         let particles_view = self.settings.view == 4;
-        let splats = if particles_view {
-            self.pipeline.particle_splats(camera.eye)
-        } else {
-            self.pipeline.splats()
-        };
+        // Surfels are uploaded once per extraction; particle discs face the
+        // camera, so they follow it every frame.
+        if particles_view || self.uploaded != Some(particles_view) {
+            let splats = if particles_view {
+                self.pipeline.particle_splats(camera.eye)
+            } else {
+                self.pipeline.splats()
+            };
+            gfx.renderer.upload(&gfx.ctx, &splats)?;
+            self.uploaded = Some(particles_view);
+        }
         let mut shading = self.settings.shading;
         shading.view = if particles_view {
             View::Normals
         } else {
             View::ALL[self.settings.view]
         };
-        gfx.renderer.upload(&gfx.ctx, &splats)?;
         let frame = match gfx.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(t)
             | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,

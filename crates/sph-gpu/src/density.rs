@@ -3,7 +3,8 @@
 use bytemuck::{Pod, Zeroable};
 use sph_core::{Boundary, FluidParams};
 
-use crate::grid::{GpuError, GpuGrid, read};
+use crate::grid::{GpuError, GpuGrid};
+use crate::passes::{compute_pass, read};
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -84,24 +85,6 @@ impl GpuDensity {
             })
         };
         let (densities, pressures) = (field("densities"), field("pressures"));
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("density.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(
-                concat!(
-                    include_str!("shaders/hash.wgsl"),
-                    include_str!("shaders/density.wgsl")
-                )
-                .into(),
-            ),
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("density"),
-            layout: None,
-            module: &module,
-            entry_point: Some("density"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
         let buffers = [
             &uniform,
             grid.positions_buffer(),
@@ -111,18 +94,16 @@ impl GpuDensity {
             &densities,
             &pressures,
         ];
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("density bind group"),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect::<Vec<_>>(),
-        });
+        let (pipeline, bind_group) = compute_pass(
+            device,
+            "density",
+            concat!(
+                include_str!("shaders/hash.wgsl"),
+                include_str!("shaders/density.wgsl")
+            )
+            .into(),
+            &buffers,
+        );
         Ok(Self {
             fluid,
             uniform,

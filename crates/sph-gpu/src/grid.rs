@@ -4,6 +4,8 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use thiserror::Error;
 
+use crate::passes::{bind_buffers, read};
+
 /// What can go wrong on the GPU path.
 #[derive(Debug, Error)]
 pub enum GpuError {
@@ -170,18 +172,7 @@ impl GpuGrid {
             &lists,
             &list_len,
         ];
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("grid bind group"),
-            layout: &layout,
-            entries: &buffers
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect::<Vec<_>>(),
-        });
+        let bind_group = bind_buffers(device, "grid bind group", &layout, &buffers);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("grid pipeline layout"),
             bind_group_layouts: &[Some(&layout)],
@@ -367,37 +358,4 @@ impl GpuGrid {
             })
             .collect())
     }
-}
-
-/// Submits `encoder` plus a copy of `bytes` of `buffer` and reads them back.
-pub(crate) fn read(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    mut encoder: wgpu::CommandEncoder,
-    buffer: &wgpu::Buffer,
-    bytes: u64,
-) -> Result<Vec<u8>, GpuError> {
-    let size = bytes.max(4).next_multiple_of(4);
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("grid readback"),
-        size,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, Some(size.min(buffer.size())));
-    queue.submit([encoder.finish()]);
-    let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
-        let _ = tx.send(r);
-    });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Readback(e.to_string()))?
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
-    let view = staging
-        .get_mapped_range(..)
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
-    Ok(view[..bytes as usize].to_vec())
 }

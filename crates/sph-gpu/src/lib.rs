@@ -16,6 +16,7 @@
 
 mod density;
 mod grid;
+mod passes;
 mod solver;
 
 pub use density::GpuDensity;

@@ -6,9 +6,13 @@ use glam::Vec3;
 use sph_core::{Boundary, FluidParams, Particles, PressureKernel};
 
 use crate::density::GpuDensity;
-use crate::grid::{GpuError, GpuGrid, read};
+use crate::grid::{GpuError, GpuGrid};
+use crate::passes::{compute_pass, read};
 
-/// Mirrors `struct Params` in `shaders/forces.wgsl` and `integrate.wgsl`.
+/// WGSL of [`Params`], prepended to the forces and integrate shaders.
+const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
+
+/// Mirrors `struct Params` in `shaders/solver_params.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
 struct Params {
@@ -58,39 +62,6 @@ pub struct GpuSolver {
     forces: (wgpu::ComputePipeline, wgpu::BindGroup),
     integrate: (wgpu::ComputePipeline, wgpu::BindGroup),
     steps: u64,
-}
-
-fn pipeline(
-    device: &wgpu::Device,
-    label: &str,
-    source: String,
-    buffers: &[&wgpu::Buffer],
-) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: None,
-        module: &module,
-        entry_point: Some(label),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(label),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect::<Vec<_>>(),
-    });
-    (pipeline, bind_group)
 }
 
 impl GpuSolver {
@@ -160,10 +131,10 @@ impl GpuSolver {
             mapped_at_creation: false,
         });
         let hash = include_str!("shaders/hash.wgsl");
-        let forces = pipeline(
+        let forces = compute_pass(
             device,
             "forces",
-            format!("{hash}{}", include_str!("shaders/forces.wgsl")),
+            format!("{hash}{PARAMS}{}", include_str!("shaders/forces.wgsl")),
             &[
                 &uniform,
                 grid.positions_buffer(),
@@ -176,10 +147,10 @@ impl GpuSolver {
                 &accelerations,
             ],
         );
-        let integrate = pipeline(
+        let integrate = compute_pass(
             device,
             "integrate",
-            include_str!("shaders/integrate.wgsl").to_string(),
+            format!("{PARAMS}{}", include_str!("shaders/integrate.wgsl")),
             &[
                 &uniform,
                 grid.positions_buffer(),

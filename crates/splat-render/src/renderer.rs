@@ -56,6 +56,7 @@ pub struct SplatRenderer {
     splats: wgpu::Buffer,
     splat_capacity: usize,
     splat_count: u32,
+    staging: Vec<GpuSplat>,
     buffer_allocations: u32,
     splat_layout: wgpu::BindGroupLayout,
     splat_group: wgpu::BindGroup,
@@ -306,6 +307,7 @@ impl SplatRenderer {
             splats,
             splat_capacity: MIN_SPLAT_CAPACITY,
             splat_count: 0,
+            staging: Vec::new(),
             buffer_allocations: 1,
             splat_layout,
             splat_group,
@@ -391,11 +393,13 @@ impl SplatRenderer {
     /// field, a zero normal or a non-positive radius (nothing is uploaded then);
     /// [`RenderError::TooManySplats`] beyond the device's storage binding limit.
     pub fn upload(&mut self, ctx: &GpuContext, splats: &[Splat]) -> Result<()> {
-        let gpu: Vec<GpuSplat> = splats
-            .iter()
-            .enumerate()
-            .map(|(i, s)| GpuSplat::from_splat(i, s))
-            .collect::<Result<_>>()?;
+        // Converted into a CPU buffer kept between frames (no allocation once it
+        // is large enough); the GPU buffer is untouched if a splat is invalid.
+        self.staging.clear();
+        for (i, s) in splats.iter().enumerate() {
+            self.staging.push(GpuSplat::from_splat(i, s)?);
+        }
+        let gpu = &self.staging;
         let bytes = std::mem::size_of_val(gpu.as_slice()) as u64;
         let max = ctx
             .device
@@ -420,7 +424,7 @@ impl SplatRenderer {
         }
         if !gpu.is_empty() {
             ctx.queue
-                .write_buffer(&self.splats, 0, bytemuck::cast_slice(&gpu));
+                .write_buffer(&self.splats, 0, bytemuck::cast_slice(gpu));
         }
         self.splat_count = gpu.len() as u32;
         Ok(())

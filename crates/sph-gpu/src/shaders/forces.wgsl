@@ -2,30 +2,8 @@
 // viscosity (eq. 17), surface tension from the colour field (eq. 18-20, where
 // |n| > threshold), gravity, and the walls' pressure push — the equations of
 // sph-core's Forces processor.
+// Expects solver_params.wgsl (struct Params, binding 0 `f`) prepended.
 
-struct Params {
-    h: f32,
-    inv_h: f32,
-    n: u32,
-    table: u32,
-    rest_density: f32,
-    viscosity: f32,
-    surface_tension: f32,
-    surface_threshold: f32,
-    gravity: vec4<f32>,
-    domain_min: vec4<f32>,
-    domain_max: vec4<f32>,
-    poly6_grad: f32,      // 945 / (32 pi h^9)
-    visc_lap: f32,        // 45 / (pi h^6)
-    spiky_grad: f32,      // 45 / (pi h^6)
-    spiky_pressure: u32,  // 1: spiky pressure gradient, 0: poly6
-    dt: f32,
-    restitution: f32,
-    pad0: f32,
-    pad1: f32,
-};
-
-@group(0) @binding(0) var<uniform> f: Params;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> counts: array<u32>;
 @group(0) @binding(3) var<storage, read> starts: array<u32>;

@@ -1,0 +1,25 @@
+// Uniforms of the solver passes (forces, integrate); mirrors `Params` in solver.rs.
+
+struct Params {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    table: u32,
+    rest_density: f32,
+    viscosity: f32,
+    surface_tension: f32,
+    surface_threshold: f32,
+    gravity: vec4<f32>,
+    domain_min: vec4<f32>,
+    domain_max: vec4<f32>,
+    poly6_grad: f32,      // 945 / (32 pi h^9)
+    visc_lap: f32,        // 45 / (pi h^6)
+    spiky_grad: f32,      // 45 / (pi h^6)
+    spiky_pressure: u32,  // 1: spiky pressure gradient, 0: poly6
+    dt: f32,
+    restitution: f32,
+    pad0: f32,
+    pad1: f32,
+};
+
+@group(0) @binding(0) var<uniform> f: Params;
