@@ -13,7 +13,8 @@
 //! Because cells are sorted with x fastest, the three cells (x−1, y, z), (x, y, z),
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
 //! contiguous slot ranges ("rows"), computed once per cell at build time. A query
-//! scans those 9 ranges four candidates at a time (SSE2 on x86-64).
+//! scans those 9 ranges a chunk of candidates at a time (AVX-512 or SSE2 on x86-64,
+//! see `scan.rs`).
 //!
 //! # Exactness
 //!
@@ -35,15 +36,14 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result, check_h};
 
+mod scan;
+use scan::Scan;
+
 /// Cell edge relative to h: a little wider than h, see the module docs.
 const CELL_SCALE: f64 = 1.0 + 1e-5;
 /// Cell coordinates must satisfy |c| < 2³⁰, leaving room for ±1 neighbours and
 /// key offsets in 32 bits.
 const MAX_CELL: f64 = (1u64 << 30) as f64;
-
-/// Slots tested per SIMD chunk (SSE2).
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-const LANES: usize = 4;
 
 /// Integer cell coordinates (x, y, z).
 type Cell = [i32; 3];
@@ -132,9 +132,9 @@ impl NeighbourGrid {
         for (s, &i) in order.iter().enumerate() {
             rank[i as usize] = s as u32;
         }
-        let xs = order.par_iter().map(|&i| positions[i as usize].x).collect();
-        let ys = order.par_iter().map(|&i| positions[i as usize].y).collect();
-        let zs = order.par_iter().map(|&i| positions[i as usize].z).collect();
+        let xs = padded_coordinate(&order, positions, 0);
+        let ys = padded_coordinate(&order, positions, 1);
+        let zs = padded_coordinate(&order, positions, 2);
 
         // Cell boundaries in slot order.
         let cell_of_slot = |s: usize| particle_cells[order[s] as usize];
@@ -306,16 +306,17 @@ impl Neighbourhood<'_> {
     #[inline]
     pub fn for_each(&self, mut f: impl FnMut(usize, Vec3, f32)) {
         let g = self.grid;
-        for row in &self.rows {
-            let (start, end) = (row.start as usize, row.end as usize);
-            scan_row(
-                self.centre,
-                g.h2,
-                &g.xs[start..end],
-                &g.ys[start..end],
-                &g.zs[start..end],
-                |k, d, r2| f(g.order[start + k] as usize, d, r2),
-            );
+        let c = self.centre;
+        let mut scan = Scan::new(c, g.h2, [&g.xs, &g.ys, &g.zs], &self.rows);
+        let mut hits = [0u32; scan::HIT_CAPACITY];
+        while !scan.done() {
+            let n = scan.fill(&mut hits);
+            for &k in &hits[..n] {
+                let k = k as usize;
+                // The scan's arithmetic, so `r2` is the value it tested.
+                let d = Vec3::new(c.x - g.xs[k], c.y - g.ys[k], c.z - g.zs[k]);
+                f(g.order[k] as usize, d, d.x * d.x + d.y * d.y + d.z * d.z);
+            }
         }
     }
 
@@ -327,65 +328,17 @@ impl Neighbourhood<'_> {
     }
 }
 
-/// Calls `f(k, c − x_k, |c − x_k|²)` for each `k` with `|c − x_k|² ≤ h2`, `k`
-/// increasing. Four candidates at a time with SSE2 (part of every x86-64 CPU); the
-/// arithmetic and its order are those of the scalar tail, so results are bitwise
-/// the same either way.
-#[inline]
-fn scan_row(
-    c: Vec3,
-    h2: f32,
-    xs: &[f32],
-    ys: &[f32],
-    zs: &[f32],
-    mut f: impl FnMut(usize, Vec3, f32),
-) {
-    let n = xs.len().min(ys.len()).min(zs.len());
-    #[allow(unused_mut)]
-    let mut k = 0;
-    // SAFETY: SSE2 is part of the x86-64 baseline, so the intrinsics are available
-    // on every CPU this compiles for; the loads read xs/ys/zs[k..k + 4] with
-    // k + 4 <= n, and the stores write whole [f32; 4] arrays.
-    #[cfg(target_arch = "x86_64")]
-    unsafe {
-        use std::arch::x86_64::*;
-        let (cx, cy, cz) = (_mm_set1_ps(c.x), _mm_set1_ps(c.y), _mm_set1_ps(c.z));
-        let lim = _mm_set1_ps(h2);
-        while k + LANES <= n {
-            let x = _mm_loadu_ps(xs.as_ptr().add(k));
-            let y = _mm_loadu_ps(ys.as_ptr().add(k));
-            let z = _mm_loadu_ps(zs.as_ptr().add(k));
-            let (dx, dy, dz) = (_mm_sub_ps(cx, x), _mm_sub_ps(cy, y), _mm_sub_ps(cz, z));
-            let r2 = _mm_add_ps(
-                _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
-                _mm_mul_ps(dz, dz),
-            );
-            let mut mask = _mm_movemask_ps(_mm_cmple_ps(r2, lim)) as u32;
-            if mask != 0 {
-                let mut lanes = [[0.0f32; LANES]; 4];
-                for (out, v) in lanes.iter_mut().zip([dx, dy, dz, r2]) {
-                    _mm_storeu_ps(out.as_mut_ptr(), v);
-                }
-                while mask != 0 {
-                    let l = mask.trailing_zeros() as usize;
-                    mask &= mask - 1;
-                    f(
-                        k + l,
-                        Vec3::new(lanes[0][l], lanes[1][l], lanes[2][l]),
-                        lanes[3][l],
-                    );
-                }
-            }
-            k += LANES;
-        }
-    }
-    for k in k..n {
-        let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
-        let r2 = d.x * d.x + d.y * d.y + d.z * d.z;
-        if r2 <= h2 {
-            f(k, d, r2);
-        }
-    }
+/// One coordinate of the particles in slot order, followed by [`scan::PADDING`]
+/// NaN entries that let the scan load whole chunks at the end of the last row
+/// (NaN also fails every distance test).
+fn padded_coordinate(order: &[u32], positions: &[Vec3], axis: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(order.len() + scan::PADDING);
+    order
+        .par_iter()
+        .map(|&i| positions[i as usize][axis])
+        .collect_into_vec(&mut out);
+    out.extend([f32::NAN; scan::PADDING]);
+    out
 }
 
 /// The cell of a finite position in range, or `None`.
