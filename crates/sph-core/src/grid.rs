@@ -36,6 +36,7 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result, check_h};
 
+mod layout;
 mod scan;
 use scan::Scan;
 
@@ -127,34 +128,16 @@ impl NeighbourGrid {
             return Err(first_bad_position(positions, inv_cell, h));
         }
 
-        let order = sorted_order(&particle_cells);
-        let mut rank = vec![0u32; n];
-        for (s, &i) in order.iter().enumerate() {
-            rank[i as usize] = s as u32;
-        }
-        let xs = padded_coordinate(&order, positions, 0);
-        let ys = padded_coordinate(&order, positions, 1);
-        let zs = padded_coordinate(&order, positions, 2);
-
-        // Cell boundaries in slot order.
-        let cell_of_slot = |s: usize| particle_cells[order[s] as usize];
-        let mut cell_start: Vec<u32> = (0..n)
-            .into_par_iter()
-            .filter(|&s| s == 0 || cell_of_slot(s) != cell_of_slot(s - 1))
-            .map(|s| s as u32)
-            .collect();
-        let cells: Vec<Cell> = cell_start
-            .par_iter()
-            .map(|&s| cell_of_slot(s as usize))
-            .collect();
-        cell_start.push(n as u32);
-        let mut slot_cell = vec![0u32; n];
-        for (c, w) in cell_start.windows(2).enumerate() {
-            slot_cell[w[0] as usize..w[1] as usize].fill(c as u32);
-        }
-
+        let layout::Layout {
+            order,
+            rank,
+            slot_cell,
+            cells,
+            cell_start,
+            rows,
+            coords: [xs, ys, zs],
+        } = layout::Layout::new(&particle_cells, positions);
         let table = CellTable::new(&cells);
-        let rows = neighbour_rows(&cells, &cell_start);
 
         Ok(Self {
             h,
@@ -328,32 +311,27 @@ impl Neighbourhood<'_> {
     }
 }
 
-/// One coordinate of the particles in slot order, followed by [`scan::PADDING`]
-/// NaN entries that let the scan load whole chunks at the end of the last row
-/// (NaN also fails every distance test).
-fn padded_coordinate(order: &[u32], positions: &[Vec3], axis: usize) -> Vec<f32> {
-    let mut out = Vec::with_capacity(order.len() + scan::PADDING);
-    order
-        .par_iter()
-        .map(|&i| positions[i as usize][axis])
-        .collect_into_vec(&mut out);
-    out.extend([f32::NAN; scan::PADDING]);
-    out
-}
-
 /// The cell of a finite position in range, or `None`.
 #[inline]
 fn cell_of(p: Vec3, inv_cell: f64) -> Option<Cell> {
     let mut c = [0i32; 3];
     for a in 0..3 {
-        let q = (p[a] as f64 * inv_cell).floor();
+        let q = p[a] as f64 * inv_cell;
         // NaN and infinities fail this test too.
-        if !q.is_finite() || q.abs() >= MAX_CELL {
+        if q.is_nan() || q.abs() >= MAX_CELL {
             return None;
         }
-        c[a] = q as i32;
+        c[a] = floor_i32(q);
     }
     Some(c)
+}
+
+/// `q.floor() as i32` for |q| < 2³⁰ without a libm call (x86-64's baseline has no
+/// rounding instruction): truncate, then step down where that rounded up.
+#[inline]
+fn floor_i32(q: f64) -> i32 {
+    let t = q as i32;
+    t - i32::from((t as f64) > q)
 }
 
 /// The cell of a query point, clamped: a point beyond the particles' range is put
@@ -390,157 +368,6 @@ fn first_bad_position(positions: &[Vec3], inv_cell: f64, h: f32) -> Error {
             position: p.to_array(),
         }
     }
-}
-
-/// Input indices sorted by (z, y, x) cell, ties by index.
-///
-/// Cells are numbered densely within their bounding box, x fastest; when that
-/// number fits a `u64` (any box under 2²¹ cells a side does) and the box is
-/// densely occupied, a counting sort orders them in one pass; otherwise a stable
-/// LSD radix
-/// sort on just the bits it needs orders them in O(N) per 11-bit digit: two
-/// passes for a million particles in a dense block. Wider spreads fall back to a
-/// parallel comparison sort on `u128` keys.
-fn sorted_order(cells: &[Cell]) -> Vec<u32> {
-    let Some((lo, hi)) = cells
-        .par_iter()
-        .map(|&c| (c, c))
-        .reduce_with(|(a0, a1), (b0, b1)| {
-            (
-                [a0[0].min(b0[0]), a0[1].min(b0[1]), a0[2].min(b0[2])],
-                [a1[0].max(b1[0]), a1[1].max(b1[1]), a1[2].max(b1[2])],
-            )
-        })
-    else {
-        return Vec::new();
-    };
-    let rel = |c: Cell, a: usize| (c[a] as i64 - lo[a] as i64) as u64;
-    let dims = [0, 1, 2].map(|a| (hi[a] as i64 - lo[a] as i64) as u64 + 1);
-    if let Some(total) = dims[0]
-        .checked_mul(dims[1])
-        .and_then(|v| v.checked_mul(dims[2]))
-    {
-        if total <= 2 * cells.len() as u64 + 1024 {
-            return counting_sort(
-                cells,
-                |c| (rel(c, 0) + dims[0] * (rel(c, 1) + dims[1] * rel(c, 2))) as usize,
-                total as usize,
-            );
-        }
-        let keys: Vec<(u64, u32)> = cells
-            .par_iter()
-            .enumerate()
-            .map(|(i, &c)| {
-                (
-                    rel(c, 0) + dims[0] * (rel(c, 1) + dims[1] * rel(c, 2)),
-                    i as u32,
-                )
-            })
-            .collect();
-        return radix_sort(keys, u64::BITS - (total - 1).leading_zeros());
-    }
-    let mut pairs: Vec<(u128, u32)> = cells
-        .par_iter()
-        .enumerate()
-        .map(|(i, &c)| {
-            let k = ((rel(c, 2) as u128) << 64) | ((rel(c, 1) as u128) << 32) | rel(c, 0) as u128;
-            (k, i as u32)
-        })
-        .collect();
-    // Pairs are unique (the index breaks ties), so an unstable sort is deterministic.
-    pairs.par_sort_unstable();
-    pairs.into_par_iter().map(|(_, i)| i).collect()
-}
-
-/// Stable counting sort of the indices by a dense key below `range`: one histogram
-/// and one scatter, for cells packed densely in their bounding box.
-fn counting_sort(cells: &[Cell], key: impl Fn(Cell) -> usize + Sync, range: usize) -> Vec<u32> {
-    let keys: Vec<u32> = cells.par_iter().map(|&c| key(c) as u32).collect();
-    let mut next = vec![0u32; range];
-    for &k in &keys {
-        next[k as usize] += 1;
-    }
-    let mut sum = 0;
-    for c in next.iter_mut() {
-        (*c, sum) = (sum, sum + *c);
-    }
-    let mut order = vec![0u32; cells.len()];
-    for (i, &k) in keys.iter().enumerate() {
-        let slot = &mut next[k as usize];
-        order[*slot as usize] = i as u32;
-        *slot += 1;
-    }
-    order
-}
-
-/// Stable LSD radix sort of (key, index) pairs on the low `bits` bits of the key;
-/// returns the indices. Input in index order, so ties stay in index order.
-fn radix_sort(mut a: Vec<(u64, u32)>, bits: u32) -> Vec<u32> {
-    let passes = bits.div_ceil(11);
-    if passes > 0 {
-        let digit = bits.div_ceil(passes);
-        let mask = (1u64 << digit) - 1;
-        let mut b = vec![(0u64, 0u32); a.len()];
-        let mut counts = vec![0usize; 1 << digit];
-        for pass in 0..passes {
-            let shift = pass * digit;
-            counts.fill(0);
-            for &(k, _) in &a {
-                counts[((k >> shift) & mask) as usize] += 1;
-            }
-            let mut sum = 0;
-            for c in counts.iter_mut() {
-                (*c, sum) = (sum, sum + *c);
-            }
-            for &e in &a {
-                let d = ((e.0 >> shift) & mask) as usize;
-                b[counts[d]] = e;
-                counts[d] += 1;
-            }
-            std::mem::swap(&mut a, &mut b);
-        }
-    }
-    a.into_par_iter().map(|(_, i)| i).collect()
-}
-
-/// For every occupied cell, the 9 slot ranges of its 27 neighbour cells.
-///
-/// For a fixed row offset (dy, dz), the target row (x−1..=x+1, y+dy, z+dz) moves
-/// forward in (z, y, x) order as the cell does, so one forward walk over the sorted
-/// cells finds every cell's row: O(cells) per offset with sequential memory access.
-/// Chunks of cells walk in parallel, each starting from a binary search.
-fn neighbour_rows(cells: &[Cell], cell_start: &[u32]) -> Vec<[SlotRange; 9]> {
-    const CHUNK: usize = 4096;
-    let mut rows = vec![[SlotRange::default(); 9]; cells.len()];
-    rows.par_chunks_mut(CHUNK)
-        .enumerate()
-        .for_each(|(chunk, out)| {
-            let first_cell = chunk * CHUNK;
-            let mut r = 0;
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    let lo = |c: Cell| zyx([c[0] - 1, c[1] + dy, c[2] + dz]);
-                    let hi = |c: Cell| zyx([c[0] + 1, c[1] + dy, c[2] + dz]);
-                    let mut p = cells.partition_point(|&q| zyx(q) < lo(cells[first_cell]));
-                    for (k, row) in out.iter_mut().enumerate() {
-                        let cell = cells[first_cell + k];
-                        while p < cells.len() && zyx(cells[p]) < lo(cell) {
-                            p += 1;
-                        }
-                        let mut q = p;
-                        while q < cells.len() && zyx(cells[q]) <= hi(cell) {
-                            q += 1;
-                        }
-                        row[r] = SlotRange {
-                            start: cell_start[p],
-                            end: cell_start[q],
-                        };
-                    }
-                    r += 1;
-                }
-            }
-        });
-    rows
 }
 
 /// The 9 rows around an arbitrary (possibly unoccupied) cell.

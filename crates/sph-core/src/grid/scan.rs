@@ -27,6 +27,13 @@ pub(super) const HIT_CAPACITY: usize = 256;
 /// The widest chunk any path writes.
 const MAX_LANES: usize = 16;
 
+/// Whether this CPU runs the AVX-512 path (std caches the answer).
+#[cfg(target_arch = "x86_64")]
+#[inline]
+fn avx512() -> bool {
+    std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("popcnt")
+}
+
 /// Candidates over the rows of one neighbourhood, resumable: each
 /// [`Scan::fill`] continues where the previous one stopped.
 pub(super) struct Scan<'a> {
@@ -75,8 +82,8 @@ impl<'a> Scan<'a> {
     pub(super) fn fill(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU supports AVX-512F (checked just above).
+            if avx512() {
+                // SAFETY: the CPU supports AVX-512F and POPCNT (checked just above).
                 return unsafe { self.fill_avx512(hits) };
             }
             // SAFETY: SSE2 is part of the x86-64 baseline.
@@ -165,9 +172,9 @@ impl<'a> Scan<'a> {
     /// with one compress-store.
     ///
     /// # Safety
-    /// The CPU must support AVX-512F.
+    /// The CPU must support AVX-512F and POPCNT.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
+    #[target_feature(enable = "avx512f,popcnt")]
     unsafe fn fill_avx512(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
@@ -185,8 +192,8 @@ impl<'a> Scan<'a> {
                 (1u16 << (end - k)) - 1
             };
             // SAFETY: the masked loads touch only lanes k..end, inside the arrays;
-            // the compress-store writes at most 16 entries at hits[n..] and the
-            // driver calls with n <= HIT_CAPACITY - 16.
+            // the store writes 16 entries at hits[n..], and the driver calls with
+            // n <= HIT_CAPACITY - 16.
             unsafe {
                 let x = _mm512_maskz_loadu_ps(valid, xs.as_ptr().add(k));
                 let y = _mm512_maskz_loadu_ps(valid, ys.as_ptr().add(k));
@@ -202,7 +209,11 @@ impl<'a> Scan<'a> {
                 );
                 let mask = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(valid, r2, lim);
                 let slots = _mm512_add_epi32(_mm512_set1_epi32(k as i32), lane);
-                _mm512_mask_compressstoreu_epi32(hits.as_mut_ptr().add(n).cast(), mask, slots);
+                // Compress in a register and store all 16 lanes: much faster than
+                // a compress-store to memory; lanes past the hits are overwritten
+                // by the next chunk or ignored.
+                let packed = _mm512_maskz_compress_epi32(mask, slots);
+                _mm512_storeu_si512(hits.as_mut_ptr().add(n).cast(), packed);
                 n + mask.count_ones() as usize
             }
         })
@@ -281,8 +292,8 @@ mod tests {
                 // SAFETY: SSE2 is part of the x86-64 baseline.
                 let sse2 = all_hits(scan(), |s, h| unsafe { s.fill_sse2(h) });
                 assert_eq!(sse2, scalar, "SSE2, rows of {len}");
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    // SAFETY: AVX-512F was detected.
+                if avx512() {
+                    // SAFETY: AVX-512F and POPCNT were detected.
                     let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx512(h) });
                     assert_eq!(avx, scalar, "AVX-512, rows of {len}");
                 }

@@ -1,0 +1,465 @@
+//! Building a grid's memory layout: particles sorted by cell into slots, the
+//! occupied cells, and each cell's 9 neighbour rows.
+//!
+//! Two paths give the same layout. When the particles' cells fill their bounding
+//! box densely (at most about two cells per particle, the usual case for a
+//! fluid), cells are numbered densely in the box, x fastest, and one counting
+//! pass sorts the particles: its prefix sums give every cell's first slot, so the
+//! occupied cells and each cell's rows follow in O(1) per cell, and the scatter
+//! writes the slot order, its inverse and the sorted coordinates in the same
+//! pass. Sparse sets (a few particles far apart) sort (cell, index) keys by radix
+//! or comparison instead and find rows by walking the sorted cells.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::{Cell, SlotRange, scan, zyx};
+
+/// The sorted particle data of a [`super::NeighbourGrid`].
+pub(super) struct Layout {
+    /// Slot → input index.
+    pub order: Vec<u32>,
+    /// Input index → slot.
+    pub rank: Vec<u32>,
+    /// Slot → cell index.
+    pub slot_cell: Vec<u32>,
+    /// Occupied cells, sorted by (z, y, x).
+    pub cells: Vec<Cell>,
+    /// Slots of cell `c`: `cell_start[c]..cell_start[c + 1]`.
+    pub cell_start: Vec<u32>,
+    /// For each occupied cell, the 9 slot ranges covering its 27 neighbour cells.
+    pub rows: Vec<[SlotRange; 9]>,
+    /// x, y, z in slot order, each followed by [`scan::PADDING`] NaNs.
+    pub coords: [Vec<f32>; 3],
+}
+
+/// The bounding box of a set of cells.
+struct Bounds {
+    lo: Cell,
+    /// Cells along each axis.
+    dims: [u64; 3],
+}
+
+impl Bounds {
+    fn of(cells: &[Cell]) -> Option<Self> {
+        let (lo, hi) = cells
+            .par_iter()
+            .map(|&c| (c, c))
+            .reduce_with(|(a0, a1), (b0, b1)| {
+                (
+                    [a0[0].min(b0[0]), a0[1].min(b0[1]), a0[2].min(b0[2])],
+                    [a1[0].max(b1[0]), a1[1].max(b1[1]), a1[2].max(b1[2])],
+                )
+            })?;
+        let dims = [0, 1, 2].map(|a| (hi[a] as i64 - lo[a] as i64) as u64 + 1);
+        Some(Self { lo, dims })
+    }
+
+    /// Position of `c` in the box along axis `a` (`c` inside the box).
+    #[inline]
+    fn rel(&self, c: Cell, a: usize) -> u64 {
+        (c[a] as i64 - self.lo[a] as i64) as u64
+    }
+
+    /// Cells in the box, if that fits a `u64`.
+    fn total(&self) -> Option<u64> {
+        self.dims[0]
+            .checked_mul(self.dims[1])
+            .and_then(|v| v.checked_mul(self.dims[2]))
+    }
+
+    /// Dense number of a cell in the box: x fastest, so numbers increase in
+    /// (z, y, x) order. Only for boxes whose [`Bounds::total`] is `Some`.
+    #[inline]
+    fn key(&self, c: Cell) -> u64 {
+        self.rel(c, 0) + self.dims[0] * (self.rel(c, 1) + self.dims[1] * self.rel(c, 2))
+    }
+
+    /// The cell with dense number `k`.
+    #[inline]
+    fn cell(&self, k: u64) -> Cell {
+        let (x, yz) = (k % self.dims[0], k / self.dims[0]);
+        let (y, z) = (yz % self.dims[1], yz / self.dims[1]);
+        [
+            (self.lo[0] as i64 + x as i64) as i32,
+            (self.lo[1] as i64 + y as i64) as i32,
+            (self.lo[2] as i64 + z as i64) as i32,
+        ]
+    }
+}
+
+impl Layout {
+    /// The layout of particles at `positions` whose cells are `cells`.
+    pub fn new(cells: &[Cell], positions: &[Vec3]) -> Self {
+        let Some(bounds) = Bounds::of(cells) else {
+            return Self::sparse(cells, positions, Vec::new());
+        };
+        match bounds.total() {
+            Some(total) if total <= 2 * cells.len() as u64 + 1024 && total < u32::MAX as u64 => {
+                Self::dense(cells, positions, &bounds, total as usize)
+            }
+            Some(total) => {
+                let keys: Vec<(u64, u32)> = cells
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, &c)| (bounds.key(c), i as u32))
+                    .collect();
+                let order = radix_sort(keys, u64::BITS - (total - 1).leading_zeros());
+                Self::sparse(cells, positions, order)
+            }
+            None => {
+                let mut pairs: Vec<(u128, u32)> = cells
+                    .par_iter()
+                    .enumerate()
+                    .map(|(i, &c)| {
+                        let r = |a| bounds.rel(c, a) as u128;
+                        ((r(2) << 64) | (r(1) << 32) | r(0), i as u32)
+                    })
+                    .collect();
+                // Pairs are unique (the index breaks ties): an unstable sort is
+                // deterministic.
+                pairs.par_sort_unstable();
+                let order = pairs.into_par_iter().map(|(_, i)| i).collect();
+                Self::sparse(cells, positions, order)
+            }
+        }
+    }
+
+    /// Counting sort over the dense cell numbers of a densely occupied box.
+    fn dense(cells: &[Cell], positions: &[Vec3], bounds: &Bounds, total: usize) -> Self {
+        let n = cells.len();
+        let keys: Vec<u32> = cells.par_iter().map(|&c| bounds.key(c) as u32).collect();
+        // The input splits into a few chunks, one per thread, scattered in
+        // parallel: chunk c writes key k's particles from the slot where chunks
+        // before it ended, so the sort stays stable. One histogram per chunk.
+        let chunks = rayon::current_num_threads()
+            .clamp(1, 8)
+            .min(n.div_ceil(1 << 15))
+            .max(1);
+        let chunk_len = n.div_ceil(chunks).max(1);
+        let mut next: Vec<Vec<u32>> = keys
+            .par_chunks(chunk_len)
+            .map(|ks| {
+                let mut count = vec![0u32; total];
+                for &k in ks {
+                    count[k as usize] += 1;
+                }
+                count
+            })
+            .collect();
+        // first[k]: the first slot of dense cell k; first[total] = n. Counts
+        // become each chunk's next slot per key.
+        let mut first = vec![0u32; total + 1];
+        let mut sum = 0u32;
+        for (k, f) in first[..total].iter_mut().enumerate() {
+            *f = sum;
+            for count in next.iter_mut() {
+                (count[k], sum) = (sum, sum + count[k]);
+            }
+        }
+        first[total] = sum;
+        let (occupied, mut cell_start): (Vec<Cell>, Vec<u32>) = (0..total)
+            .into_par_iter()
+            .filter(|&k| first[k + 1] > first[k])
+            .map(|k| (bounds.cell(k as u64), first[k]))
+            .unzip();
+        cell_start.push(n as u32);
+
+        // The scatter writes the slot order, its inverse and the sorted
+        // coordinates in one pass.
+        let mut order = vec![0u32; n];
+        let mut rank = vec![0u32; n];
+        let mut coords = [0, 1, 2].map(|_| vec![f32::NAN; n + scan::PADDING]);
+        {
+            let [xs, ys, zs] = &mut coords;
+            let out = (
+                Scatter(order.as_mut_ptr()),
+                Scatter(xs.as_mut_ptr()),
+                Scatter(ys.as_mut_ptr()),
+                Scatter(zs.as_mut_ptr()),
+            );
+            keys.par_chunks(chunk_len)
+                .zip(rank.par_chunks_mut(chunk_len))
+                .zip(next.par_iter_mut())
+                .enumerate()
+                .for_each(|(c, ((ks, rank), next))| {
+                    let (order, xs, ys, zs) = out;
+                    for (local, &k) in ks.iter().enumerate() {
+                        let i = c * chunk_len + local;
+                        let slot = &mut next[k as usize];
+                        let s = *slot as usize;
+                        *slot += 1;
+                        rank[local] = s as u32;
+                        let p = positions[i];
+                        // SAFETY: the per-chunk offsets partition 0..n, so every
+                        // slot s < n is written by exactly one iteration of one
+                        // chunk; the vectors outlive the scatter.
+                        unsafe {
+                            order.write(s, i as u32);
+                            xs.write(s, p.x);
+                            ys.write(s, p.y);
+                            zs.write(s, p.z);
+                        }
+                    }
+                });
+        }
+
+        // The rows of (x, y, z): slots of (x − 1..=x + 1, y + dy, z + dz) clamped
+        // to the box, one contiguous range of dense numbers.
+        let hi = [0, 1, 2].map(|a| bounds.lo[a] as i64 + bounds.dims[a] as i64 - 1);
+        let rows = occupied
+            .par_iter()
+            .map(|&c| {
+                let mut rows = [SlotRange::default(); 9];
+                let mut r = 0;
+                for dz in -1..=1i64 {
+                    for dy in -1..=1i64 {
+                        let (y, z) = (c[1] as i64 + dy, c[2] as i64 + dz);
+                        if (bounds.lo[1] as i64..=hi[1]).contains(&y)
+                            && (bounds.lo[2] as i64..=hi[2]).contains(&z)
+                        {
+                            let x0 = (c[0] as i64 - 1).max(bounds.lo[0] as i64);
+                            let x1 = (c[0] as i64 + 1).min(hi[0]);
+                            let at = |x: i64| bounds.key([x as i32, y as i32, z as i32]) as usize;
+                            rows[r] = SlotRange {
+                                start: first[at(x0)],
+                                end: first[at(x1) + 1],
+                            };
+                        }
+                        r += 1;
+                    }
+                }
+                rows
+            })
+            .collect();
+        let slot_cell = slot_cells(&cell_start, n);
+        Self {
+            order,
+            rank,
+            slot_cell,
+            cells: occupied,
+            cell_start,
+            rows,
+            coords,
+        }
+    }
+
+    /// The layout for a given slot order (input indices sorted by (z, y, x) cell,
+    /// ties by index).
+    fn sparse(cells: &[Cell], positions: &[Vec3], order: Vec<u32>) -> Self {
+        let n = cells.len();
+        let mut rank = vec![0u32; n];
+        for (s, &i) in order.iter().enumerate() {
+            rank[i as usize] = s as u32;
+        }
+        let coords = [0, 1, 2].map(|a| padded_coordinate(&order, positions, a));
+        // Cell boundaries in slot order.
+        let cell_of_slot = |s: usize| cells[order[s] as usize];
+        let mut cell_start: Vec<u32> = (0..n)
+            .into_par_iter()
+            .filter(|&s| s == 0 || cell_of_slot(s) != cell_of_slot(s - 1))
+            .map(|s| s as u32)
+            .collect();
+        let occupied: Vec<Cell> = cell_start
+            .par_iter()
+            .map(|&s| cell_of_slot(s as usize))
+            .collect();
+        cell_start.push(n as u32);
+        let rows = neighbour_rows(&occupied, &cell_start);
+        Self {
+            slot_cell: slot_cells(&cell_start, n),
+            order,
+            rank,
+            cells: occupied,
+            cell_start,
+            rows,
+            coords,
+        }
+    }
+}
+
+/// A vector's buffer written at disjoint indices from several threads.
+#[derive(Clone, Copy)]
+struct Scatter<T>(*mut T);
+
+// SAFETY: `Scatter` is only a pointer; `write`'s contract (each index written by
+// one thread only, in bounds) makes sharing it across threads sound.
+unsafe impl<T: Send> Send for Scatter<T> {}
+unsafe impl<T: Send> Sync for Scatter<T> {}
+
+impl<T> Scatter<T> {
+    /// # Safety
+    /// `i` is in bounds of the buffer, and no other write or read of index `i`
+    /// happens while the scatter runs.
+    #[inline]
+    unsafe fn write(self, i: usize, value: T) {
+        // SAFETY: upheld by the caller.
+        unsafe { self.0.add(i).write(value) }
+    }
+}
+
+/// Slot → cell index, from the cells' slot ranges.
+fn slot_cells(cell_start: &[u32], n: usize) -> Vec<u32> {
+    let mut slot_cell = vec![0u32; n];
+    for (c, w) in cell_start.windows(2).enumerate() {
+        slot_cell[w[0] as usize..w[1] as usize].fill(c as u32);
+    }
+    slot_cell
+}
+
+/// Stable LSD radix sort of (key, index) pairs on the low `bits` bits of the key;
+/// returns the indices. Input in index order, so ties stay in index order.
+fn radix_sort(mut a: Vec<(u64, u32)>, bits: u32) -> Vec<u32> {
+    let passes = bits.div_ceil(11);
+    if passes > 0 {
+        let digit = bits.div_ceil(passes);
+        let mask = (1u64 << digit) - 1;
+        let mut b = vec![(0u64, 0u32); a.len()];
+        let mut counts = vec![0usize; 1 << digit];
+        for pass in 0..passes {
+            let shift = pass * digit;
+            counts.fill(0);
+            for &(k, _) in &a {
+                counts[((k >> shift) & mask) as usize] += 1;
+            }
+            let mut sum = 0;
+            for c in counts.iter_mut() {
+                (*c, sum) = (sum, sum + *c);
+            }
+            for &e in &a {
+                let d = ((e.0 >> shift) & mask) as usize;
+                b[counts[d]] = e;
+                counts[d] += 1;
+            }
+            std::mem::swap(&mut a, &mut b);
+        }
+    }
+    a.into_par_iter().map(|(_, i)| i).collect()
+}
+
+/// For every occupied cell, the 9 slot ranges of its 27 neighbour cells.
+///
+/// For a fixed row offset (dy, dz), the target row (x−1..=x+1, y+dy, z+dz) moves
+/// forward in (z, y, x) order as the cell does, so one forward walk over the sorted
+/// cells finds every cell's row: O(cells) per offset with sequential memory access.
+/// Chunks of cells walk in parallel, each starting from a binary search.
+fn neighbour_rows(cells: &[Cell], cell_start: &[u32]) -> Vec<[SlotRange; 9]> {
+    const CHUNK: usize = 4096;
+    let mut rows = vec![[SlotRange::default(); 9]; cells.len()];
+    rows.par_chunks_mut(CHUNK)
+        .enumerate()
+        .for_each(|(chunk, out)| {
+            let first_cell = chunk * CHUNK;
+            let mut r = 0;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    let lo = |c: Cell| zyx([c[0] - 1, c[1] + dy, c[2] + dz]);
+                    let hi = |c: Cell| zyx([c[0] + 1, c[1] + dy, c[2] + dz]);
+                    let mut p = cells.partition_point(|&q| zyx(q) < lo(cells[first_cell]));
+                    for (k, row) in out.iter_mut().enumerate() {
+                        let cell = cells[first_cell + k];
+                        while p < cells.len() && zyx(cells[p]) < lo(cell) {
+                            p += 1;
+                        }
+                        let mut q = p;
+                        while q < cells.len() && zyx(cells[q]) <= hi(cell) {
+                            q += 1;
+                        }
+                        row[r] = SlotRange {
+                            start: cell_start[p],
+                            end: cell_start[q],
+                        };
+                    }
+                    r += 1;
+                }
+            }
+        });
+    rows
+}
+
+/// One coordinate of the particles in slot order, followed by [`scan::PADDING`]
+/// NaN entries that let the scan load whole chunks at the end of the last row
+/// (NaN also fails every distance test).
+fn padded_coordinate(order: &[u32], positions: &[Vec3], axis: usize) -> Vec<f32> {
+    let mut out = Vec::with_capacity(order.len() + scan::PADDING);
+    order
+        .par_iter()
+        .map(|&i| positions[i as usize][axis])
+        .collect_into_vec(&mut out);
+    out.extend([f32::NAN; scan::PADDING]);
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The slots a row covers (empty rows compare equal whatever their start).
+    fn slots(r: &SlotRange) -> std::ops::Range<u32> {
+        if r.start < r.end {
+            r.start..r.end
+        } else {
+            0..0
+        }
+    }
+
+    /// The dense counting-sort path (scattered in parallel chunks) and the sparse
+    /// radix path give the same layout on a set with empty cells, crowded cells
+    /// and cells on the box's faces.
+    #[test]
+    fn dense_and_sparse_paths_agree() {
+        let mut state = 0x2545_F491u32;
+        let mut next = move |m: i32| {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state % m as u32) as i32
+        };
+        let cells: Vec<Cell> = (0..100_000)
+            .map(|_| {
+                // The plane x = 0 stays empty.
+                let x = next(7) - 3;
+                [if x == 0 { 2 } else { x }, next(5) + 10, next(6) - 40]
+            })
+            .collect();
+        let positions: Vec<Vec3> = cells
+            .iter()
+            .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) + 0.5)
+            .collect();
+        let bounds = Bounds::of(&cells).unwrap();
+        let total = bounds.total().unwrap();
+        // Four threads: the scatter runs in four chunks (n ≥ 3 · 2¹⁵).
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(4)
+            .build()
+            .unwrap();
+        let dense = pool.install(|| Layout::dense(&cells, &positions, &bounds, total as usize));
+        let keys = cells
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| (bounds.key(c), i as u32))
+            .collect();
+        let order = radix_sort(keys, u64::BITS - (total - 1).leading_zeros());
+        let sparse = Layout::sparse(&cells, &positions, order);
+        assert_eq!(dense.order, sparse.order);
+        assert_eq!(dense.rank, sparse.rank);
+        assert_eq!(dense.slot_cell, sparse.slot_cell);
+        assert_eq!(dense.cells, sparse.cells);
+        assert_eq!(dense.cell_start, sparse.cell_start);
+        for a in 0..3 {
+            let (d, s) = (&dense.coords[a], &sparse.coords[a]);
+            assert_eq!(d.len(), s.len());
+            assert!(d.iter().zip(s).all(|(x, y)| x.to_bits() == y.to_bits()));
+        }
+        for (d, s) in dense.rows.iter().zip(&sparse.rows) {
+            assert_eq!(d.map(|r| slots(&r)), s.map(|r| slots(&r)));
+        }
+        // Stable: ties in slot order keep input order.
+        assert!(
+            dense
+                .order
+                .windows(2)
+                .all(|w| { cells[w[0] as usize] != cells[w[1] as usize] || w[0] < w[1] })
+        );
+    }
+}
