@@ -118,15 +118,18 @@ impl NeighbourGrid {
             });
         }
         let inv_cell = 1.0 / (h as f64 * CELL_SCALE);
-        // Out-of-range positions get a sentinel cell, reported below; an indexed
-        // collect keeps this one pass with no intermediate lists.
-        let particle_cells: Vec<Cell> = positions
-            .par_iter()
-            .map(|&p| cell_of(p, inv_cell).unwrap_or(BAD_CELL))
-            .collect();
-        if particle_cells.par_iter().any(|&c| c == BAD_CELL) {
+        // One pass finds the bounding box and any non-finite coordinate; floor is
+        // monotonic, so every cell is in range when the box's corners' are.
+        let (lo, hi, finite) = positions.par_iter().map(|&p| (p, p, p.is_finite())).reduce(
+            || (Vec3::INFINITY, Vec3::NEG_INFINITY, true),
+            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 && b.2),
+        );
+        let in_range =
+            n == 0 || (cell_of(lo, inv_cell).is_some() && cell_of(hi, inv_cell).is_some());
+        if !finite || !in_range {
             return Err(first_bad_position(positions, inv_cell, h));
         }
+        let cell = |p: Vec3| cell_of(p, inv_cell).unwrap_or(BAD_CELL);
 
         let layout::Layout {
             order,
@@ -136,7 +139,7 @@ impl NeighbourGrid {
             cell_start,
             rows,
             coords: [xs, ys, zs],
-        } = layout::Layout::new(&particle_cells, positions);
+        } = layout::Layout::new(positions, cell);
         let table = CellTable::new(&cells);
 
         Ok(Self {
@@ -260,11 +263,20 @@ impl NeighbourGrid {
         T: Copy + Send + Sync,
         F: Fn(usize, Neighbourhood<'_>) -> T + Sync,
     {
-        let by_slot: Vec<T> = (0..self.len())
-            .into_par_iter()
-            .map(|s| f(self.order[s] as usize, self.neighbourhood_of_slot(s)))
-            .collect();
-        self.rank.par_iter().map(|&s| by_slot[s as usize]).collect()
+        let n = self.len();
+        let mut out: Vec<T> = Vec::with_capacity(n);
+        let dst = layout::Scatter(out.as_mut_ptr());
+        (0..n).into_par_iter().for_each(|s| {
+            let i = self.order[s] as usize;
+            let value = f(i, self.neighbourhood_of_slot(s));
+            // SAFETY: `order` is a permutation of 0..n, so every index below the
+            // capacity n is written exactly once, by one thread.
+            unsafe { dst.write(i, value) };
+        });
+        // SAFETY: all n elements were initialised above (a panic in `f` propagates
+        // before this line, leaving `out` empty).
+        unsafe { out.set_len(n) };
+        out
     }
 }
 

@@ -41,16 +41,14 @@ struct Bounds {
 }
 
 impl Bounds {
-    fn of(cells: &[Cell]) -> Option<Self> {
-        let (lo, hi) = cells
+    /// The box of the cells of `positions`, which are in range. `cell` must be
+    /// monotonic along each axis (a floor is).
+    fn of(positions: &[Vec3], cell: impl Fn(Vec3) -> Cell) -> Option<Self> {
+        let (lo, hi) = positions
             .par_iter()
-            .map(|&c| (c, c))
-            .reduce_with(|(a0, a1), (b0, b1)| {
-                (
-                    [a0[0].min(b0[0]), a0[1].min(b0[1]), a0[2].min(b0[2])],
-                    [a1[0].max(b1[0]), a1[1].max(b1[1]), a1[2].max(b1[2])],
-                )
-            })?;
+            .map(|&p| (p, p))
+            .reduce_with(|a, b| (a.0.min(b.0), a.1.max(b.1)))?;
+        let (lo, hi) = (cell(lo), cell(hi));
         let dims = [0, 1, 2].map(|a| (hi[a] as i64 - lo[a] as i64) as u64 + 1);
         Some(Self { lo, dims })
     }
@@ -89,25 +87,29 @@ impl Bounds {
 }
 
 impl Layout {
-    /// The layout of particles at `positions` whose cells are `cells`.
-    pub fn new(cells: &[Cell], positions: &[Vec3]) -> Self {
-        let Some(bounds) = Bounds::of(cells) else {
-            return Self::sparse(cells, positions, Vec::new());
+    /// The layout of particles at `positions` (finite, their cells in range),
+    /// `cell(p)` being the cell of position `p`.
+    pub fn new(positions: &[Vec3], cell: impl Fn(Vec3) -> Cell + Sync) -> Self {
+        let Some(bounds) = Bounds::of(positions, &cell) else {
+            return Self::sparse(&[], positions, Vec::new());
         };
+        let n = positions.len() as u64;
         match bounds.total() {
-            Some(total) if total <= 2 * cells.len() as u64 + 1024 && total < u32::MAX as u64 => {
-                Self::dense(cells, positions, &bounds, total as usize)
+            Some(total) if total <= 2 * n + 1024 && total < u32::MAX as u64 => {
+                Self::dense(positions, cell, &bounds, total as usize)
             }
             Some(total) => {
+                let cells: Vec<Cell> = positions.par_iter().map(|&p| cell(p)).collect();
                 let keys: Vec<(u64, u32)> = cells
                     .par_iter()
                     .enumerate()
                     .map(|(i, &c)| (bounds.key(c), i as u32))
                     .collect();
                 let order = radix_sort(keys, u64::BITS - (total - 1).leading_zeros());
-                Self::sparse(cells, positions, order)
+                Self::sparse(&cells, positions, order)
             }
             None => {
+                let cells: Vec<Cell> = positions.par_iter().map(|&p| cell(p)).collect();
                 let mut pairs: Vec<(u128, u32)> = cells
                     .par_iter()
                     .enumerate()
@@ -120,15 +122,23 @@ impl Layout {
                 // deterministic.
                 pairs.par_sort_unstable();
                 let order = pairs.into_par_iter().map(|(_, i)| i).collect();
-                Self::sparse(cells, positions, order)
+                Self::sparse(&cells, positions, order)
             }
         }
     }
 
     /// Counting sort over the dense cell numbers of a densely occupied box.
-    fn dense(cells: &[Cell], positions: &[Vec3], bounds: &Bounds, total: usize) -> Self {
-        let n = cells.len();
-        let keys: Vec<u32> = cells.par_iter().map(|&c| bounds.key(c) as u32).collect();
+    fn dense(
+        positions: &[Vec3],
+        cell: impl Fn(Vec3) -> Cell + Sync,
+        bounds: &Bounds,
+        total: usize,
+    ) -> Self {
+        let n = positions.len();
+        let keys: Vec<u32> = positions
+            .par_iter()
+            .map(|&p| bounds.key(cell(p)) as u32)
+            .collect();
         // The input splits into a few chunks, one per thread, scattered in
         // parallel: chunk c writes key k's particles from the slot where chunks
         // before it ended, so the sort stays stable. One histogram per chunk.
@@ -169,7 +179,8 @@ impl Layout {
         // coordinates in one pass.
         let mut order = vec![0u32; n];
         let mut rank = vec![0u32; n];
-        let mut coords = [0, 1, 2].map(|_| vec![f32::NAN; n + scan::PADDING]);
+        // Coordinates are written once each by the scatter, not initialised first.
+        let mut coords = [0, 1, 2].map(|_| Vec::<f32>::with_capacity(n + scan::PADDING));
         {
             let [xs, ys, zs] = &mut coords;
             let out = (
@@ -202,6 +213,11 @@ impl Layout {
                         }
                     }
                 });
+        }
+        for c in &mut coords {
+            // SAFETY: the scatter wrote every slot below n (see above).
+            unsafe { c.set_len(n) };
+            c.extend([f32::NAN; scan::PADDING]);
         }
 
         // The rows of (x, y, z): slots of (x − 1..=x + 1, y + dy, z + dz) clamped
@@ -280,7 +296,7 @@ impl Layout {
 
 /// A vector's buffer written at disjoint indices from several threads.
 #[derive(Clone, Copy)]
-struct Scatter<T>(*mut T);
+pub(super) struct Scatter<T>(pub(super) *mut T);
 
 // SAFETY: `Scatter` is only a pointer; `write`'s contract (each index written by
 // one thread only, in bounds) makes sharing it across threads sound.
@@ -292,7 +308,7 @@ impl<T> Scatter<T> {
     /// `i` is in bounds of the buffer, and no other write or read of index `i`
     /// happens while the scatter runs.
     #[inline]
-    unsafe fn write(self, i: usize, value: T) {
+    pub(super) unsafe fn write(self, i: usize, value: T) {
         // SAFETY: upheld by the caller.
         unsafe { self.0.add(i).write(value) }
     }
@@ -300,10 +316,17 @@ impl<T> Scatter<T> {
 
 /// Slot → cell index, from the cells' slot ranges.
 fn slot_cells(cell_start: &[u32], n: usize) -> Vec<u32> {
-    let mut slot_cell = vec![0u32; n];
-    for (c, w) in cell_start.windows(2).enumerate() {
-        slot_cell[w[0] as usize..w[1] as usize].fill(c as u32);
-    }
+    let mut slot_cell: Vec<u32> = Vec::with_capacity(n);
+    let dst = Scatter(slot_cell.as_mut_ptr());
+    cell_start.par_windows(2).enumerate().for_each(|(c, w)| {
+        for s in w[0]..w[1] {
+            // SAFETY: the cells' slot ranges partition 0..n (cell_start rises from
+            // 0 to n), so each slot is written once, by one thread.
+            unsafe { dst.write(s as usize, c as u32) };
+        }
+    });
+    // SAFETY: every slot below n was written above.
+    unsafe { slot_cell.set_len(n) };
     slot_cell
 }
 
@@ -426,14 +449,15 @@ mod tests {
             .iter()
             .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) + 0.5)
             .collect();
-        let bounds = Bounds::of(&cells).unwrap();
+        let cell = |p: Vec3| p.floor().as_ivec3().to_array();
+        let bounds = Bounds::of(&positions, cell).unwrap();
         let total = bounds.total().unwrap();
         // Four threads: the scatter runs in four chunks (n ≥ 3 · 2¹⁵).
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(4)
             .build()
             .unwrap();
-        let dense = pool.install(|| Layout::dense(&cells, &positions, &bounds, total as usize));
+        let dense = pool.install(|| Layout::dense(&positions, cell, &bounds, total as usize));
         let keys = cells
             .iter()
             .enumerate()
