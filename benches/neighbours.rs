@@ -7,6 +7,10 @@
 //! - `kiddo`: kiddo's `ImmutableKdTree`, built in parallel, one unsorted radius
 //!   query per particle in parallel.
 //!
+//! The grid is timed twice: built fresh each iteration (`sph-core grid`), and
+//! rebuilt in place with `NeighbourGrid::rebuild` (`sph-core grid rebuild`), the
+//! way a solver uses it every step, reusing its memory.
+//!
 //! Every method does the same work per particle: count its neighbours j ≠ i with
 //! |x_i − x_j|² ≤ h² and sum their r², so nothing can be optimised away. Throughput
 //! is in neighbour pairs: ordered pairs (i, j), i ≠ j, the visits an SPH gather makes.
@@ -52,9 +56,21 @@ fn shuffled(mut p: Vec<Vec3>) -> Vec<Vec3> {
     p
 }
 
-/// (pairs, Σ r²) with sph-core's grid.
+/// (pairs, Σ r²) with sph-core's grid, built fresh.
 fn grid_pairs(positions: &[Vec3]) -> (u64, f64) {
     let grid = NeighbourGrid::build(positions, H).expect("valid block");
+    enumerate(&grid)
+}
+
+/// (pairs, Σ r²) with sph-core's grid rebuilt in place, as a solver does every
+/// step (no allocation once the buffers have grown).
+fn grid_rebuild_pairs(grid: &mut NeighbourGrid, positions: &[Vec3]) -> (u64, f64) {
+    grid.rebuild(positions).expect("valid block");
+    enumerate(grid)
+}
+
+/// Visits every neighbour pair of the grid's particles.
+fn enumerate(grid: &NeighbourGrid) -> (u64, f64) {
     let per = grid.par_map(|i, nb| {
         let (mut n, mut s) = (0u32, 0.0f32);
         nb.for_each(|j, _, r2| {
@@ -154,6 +170,13 @@ fn neighbours(c: &mut Criterion) {
             BenchmarkId::new("sph-core grid", label),
             &positions,
             |b, p| b.iter(|| black_box(grid_pairs(p))),
+        );
+        let mut grid = NeighbourGrid::build(&[], H).expect("valid h");
+        assert_eq!(grid_rebuild_pairs(&mut grid, &positions).0, pairs);
+        group.bench_with_input(
+            BenchmarkId::new("sph-core grid rebuild", label),
+            &positions,
+            |b, p| b.iter(|| black_box(grid_rebuild_pairs(&mut grid, p))),
         );
         group.bench_with_input(
             BenchmarkId::new("hashmap grid", label),

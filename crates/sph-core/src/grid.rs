@@ -100,6 +100,8 @@ pub struct NeighbourGrid {
     xs: Vec<f32>,
     ys: Vec<f32>,
     zs: Vec<f32>,
+    /// Buffers kept for [`NeighbourGrid::rebuild`].
+    scratch: layout::Scratch,
 }
 
 impl NeighbourGrid {
@@ -109,6 +111,36 @@ impl NeighbourGrid {
     /// Errors if `h` is not finite and positive, a position is NaN or infinite, a
     /// position is beyond 2³⁰·h from the origin, or there are 2³² or more particles.
     pub fn build(positions: &[Vec3], h: f32) -> Result<Self> {
+        Self::build_reusing(positions, h, layout::Layout::default(), Vec::new())
+    }
+
+    /// Rebuilds the grid for new `positions` with the same h, reusing its memory:
+    /// what a solver does every step. The result equals
+    /// [`NeighbourGrid::build`]`(positions, self.h())`; on error (see `build`) the
+    /// grid is left empty.
+    pub fn rebuild(&mut self, positions: &[Vec3]) -> Result<()> {
+        let h = self.h;
+        let old = std::mem::replace(self, Self::build(&[], h)?);
+        let reuse = layout::Layout {
+            order: old.order,
+            rank: old.rank,
+            slot_cell: old.slot_cell,
+            cells: old.cells,
+            cell_start: old.cell_start,
+            rows: old.rows,
+            coords: [old.xs, old.ys, old.zs],
+            scratch: old.scratch,
+        };
+        *self = Self::build_reusing(positions, h, reuse, old.table.into_slots())?;
+        Ok(())
+    }
+
+    fn build_reusing(
+        positions: &[Vec3],
+        h: f32,
+        reuse: layout::Layout,
+        table_slots: Vec<u32>,
+    ) -> Result<Self> {
         check_h(h)?;
         let n = positions.len();
         if n >= u32::MAX as usize {
@@ -139,8 +171,9 @@ impl NeighbourGrid {
             cell_start,
             rows,
             coords: [xs, ys, zs],
-        } = layout::Layout::new(positions, cell);
-        let table = CellTable::new(&cells);
+            scratch,
+        } = layout::Layout::new(positions, cell, reuse);
+        let table = CellTable::new(&cells, table_slots);
 
         Ok(Self {
             h,
@@ -156,6 +189,7 @@ impl NeighbourGrid {
             xs,
             ys,
             zs,
+            scratch,
         })
     }
 
@@ -443,10 +477,13 @@ struct CellTable {
 const EMPTY: u32 = u32::MAX;
 
 impl CellTable {
-    fn new(cells: &[Cell]) -> Self {
+    /// The table of `cells`, in the memory of `slots` (any content).
+    fn new(cells: &[Cell], mut slots: Vec<u32>) -> Self {
         let capacity = (2 * cells.len()).next_power_of_two().max(16);
+        slots.clear();
+        slots.resize(capacity, EMPTY);
         let mut table = Self {
-            slots: vec![EMPTY; capacity],
+            slots,
             shift: 64 - capacity.trailing_zeros(),
         };
         let mask = capacity - 1;
@@ -458,6 +495,11 @@ impl CellTable {
             table.slots[s] = c as u32;
         }
         table
+    }
+
+    /// Gives back the table's memory.
+    fn into_slots(self) -> Vec<u32> {
+        self.slots
     }
 
     /// Fibonacci hashing of the three coordinates (a variant of the large-prime XOR

@@ -47,6 +47,8 @@ pub struct Context {
     /// The neighbour grid over the current positions, once a grid processor has
     /// built it this step; `None` before, and after anything moved particles.
     pub grid: Option<NeighbourGrid>,
+    /// An outdated grid whose memory the next grid build reuses.
+    recycled: Option<NeighbourGrid>,
 }
 
 impl Context {
@@ -57,7 +59,27 @@ impl Context {
             time: 0.0,
             step: 0,
             grid: None,
+            recycled: None,
         }
+    }
+
+    /// Marks the grid outdated (particles moved, appeared or vanished), keeping
+    /// its memory for the next build. Setting `grid = None` is equivalent but
+    /// frees the memory.
+    pub fn invalidate_grid(&mut self) {
+        if let Some(grid) = self.grid.take() {
+            self.recycled = Some(grid);
+        }
+    }
+
+    /// The grid or the outdated one, to rebuild in place.
+    pub(crate) fn take_grid_memory(&mut self) -> Option<NeighbourGrid> {
+        self.grid.take().or_else(|| self.recycled.take())
+    }
+
+    /// Hands an outdated grid's memory to this context (from a previous step).
+    pub(crate) fn recycle(&mut self, grid: Option<NeighbourGrid>) {
+        self.recycled = grid;
     }
 }
 

@@ -193,7 +193,14 @@ impl Processor for BuildGrid {
         "grid"
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let mut grid = crate::NeighbourGrid::build(particles.positions(), self.h)?;
+        // Reuse last step's grid memory when there is one.
+        let mut grid = match ctx.take_grid_memory() {
+            Some(mut grid) if grid.h() == self.h => {
+                grid.rebuild(particles.positions())?;
+                grid
+            }
+            _ => crate::NeighbourGrid::build(particles.positions(), self.h)?,
+        };
         if self.sort_every > 0 && ctx.step.is_multiple_of(self.sort_every) {
             particles.permute(grid.order())?;
             grid.renumber_by_slot();
@@ -415,7 +422,7 @@ impl Processor for Integrate {
                 *v += a * dt;
                 *x += *v * dt;
             });
-        ctx.grid = None; // positions moved
+        ctx.invalidate_grid(); // positions moved
         Ok(())
     }
 }
@@ -444,7 +451,7 @@ impl Processor for Boundaries {
             .par_iter_mut()
             .zip(f.velocities.par_iter_mut())
             .for_each(|(x, v)| b.resolve(x, v));
-        ctx.grid = None;
+        ctx.invalidate_grid();
         Ok(())
     }
 }
@@ -511,7 +518,7 @@ impl Processor for Emitter {
                     particles.push(x, self.velocity, self.mass);
                 }
             }
-            ctx.grid = None;
+            ctx.invalidate_grid();
         }
         Ok(())
     }
@@ -549,7 +556,7 @@ impl Processor for Sink {
         let removed = particles.retain(&keep)?;
         if removed > 0 {
             self.removed += removed as u64;
-            ctx.grid = None;
+            ctx.invalidate_grid();
         }
         Ok(())
     }
@@ -576,6 +583,8 @@ pub struct World {
     program: Program,
     time: f64,
     step: u64,
+    /// Last step's grid, rebuilt in place by the next step's grid processor.
+    recycled_grid: Option<crate::NeighbourGrid>,
 }
 
 /// What one call of [`World::advance`] did.
@@ -607,6 +616,7 @@ impl World {
             program,
             time: 0.0,
             step: 0,
+            recycled_grid: None,
         })
     }
 
@@ -705,13 +715,11 @@ impl World {
     }
 
     fn step_by(&mut self, dt: f32) -> Result<()> {
-        let mut ctx = Context {
-            dt,
-            time: self.time,
-            step: self.step,
-            grid: None,
-        };
+        let mut ctx = Context::new(dt);
+        (ctx.time, ctx.step) = (self.time, self.step);
+        ctx.recycle(self.recycled_grid.take());
         self.program.process(&mut self.particles, &mut ctx)?;
+        self.recycled_grid = ctx.take_grid_memory();
         self.time += dt as f64;
         self.step += 1;
         self.check()

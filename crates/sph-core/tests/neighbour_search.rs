@@ -124,6 +124,35 @@ proptest! {
         };
         prop_assert_eq!(run(1), run(4));
     }
+
+    /// A grid rebuilt in place (from a dense, a sparse or an empty set) answers
+    /// exactly like one built fresh on the new positions.
+    #[test]
+    fn rebuild_equals_build(
+        first in prop::collection::vec(vec3_in(-1.0, 1.0), 0..300),
+        second in prop::collection::vec(vec3_in(-1.0, 1.0), 0..300),
+        spread in prop::sample::select(vec![1.0f32, 40.0]),
+    ) {
+        let h = 0.3;
+        let old: Vec<Vec3> = first.iter().map(|&u| u * spread).collect();
+        let new: Vec<Vec3> = second.iter().map(|&u| u * 2.0).collect();
+        let mut grid = NeighbourGrid::build(&old, h).unwrap();
+        grid.rebuild(&new).unwrap();
+        let fresh = NeighbourGrid::build(&new, h).unwrap();
+        prop_assert_eq!(grid.len(), fresh.len());
+        prop_assert_eq!(grid.order(), fresh.order());
+        let lists = |g: &NeighbourGrid| (0..new.len()).map(|i| {
+            let mut v = Vec::new();
+            g.for_each_neighbour(i, |j, _, r2| v.push((j, r2.to_bits())));
+            v
+        }).collect::<Vec<_>>();
+        prop_assert_eq!(lists(&grid), lists(&fresh));
+        let probe = Vec3::new(0.1, -0.2, 0.3);
+        prop_assert_eq!(
+            grid.neighbourhood_of_point(probe).count(),
+            fresh.neighbourhood_of_point(probe).count()
+        );
+    }
 }
 
 #[test]

@@ -15,7 +15,9 @@ use rayon::prelude::*;
 
 use super::{Cell, SlotRange, scan, zyx};
 
-/// The sorted particle data of a [`super::NeighbourGrid`].
+/// The sorted particle data of a [`super::NeighbourGrid`]. Rebuilding from an
+/// old layout refills its buffers instead of allocating new ones.
+#[derive(Debug, Clone, Default)]
 pub(super) struct Layout {
     /// Slot → input index.
     pub order: Vec<u32>,
@@ -31,6 +33,19 @@ pub(super) struct Layout {
     pub rows: Vec<[SlotRange; 9]>,
     /// x, y, z in slot order, each followed by [`scan::PADDING`] NaNs.
     pub coords: [Vec<f32>; 3],
+    /// Buffers of the dense sort kept for the next rebuild.
+    pub scratch: Scratch,
+}
+
+/// The dense sort's temporary buffers.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Scratch {
+    /// Dense cell number per input particle.
+    keys: Vec<u32>,
+    /// Per chunk of the input: count, then next slot, per dense cell.
+    next: Vec<Vec<u32>>,
+    /// First slot per dense cell, and n.
+    first: Vec<u32>,
 }
 
 /// The bounding box of a set of cells.
@@ -89,14 +104,17 @@ impl Bounds {
 impl Layout {
     /// The layout of particles at `positions` (finite, their cells in range),
     /// `cell(p)` being the cell of position `p`.
-    pub fn new(positions: &[Vec3], cell: impl Fn(Vec3) -> Cell + Sync) -> Self {
+    ///
+    /// `reuse` is an old layout whose buffers are refilled (a default one for a
+    /// first build).
+    pub fn new(positions: &[Vec3], cell: impl Fn(Vec3) -> Cell + Sync, reuse: Self) -> Self {
         let Some(bounds) = Bounds::of(positions, &cell) else {
             return Self::sparse(&[], positions, Vec::new());
         };
         let n = positions.len() as u64;
         match bounds.total() {
             Some(total) if total <= 2 * n + 1024 && total < u32::MAX as u64 => {
-                Self::dense(positions, cell, &bounds, total as usize)
+                reuse.dense(positions, cell, &bounds, total as usize)
             }
             Some(total) => {
                 let cells: Vec<Cell> = positions.par_iter().map(|&p| cell(p)).collect();
@@ -129,16 +147,32 @@ impl Layout {
 
     /// Counting sort over the dense cell numbers of a densely occupied box.
     fn dense(
+        self,
         positions: &[Vec3],
         cell: impl Fn(Vec3) -> Cell + Sync,
         bounds: &Bounds,
         total: usize,
     ) -> Self {
+        let Self {
+            mut order,
+            mut rank,
+            mut slot_cell,
+            cells: occupied,
+            cell_start,
+            mut rows,
+            mut coords,
+            scratch:
+                Scratch {
+                    mut keys,
+                    mut next,
+                    mut first,
+                },
+        } = self;
         let n = positions.len();
-        let keys: Vec<u32> = positions
+        positions
             .par_iter()
             .map(|&p| bounds.key(cell(p)) as u32)
-            .collect();
+            .collect_into_vec(&mut keys);
         // The input splits into a few chunks, one per thread, scattered in
         // parallel: chunk c writes key k's particles from the slot where chunks
         // before it ended, so the sort stays stable. One histogram per chunk.
@@ -147,19 +181,20 @@ impl Layout {
             .min(n.div_ceil(1 << 15))
             .max(1);
         let chunk_len = n.div_ceil(chunks).max(1);
-        let mut next: Vec<Vec<u32>> = keys
-            .par_chunks(chunk_len)
-            .map(|ks| {
-                let mut count = vec![0u32; total];
+        next.resize_with(n.div_ceil(chunk_len), Vec::new);
+        next.par_iter_mut()
+            .zip(keys.par_chunks(chunk_len))
+            .for_each(|(count, ks)| {
+                count.clear();
+                count.resize(total, 0);
                 for &k in ks {
                     count[k as usize] += 1;
                 }
-                count
-            })
-            .collect();
+            });
         // first[k]: the first slot of dense cell k; first[total] = n. Counts
         // become each chunk's next slot per key.
-        let mut first = vec![0u32; total + 1];
+        first.clear();
+        first.resize(total + 1, 0);
         let mut sum = 0u32;
         for (k, f) in first[..total].iter_mut().enumerate() {
             *f = sum;
@@ -168,54 +203,64 @@ impl Layout {
             }
         }
         first[total] = sum;
-        let (occupied, mut cell_start): (Vec<Cell>, Vec<u32>) = (0..total)
-            .into_par_iter()
-            .filter(|&k| first[k + 1] > first[k])
-            .map(|k| (bounds.cell(k as u64), first[k]))
-            .unzip();
+        let mut pair = (occupied, cell_start);
+        pair.0.clear();
+        pair.1.clear();
+        pair.par_extend(
+            (0..total)
+                .into_par_iter()
+                .filter(|&k| first[k + 1] > first[k])
+                .map(|k| (bounds.cell(k as u64), first[k])),
+        );
+        let (occupied, mut cell_start) = pair;
         cell_start.push(n as u32);
 
         // The scatter writes the slot order, its inverse and the sorted
-        // coordinates in one pass.
-        let mut order = vec![0u32; n];
-        let mut rank = vec![0u32; n];
-        // Coordinates are written once each by the scatter, not initialised first.
-        let mut coords = [0, 1, 2].map(|_| Vec::<f32>::with_capacity(n + scan::PADDING));
-        {
-            let [xs, ys, zs] = &mut coords;
-            let out = (
-                Scatter(order.as_mut_ptr()),
-                Scatter(xs.as_mut_ptr()),
-                Scatter(ys.as_mut_ptr()),
-                Scatter(zs.as_mut_ptr()),
-            );
-            keys.par_chunks(chunk_len)
-                .zip(rank.par_chunks_mut(chunk_len))
-                .zip(next.par_iter_mut())
-                .enumerate()
-                .for_each(|(c, ((ks, rank), next))| {
-                    let (order, xs, ys, zs) = out;
-                    for (local, &k) in ks.iter().enumerate() {
-                        let i = c * chunk_len + local;
-                        let slot = &mut next[k as usize];
-                        let s = *slot as usize;
-                        *slot += 1;
-                        rank[local] = s as u32;
-                        let p = positions[i];
-                        // SAFETY: the per-chunk offsets partition 0..n, so every
-                        // slot s < n is written by exactly one iteration of one
-                        // chunk; the vectors outlive the scatter.
-                        unsafe {
-                            order.write(s, i as u32);
-                            xs.write(s, p.x);
-                            ys.write(s, p.y);
-                            zs.write(s, p.z);
-                        }
-                    }
-                });
-        }
+        // coordinates in one pass. Every slot below n is written exactly once
+        // (the per-chunk offsets partition 0..n), so the scatter targets are
+        // not initialised first.
+        rank.clear();
+        rank.resize(n, 0);
+        order.clear();
+        order.reserve(n);
         for c in &mut coords {
-            // SAFETY: the scatter wrote every slot below n (see above).
+            c.clear();
+            c.reserve(n + scan::PADDING);
+        }
+        let [xs, ys, zs] = &mut coords;
+        let out = (
+            Scatter(order.as_mut_ptr()),
+            Scatter(xs.as_mut_ptr()),
+            Scatter(ys.as_mut_ptr()),
+            Scatter(zs.as_mut_ptr()),
+        );
+        keys.par_chunks(chunk_len)
+            .zip(rank.par_chunks_mut(chunk_len))
+            .zip(next.par_iter_mut())
+            .enumerate()
+            .for_each(|(c, ((ks, rank), next))| {
+                let (order, xs, ys, zs) = out;
+                for (local, &k) in ks.iter().enumerate() {
+                    let i = c * chunk_len + local;
+                    let slot = &mut next[k as usize];
+                    let s = *slot as usize;
+                    *slot += 1;
+                    rank[local] = s as u32;
+                    let p = positions[i];
+                    // SAFETY: s < n <= capacity, and each slot is written by
+                    // exactly one iteration of one chunk (see above).
+                    unsafe {
+                        order.write(s, i as u32);
+                        xs.write(s, p.x);
+                        ys.write(s, p.y);
+                        zs.write(s, p.z);
+                    }
+                }
+            });
+        // SAFETY: the scatter wrote every slot below n.
+        unsafe { order.set_len(n) };
+        for c in &mut coords {
+            // SAFETY: as for `order`.
             unsafe { c.set_len(n) };
             c.extend([f32::NAN; scan::PADDING]);
         }
@@ -223,7 +268,7 @@ impl Layout {
         // The rows of (x, y, z): slots of (x − 1..=x + 1, y + dy, z + dz) clamped
         // to the box, one contiguous range of dense numbers.
         let hi = [0, 1, 2].map(|a| bounds.lo[a] as i64 + bounds.dims[a] as i64 - 1);
-        let rows = occupied
+        occupied
             .par_iter()
             .map(|&c| {
                 let mut rows = [SlotRange::default(); 9];
@@ -247,8 +292,8 @@ impl Layout {
                 }
                 rows
             })
-            .collect();
-        let slot_cell = slot_cells(&cell_start, n);
+            .collect_into_vec(&mut rows);
+        fill_slot_cells(&cell_start, n, &mut slot_cell);
         Self {
             order,
             rank,
@@ -257,6 +302,7 @@ impl Layout {
             cell_start,
             rows,
             coords,
+            scratch: Scratch { keys, next, first },
         }
     }
 
@@ -282,14 +328,17 @@ impl Layout {
             .collect();
         cell_start.push(n as u32);
         let rows = neighbour_rows(&occupied, &cell_start);
+        let mut slot_cell = Vec::new();
+        fill_slot_cells(&cell_start, n, &mut slot_cell);
         Self {
-            slot_cell: slot_cells(&cell_start, n),
+            slot_cell,
             order,
             rank,
             cells: occupied,
             cell_start,
             rows,
             coords,
+            scratch: Scratch::default(),
         }
     }
 }
@@ -314,20 +363,21 @@ impl<T> Scatter<T> {
     }
 }
 
-/// Slot → cell index, from the cells' slot ranges.
-fn slot_cells(cell_start: &[u32], n: usize) -> Vec<u32> {
-    let mut slot_cell: Vec<u32> = Vec::with_capacity(n);
+/// Slot → cell index, from the cells' slot ranges, into `slot_cell`.
+fn fill_slot_cells(cell_start: &[u32], n: usize, slot_cell: &mut Vec<u32>) {
+    slot_cell.clear();
+    slot_cell.reserve(n);
     let dst = Scatter(slot_cell.as_mut_ptr());
     cell_start.par_windows(2).enumerate().for_each(|(c, w)| {
         for s in w[0]..w[1] {
             // SAFETY: the cells' slot ranges partition 0..n (cell_start rises from
-            // 0 to n), so each slot is written once, by one thread.
+            // 0 to n) and n <= capacity, so each slot is written once, by one
+            // thread.
             unsafe { dst.write(s as usize, c as u32) };
         }
     });
     // SAFETY: every slot below n was written above.
     unsafe { slot_cell.set_len(n) };
-    slot_cell
 }
 
 /// Stable LSD radix sort of (key, index) pairs on the low `bits` bits of the key;
@@ -457,7 +507,8 @@ mod tests {
             .num_threads(4)
             .build()
             .unwrap();
-        let dense = pool.install(|| Layout::dense(&positions, cell, &bounds, total as usize));
+        let dense =
+            pool.install(|| Layout::default().dense(&positions, cell, &bounds, total as usize));
         let keys = cells
             .iter()
             .enumerate()
