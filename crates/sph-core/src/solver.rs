@@ -6,7 +6,7 @@
 //! (pressure eq. 15, viscosity eq. 17, surface tension eq. 18–20, gravity) →
 //! [`Integrate`] (semi-implicit Euler) → [`Boundaries`].
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::boundary::{Boundary, WallKernel};
@@ -330,12 +330,17 @@ impl Processor for Forces {
             .unzip();
         let out = grid.par_map(|i, nb| {
             let pi = pr[i];
-            let mut a_p = Vec3::ZERO;
-            let mut a_v = Vec3::ZERO;
-            let mut n = Vec3::ZERO;
+            let vi = Vec3A::from(v[i]);
+            // Vec3A: one SSE instruction per vector operation, lane-wise the same
+            // IEEE arithmetic as Vec3, so results are bitwise those of Vec3.
+            let mut a_p = Vec3A::ZERO;
+            let mut a_v = Vec3A::ZERO;
+            let mut n = Vec3A::ZERO;
             let mut lap_c = 0.0f32;
             nb.for_each(|j, r, r2| {
-                n += vol[j] * poly6.gradient_r2(r, r2);
+                let r = Vec3A::from(r);
+                let grad_c = Vec3A::from(poly6.gradient_r2(r.into(), r2));
+                n += vol[j] * grad_c;
                 lap_c += vol[j] * poly6.laplacian_r2(r2);
                 if j == i {
                     return;
@@ -343,13 +348,14 @@ impl Processor for Forces {
                 let len = r2.sqrt();
                 // eq. 15 divided by m_i.
                 let grad = match prm.pressure_kernel {
-                    PressureKernel::Poly6 => poly6.gradient_r2(r, r2),
-                    PressureKernel::Spiky => spiky.gradient_len(r, len),
+                    PressureKernel::Poly6 => grad_c,
+                    PressureKernel::Spiky => spiky.gradient_len(r.into(), len).into(),
                 };
                 a_p -= m[j] * (pi + pr[j]) * grad;
                 // eq. 17 divided by m_i, without its 1/ρ_i (applied below).
-                a_v += vol[j] * viscosity.laplacian_len(len) * (v[j] - v[i]);
+                a_v += vol[j] * viscosity.laplacian_len(len) * (Vec3A::from(v[j]) - vi);
             });
+            let (mut a_p, a_v, n) = (Vec3::from(a_p), Vec3::from(a_v), Vec3::from(n));
             b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
                 // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
                 a_p += pi * prm.rest_density * wall.plane_density(d) * normal;
@@ -363,11 +369,11 @@ impl Processor for Forces {
             (a, n, lap_c)
         });
         let f = particles.fields_mut();
-        for (k, (a, n, l)) in out.into_iter().enumerate() {
-            f.accelerations[k] = a;
-            f.colour_gradients[k] = n;
-            f.colour_laplacians[k] = l;
-        }
+        (f.accelerations.par_iter_mut())
+            .zip(f.colour_gradients.par_iter_mut())
+            .zip(f.colour_laplacians.par_iter_mut())
+            .zip(out.par_iter())
+            .for_each(|(((a, n), l), &(a_i, n_i, l_i))| (*a, *n, *l) = (a_i, n_i, l_i));
         Ok(())
     }
 }
