@@ -68,6 +68,12 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub screenshot_after: Option<u64>,
 
+    /// Run the SPH step on the GPU (wgpu compute, `sph-gpu`) instead of the CPU;
+    /// extraction stays on the CPU. Needs a GPU adapter (lavapipe will do);
+    /// scenes with obstacles are not supported on this path yet.
+    #[arg(long)]
+    pub gpu_sim: bool,
+
     /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,

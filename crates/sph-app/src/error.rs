@@ -33,6 +33,10 @@ pub enum AppError {
     #[error("{0}")]
     Render(#[from] splat_render::RenderError),
     /// The window could not be created.
+    /// The GPU simulation path (`--gpu-sim`) failed or does not support the scene.
+    #[error("GPU simulation: {0}")]
+    Gpu(String),
+
     #[error("window: {0}")]
     Window(String),
     /// A headless run stopped part-way; the files of earlier frames are complete.
@@ -57,5 +61,11 @@ impl AppError {
             path: path.into(),
             reason: err.to_string(),
         }
+    }
+}
+
+impl From<sph_gpu::GpuError> for AppError {
+    fn from(e: sph_gpu::GpuError) -> Self {
+        Self::Gpu(e.to_string())
     }
 }

@@ -39,6 +39,14 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             None
         }
     };
+    if args.gpu_sim {
+        let Some(ctx) = &gpu else {
+            return Err(AppError::Gpu(
+                "--gpu-sim needs a GPU adapter, and none was found (see above)".into(),
+            ));
+        };
+        pipeline.set_gpu_sim(Some(ctx))?;
+    }
     let mut renderer = match &gpu {
         Some(ctx) => Some(SplatRenderer::new(
             ctx,
@@ -59,9 +67,14 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     let frames = args.frame_count();
     let frame_dt = 1.0 / args.fps;
     println!(
-        "scene `{}`: {} particles, {frames} frames at {} fps of simulated time, {}×{} → {}",
+        "scene `{}`: {} particles{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
         pipeline.name,
         pipeline.world.particles.len(),
+        if pipeline.gpu.is_some() {
+            " (SPH step on the GPU)"
+        } else {
+            ""
+        },
         args.fps,
         args.width,
         args.height,

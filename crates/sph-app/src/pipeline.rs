@@ -4,10 +4,11 @@ use std::time::Instant;
 
 use glam::Vec3;
 use sph_core::{Scene, World};
-use splat_render::{Camera, Shading, Splat};
+use splat_render::{Camera, GpuContext, Shading, Splat};
 use surfel_extract::{ExtractParams, Surfel, extract};
 
 use crate::error::AppError;
+use crate::gpu_sim::GpuSim;
 
 /// What one frame did (a row of `frames.csv`, the stats panel).
 #[derive(Debug, Clone, Copy, Default)]
@@ -46,6 +47,10 @@ pub struct Pipeline {
     pub surfels: Vec<Surfel>,
     /// The last frame's stats.
     pub stats: FrameStats,
+    /// The GPU solver when `--gpu-sim` (or the panel) switched it on.
+    pub gpu: Option<GpuSim>,
+    /// Simulated time spent on the GPU path (s): the world's clock does not see it.
+    gpu_time: f64,
 }
 
 impl Pipeline {
@@ -66,6 +71,8 @@ impl Pipeline {
             extract,
             surfels: Vec::new(),
             stats: FrameStats::default(),
+            gpu: None,
+            gpu_time: 0.0,
         };
         p.stats.particles = p.world.particles.len();
         Ok(p)
@@ -74,6 +81,10 @@ impl Pipeline {
     /// Back to the scene's initial state.
     pub fn reset(&mut self) -> Result<(), AppError> {
         self.world = self.scene.build_world()?;
+        self.gpu_time = 0.0;
+        if let Some(gpu) = &self.gpu {
+            self.gpu = Some(gpu.restart(&self.world, &self.scene)?);
+        }
         self.surfels.clear(); // stale: the next frame extracts again
         self.stats = FrameStats {
             particles: self.world.particles.len(),
@@ -82,13 +93,35 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Runs the SPH step on the GPU of `ctx` from the current particles
+    /// (`Some`), or back on the CPU from the GPU's last state (`None`).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] where the GPU path does not support the scene.
+    pub fn set_gpu_sim(&mut self, ctx: Option<&GpuContext>) -> Result<(), AppError> {
+        self.gpu = ctx
+            .map(|ctx| GpuSim::new(ctx, &self.world, &self.scene))
+            .transpose()?;
+        Ok(())
+    }
+
     /// Simulated time per frame at `fps`.
     pub fn advance(&mut self, frame_dt: f64) -> Result<(), AppError> {
         let start = Instant::now();
-        let report = self.world.advance(frame_dt as f32)?;
+        let (substeps, time) = match self.gpu.as_mut() {
+            Some(gpu) => {
+                let substeps = gpu.advance(&mut self.world, frame_dt)?;
+                self.gpu_time += frame_dt;
+                (substeps, self.world.time() + self.gpu_time)
+            }
+            None => {
+                let report = self.world.advance(frame_dt as f32)?;
+                (report.substeps, report.time + self.gpu_time)
+            }
+        };
         self.stats.step_ms = start.elapsed().as_secs_f64() * 1e3;
-        self.stats.substeps = report.substeps;
-        self.stats.time = report.time;
+        self.stats.substeps = substeps;
+        self.stats.time = time;
         self.stats.frame += 1;
         self.stats.particles = self.world.particles.len();
         Ok(())

@@ -86,6 +86,10 @@ struct Settings {
     view: usize,
     paused: bool,
     step_once: bool,
+    /// Whether the SPH step should run on the GPU (`--gpu-sim`, the panel).
+    gpu_sim: bool,
+    /// Why the GPU step could not be switched on, shown in the panel.
+    gpu_note: Option<String>,
 }
 
 const VIEW_NAMES: [&str; 5] = ["shaded", "normals", "weights", "depth", "particles"];
@@ -143,6 +147,8 @@ impl App {
                 view: 0,
                 paused: false,
                 step_once: false,
+                gpu_sim: args.gpu_sim,
+                gpu_note: None,
             },
             push,
             gfx: None,
@@ -225,6 +231,26 @@ impl App {
         Ok(())
     }
 
+    /// Switches the SPH step to the GPU or back when the setting changed; a
+    /// scene the GPU path cannot run unticks the box and says why.
+    fn sync_gpu_sim(&mut self) {
+        let Some(gfx) = self.gfx.as_ref() else {
+            return;
+        };
+        if self.settings.gpu_sim == self.pipeline.gpu.is_some() {
+            return;
+        }
+        let ctx = self.settings.gpu_sim.then_some(&gfx.ctx);
+        match self.pipeline.set_gpu_sim(ctx) {
+            Ok(()) => self.settings.gpu_note = None,
+            Err(e) => {
+                log::warn!("{e}");
+                self.settings.gpu_sim = false;
+                self.settings.gpu_note = Some(e.to_string());
+            }
+        }
+    }
+
     fn reset(&mut self) -> Result<(), AppError> {
         self.pipeline.reset()?;
         install_push(&mut self.pipeline, &self.push);
@@ -235,6 +261,10 @@ impl App {
     fn apply_fluid_params(&mut self) -> Result<(), AppError> {
         let particles = self.pipeline.world.particles.clone();
         self.pipeline.world = self.pipeline.scene.world_with(particles)?;
+        if let Some(gpu) = &self.pipeline.gpu {
+            // The GPU solver holds the old parameters: start it again from here.
+            self.pipeline.gpu = Some(gpu.restart(&self.pipeline.world, &self.pipeline.scene)?);
+        }
         install_push(&mut self.pipeline, &self.push);
         Ok(())
     }
@@ -377,6 +407,11 @@ impl App {
                 ));
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
+                ui.checkbox(&mut settings.gpu_sim, "SPH step on the GPU")
+                    .on_hover_text("wgpu compute (sph-gpu); ctrl+drag push acts on the CPU path only");
+                if let Some(note) = &settings.gpu_note {
+                    ui.small(note.as_str());
+                }
                 egui::ComboBox::from_label("view (F)")
                     .selected_text(VIEW_NAMES[settings.view])
                     .show_ui(ui, |ui| {
@@ -460,6 +495,7 @@ impl App {
         if let Some(i) = scene_choice {
             self.switch_scene(i)?;
         }
+        self.sync_gpu_sim();
         if self.args_screenshot_after == Some(self.frames_drawn) {
             self.screenshot()?;
             event_loop.exit();

@@ -1,0 +1,92 @@
+//! `--gpu-sim`: the SPH step on the GPU (`sph-gpu`) instead of the CPU world.
+//!
+//! Each frame takes substeps of the world's stable step (CFL and force
+//! conditions, from the velocities read back last frame), all on the GPU, then
+//! reads the particle state back into the world so that extraction, export and
+//! the stats work unchanged. The CPU world stays the reference: switching back
+//! continues from the read-back state.
+
+use sph_core::World;
+use sph_gpu::GpuSolver;
+use splat_render::GpuContext;
+
+use crate::error::AppError;
+
+/// A GPU solver over a world's particles, with the device it runs on.
+pub struct GpuSim {
+    solver: GpuSolver,
+    device: splat_render::wgpu::Device,
+    queue: splat_render::wgpu::Queue,
+    /// Simulated time on the GPU (s).
+    pub time: f64,
+}
+
+impl GpuSim {
+    /// Uploads `world`'s particles to the device of `ctx`.
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] where the GPU path does not support the scene (for
+    /// example obstacles) or the data is invalid.
+    pub fn new(ctx: &GpuContext, world: &World, scene: &sph_core::Scene) -> Result<Self, AppError> {
+        Self::on(&ctx.device, &ctx.queue, world, scene)
+    }
+
+    /// The same on the device this one runs on (after a reset).
+    ///
+    /// # Errors
+    /// As [`GpuSim::new`].
+    pub fn restart(&self, world: &World, scene: &sph_core::Scene) -> Result<Self, AppError> {
+        Self::on(&self.device, &self.queue, world, scene)
+    }
+
+    fn on(
+        device: &splat_render::wgpu::Device,
+        queue: &splat_render::wgpu::Queue,
+        world: &World,
+        scene: &sph_core::Scene,
+    ) -> Result<Self, AppError> {
+        let solver = GpuSolver::new(
+            device,
+            queue,
+            &world.particles,
+            world.params(),
+            &scene.boundary(),
+        )?;
+        Ok(Self {
+            solver,
+            device: device.clone(),
+            queue: queue.clone(),
+            time: 0.0,
+        })
+    }
+
+    /// Advances `frame_dt` seconds and writes positions, velocities, densities
+    /// and pressures back into `world.particles`. Returns the substeps taken.
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] on a readback failure or a non-finite state.
+    pub fn advance(&mut self, world: &mut World, frame_dt: f64) -> Result<u32, AppError> {
+        let dt = f64::from(world.stable_dt());
+        let substeps = (frame_dt / dt).ceil().max(1.0) as u32;
+        let sub = (frame_dt / f64::from(substeps)) as f32;
+        for _ in 0..substeps {
+            self.solver.step(&self.device, &self.queue, sub)?;
+        }
+        let state = self.solver.read_state(&self.device, &self.queue)?;
+        if let Some(i) = (0..state.positions.len())
+            .find(|&i| !state.positions[i].is_finite() || !state.velocities[i].is_finite())
+        {
+            return Err(AppError::Gpu(format!(
+                "particle {i} is not finite after {} GPU steps: lower k or the time step",
+                self.solver.steps()
+            )));
+        }
+        let f = world.particles.fields_mut();
+        f.positions.copy_from_slice(&state.positions);
+        f.velocities.copy_from_slice(&state.velocities);
+        f.densities.copy_from_slice(&state.densities);
+        f.pressures.copy_from_slice(&state.pressures);
+        self.time += frame_dt;
+        Ok(substeps)
+    }
+}
