@@ -1,10 +1,12 @@
 //! `--gpu-sim`: the SPH step on the GPU (`sph-gpu`) instead of the CPU world.
 //!
-//! Each frame takes substeps of the world's stable step (CFL and force
-//! conditions, from the velocities read back last frame), all on the GPU, then
+//! Each frame takes substeps of the world's stable step, all on the GPU, then
 //! reads the particle state back into the world so that extraction, export and
-//! the stats work unchanged. The CPU world stays the reference: switching back
-//! continues from the read-back state.
+//! the stats work unchanged. The step comes from `World::stable_dt` on the
+//! read-back velocities (acoustic CFL); accelerations are not read back, so its
+//! force condition sees those of the last CPU step (none when started from
+//! rest) — adaptive dt on the GPU is not built yet. The CPU world stays the
+//! reference: switching back continues from the read-back state.
 
 use sph_core::World;
 use sph_gpu::GpuSolver;

@@ -84,24 +84,10 @@ pub struct NeighbourGrid {
     h: f32,
     h2: f32,
     inv_cell: f64,
-    /// Occupied cells, sorted by (z, y, x).
-    cells: Vec<Cell>,
-    /// Slots of cell `c`: `cell_start[c]..cell_start[c + 1]`.
-    cell_start: Vec<u32>,
-    /// For each occupied cell, the 9 slot ranges covering its 27 neighbour cells.
-    rows: Vec<[SlotRange; 9]>,
+    /// Particles sorted by cell, the occupied cells and their rows.
+    layout: layout::Layout,
+    /// Occupied cell → index in `layout.cells`, for queries at points.
     table: CellTable,
-    /// Slot → input index.
-    order: Vec<u32>,
-    /// Input index → slot.
-    rank: Vec<u32>,
-    /// Slot → cell index.
-    slot_cell: Vec<u32>,
-    xs: Vec<f32>,
-    ys: Vec<f32>,
-    zs: Vec<f32>,
-    /// Buffers kept for [`NeighbourGrid::rebuild`].
-    scratch: layout::Scratch,
 }
 
 impl NeighbourGrid {
@@ -120,19 +106,18 @@ impl NeighbourGrid {
     /// grid is left empty.
     pub fn rebuild(&mut self, positions: &[Vec3]) -> Result<()> {
         let h = self.h;
-        let old = std::mem::replace(self, Self::build(&[], h)?);
-        let reuse = layout::Layout {
-            order: old.order,
-            rank: old.rank,
-            slot_cell: old.slot_cell,
-            cells: old.cells,
-            cell_start: old.cell_start,
-            rows: old.rows,
-            coords: [old.xs, old.ys, old.zs],
-            scratch: old.scratch,
-        };
-        *self = Self::build_reusing(positions, h, reuse, old.table.into_slots())?;
-        Ok(())
+        let reuse = std::mem::take(&mut self.layout);
+        let slots = std::mem::take(&mut self.table).into_slots();
+        match Self::build_reusing(positions, h, reuse, slots) {
+            Ok(grid) => {
+                *self = grid;
+                Ok(())
+            }
+            Err(e) => {
+                *self = Self::build(&[], h)?;
+                Err(e)
+            }
+        }
     }
 
     fn build_reusing(
@@ -163,33 +148,14 @@ impl NeighbourGrid {
         }
         let cell = |p: Vec3| cell_of(p, inv_cell).unwrap_or(BAD_CELL);
 
-        let layout::Layout {
-            order,
-            rank,
-            slot_cell,
-            cells,
-            cell_start,
-            rows,
-            coords: [xs, ys, zs],
-            scratch,
-        } = layout::Layout::new(positions, cell, reuse);
-        let table = CellTable::new(&cells, table_slots);
-
+        let layout = layout::Layout::new(positions, cell, reuse);
+        let table = CellTable::new(&layout.cells, table_slots);
         Ok(Self {
             h,
             h2: h * h,
             inv_cell,
-            cells,
-            cell_start,
-            rows,
+            layout,
             table,
-            order,
-            rank,
-            slot_cell,
-            xs,
-            ys,
-            zs,
-            scratch,
         })
     }
 
@@ -202,19 +168,19 @@ impl NeighbourGrid {
     /// Number of particles the grid was built over.
     #[inline]
     pub fn len(&self) -> usize {
-        self.order.len()
+        self.layout.order.len()
     }
 
     /// Whether the grid holds no particles.
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.order.is_empty()
+        self.layout.order.is_empty()
     }
 
     /// Number of occupied cells.
     #[inline]
     pub fn cell_count(&self) -> usize {
-        self.cells.len()
+        self.layout.cells.len()
     }
 
     /// The particles in cell order: slot `k` holds input particle `order()[k]`.
@@ -222,7 +188,7 @@ impl NeighbourGrid {
     /// the grid scans them, which makes gathers over neighbours cache-friendly.
     #[inline]
     pub fn order(&self) -> &[u32] {
-        &self.order
+        &self.layout.order
     }
 
     /// Renumbers the grid's particles by slot, for use after the particle storage
@@ -230,11 +196,13 @@ impl NeighbourGrid {
     /// reordered storage is slot `k`, and queries and [`NeighbourGrid::par_map`]
     /// then walk memory in order.
     pub fn renumber_by_slot(&mut self) {
-        self.order
+        self.layout
+            .order
             .par_iter_mut()
             .enumerate()
             .for_each(|(k, o)| *o = k as u32);
-        self.rank
+        self.layout
+            .rank
             .par_iter_mut()
             .enumerate()
             .for_each(|(k, r)| *r = k as u32);
@@ -255,15 +223,16 @@ impl NeighbourGrid {
     /// Panics if `i >= self.len()`, like slice indexing.
     #[inline]
     pub fn neighbourhood(&self, i: usize) -> Neighbourhood<'_> {
-        self.neighbourhood_of_slot(self.rank[i] as usize)
+        self.neighbourhood_of_slot(self.layout.rank[i] as usize)
     }
 
     #[inline]
     fn neighbourhood_of_slot(&self, s: usize) -> Neighbourhood<'_> {
+        let [xs, ys, zs] = &self.layout.coords;
         Neighbourhood {
             grid: self,
-            centre: Vec3::new(self.xs[s], self.ys[s], self.zs[s]),
-            rows: self.rows[self.slot_cell[s] as usize],
+            centre: Vec3::new(xs[s], ys[s], zs[s]),
+            rows: self.layout.rows[self.layout.slot_cell[s] as usize],
         }
     }
 
@@ -271,9 +240,12 @@ impl NeighbourGrid {
     /// or lies far outside the grid's range has no neighbours.
     pub fn neighbourhood_of_point(&self, x: Vec3) -> Neighbourhood<'_> {
         let rows = match point_cell(x, self.inv_cell) {
-            Some(cell) if !self.is_empty() => {
-                point_rows(cell, &self.cells, &self.cell_start, &self.table)
-            }
+            Some(cell) if !self.is_empty() => point_rows(
+                cell,
+                &self.layout.cells,
+                &self.layout.cell_start,
+                &self.table,
+            ),
             _ => [SlotRange::default(); 9],
         };
         Neighbourhood {
@@ -301,7 +273,7 @@ impl NeighbourGrid {
         let mut out: Vec<T> = Vec::with_capacity(n);
         let dst = layout::Scatter(out.as_mut_ptr());
         (0..n).into_par_iter().for_each(|s| {
-            let i = self.order[s] as usize;
+            let i = self.layout.order[s] as usize;
             let value = f(i, self.neighbourhood_of_slot(s));
             // SAFETY: `order` is a permutation of 0..n, so every index below the
             // capacity n is written exactly once, by one thread.
@@ -334,16 +306,16 @@ impl Neighbourhood<'_> {
     /// `|centre − x_j|² ≤ h²`, rows in a fixed order, slots increasing.
     #[inline]
     pub fn for_each(&self, mut f: impl FnMut(usize, Vec3, f32)) {
-        let g = self.grid;
-        let c = self.centre;
-        let mut scan = Scan::new(c, g.h2, [&g.xs, &g.ys, &g.zs], &self.rows);
+        let (g, c) = (&self.grid.layout, self.centre);
+        let [xs, ys, zs] = &g.coords;
+        let mut scan = Scan::new(c, self.grid.h2, [xs, ys, zs], &self.rows);
         let mut hits = [0u32; scan::HIT_CAPACITY];
         while !scan.done() {
             let n = scan.fill(&mut hits);
             for &k in &hits[..n] {
                 let k = k as usize;
                 // The scan's arithmetic, so `r2` is the value it tested.
-                let d = Vec3::new(c.x - g.xs[k], c.y - g.ys[k], c.z - g.zs[k]);
+                let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
                 f(g.order[k] as usize, d, d.x * d.x + d.y * d.y + d.z * d.z);
             }
         }
@@ -467,7 +439,7 @@ fn row_range(centre: Cell, cells: &[Cell], cell_start: &[u32], table: &CellTable
 }
 
 /// Open-addressing hash table from cell coordinates to occupied-cell index.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, Default)]
 struct CellTable {
     /// Cell index per slot, `EMPTY` where free.
     slots: Vec<u32>,

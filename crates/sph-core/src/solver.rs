@@ -338,8 +338,7 @@ impl Processor for Forces {
             let mut n = Vec3A::ZERO;
             let mut lap_c = 0.0f32;
             nb.for_each(|j, r, r2| {
-                let r = Vec3A::from(r);
-                let grad_c = Vec3A::from(poly6.gradient_r2(r.into(), r2));
+                let grad_c = Vec3A::from(poly6.gradient_r2(r, r2));
                 n += vol[j] * grad_c;
                 lap_c += vol[j] * poly6.laplacian_r2(r2);
                 if j == i {
@@ -349,7 +348,7 @@ impl Processor for Forces {
                 // eq. 15 divided by m_i.
                 let grad = match prm.pressure_kernel {
                     PressureKernel::Poly6 => grad_c,
-                    PressureKernel::Spiky => spiky.gradient_len(r.into(), len).into(),
+                    PressureKernel::Spiky => spiky.gradient_len(r, len).into(),
                 };
                 a_p -= m[j] * (pi + pr[j]) * grad;
                 // eq. 17 divided by m_i, without its 1/ρ_i (applied below).

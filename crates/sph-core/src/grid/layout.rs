@@ -34,12 +34,12 @@ pub(super) struct Layout {
     /// x, y, z in slot order, each followed by [`scan::PADDING`] NaNs.
     pub coords: [Vec<f32>; 3],
     /// Buffers of the dense sort kept for the next rebuild.
-    pub scratch: Scratch,
+    scratch: Scratch,
 }
 
 /// The dense sort's temporary buffers.
 #[derive(Debug, Clone, Default)]
-pub(super) struct Scratch {
+struct Scratch {
     /// Dense cell number per input particle.
     keys: Vec<u32>,
     /// Per chunk of the input: count, then next slot, per dense cell.
