@@ -240,12 +240,14 @@ impl NeighbourGrid {
     /// or lies far outside the grid's range has no neighbours.
     pub fn neighbourhood_of_point(&self, x: Vec3) -> Neighbourhood<'_> {
         let rows = match point_cell(x, self.inv_cell) {
-            Some(cell) if !self.is_empty() => point_rows(
-                cell,
-                &self.layout.cells,
-                &self.layout.cell_start,
-                &self.table,
-            ),
+            Some(cell) if !self.is_empty() => self.layout.dense_rows(cell).unwrap_or_else(|| {
+                point_rows(
+                    cell,
+                    &self.layout.cells,
+                    &self.layout.cell_start,
+                    &self.table,
+                )
+            }),
             _ => [SlotRange::default(); 9],
         };
         Neighbourhood {
@@ -257,6 +259,7 @@ impl NeighbourGrid {
 
     /// Calls `f(j, x − x_j, |x − x_j|²)` for every particle `j` within h of the
     /// point `x`, in a fixed order. See [`NeighbourGrid::neighbourhood_of_point`].
+    #[inline]
     pub fn for_each_neighbour_of_point(&self, x: Vec3, f: impl FnMut(usize, Vec3, f32)) {
         self.neighbourhood_of_point(x).for_each(f);
     }
@@ -344,7 +347,7 @@ fn cell_of(p: Vec3, inv_cell: f64) -> Option<Cell> {
     Some(c)
 }
 
-/// `q.floor() as i32` for |q| < 2³⁰ without a libm call (x86-64's baseline has no
+/// `q.floor() as i32` for |q| < 2³¹ without a libm call (x86-64's baseline has no
 /// rounding instruction): truncate, then step down where that rounded up.
 #[inline]
 fn floor_i32(q: f64) -> i32 {
@@ -362,7 +365,7 @@ fn point_cell(p: Vec3, inv_cell: f64) -> Option<Cell> {
     let limit = MAX_CELL + 2.0;
     let mut c = [0i32; 3];
     for a in 0..3 {
-        c[a] = (p[a] as f64 * inv_cell).floor().clamp(-limit, limit) as i32;
+        c[a] = floor_i32((p[a] as f64 * inv_cell).clamp(-limit, limit));
     }
     Some(c)
 }

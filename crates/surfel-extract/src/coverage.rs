@@ -5,6 +5,7 @@
 
 use glam::Vec3;
 use rayon::prelude::*;
+use sph_core::Result;
 
 use crate::Surfel;
 use crate::field::ColourField;
@@ -65,17 +66,17 @@ pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Vec<Vec3> {
 }
 
 /// The fraction of `points` lying on some surfel's disc (within `thickness` of
-/// its plane); 1 for no points.
-pub fn covered_fraction(surfels: &[Surfel], points: &[Vec3], thickness: f32) -> f64 {
+/// its plane); 1 for no points. Errors for surfels with non-finite positions.
+pub fn covered_fraction(surfels: &[Surfel], points: &[Vec3], thickness: f32) -> Result<f64> {
     if points.is_empty() {
-        return 1.0;
+        return Ok(1.0);
     }
-    let index = SurfelIndex::build(surfels, thickness);
+    let index = SurfelIndex::build(surfels, thickness)?;
     let covered = points
         .par_iter()
         .filter(|&&q| index.covered(surfels, q))
         .count();
-    covered as f64 / points.len() as f64
+    Ok(covered as f64 / points.len() as f64)
 }
 
 /// Distribution of the surfels' placement errors.

@@ -4,8 +4,8 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use glam::Vec3;
-use sph_core::{Error, NeighbourGrid, Particles, Poly6, Result};
+use glam::{Vec3, Vec3A, Vec4};
+use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Result};
 
 /// c, ∇c and ∇²c at a point.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -18,6 +18,32 @@ pub struct Sample {
     pub laplacian: f32,
 }
 
+/// The field at a particle and the shape of its neighbourhood.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ParticleSample {
+    /// c, ∇c, ∇²c at the particle.
+    pub sample: Sample,
+    /// Σ (x_j − x)(x_j − x)ᵀ over the neighbours within h (eq. 35), as
+    /// [xx, xy, xz, yy, yz, zz].
+    pub covariance: [f32; 6],
+    /// Other particles within h.
+    pub neighbours: u32,
+}
+
+impl ParticleSample {
+    /// P = det C / (tr C / 3)³ (eq. 36): 1 for an isotropic neighbourhood, near 0
+    /// where it is flat or thin; 0 for coincident neighbours (C = 0).
+    pub fn shape(&self) -> f64 {
+        let [xx, xy, xz, yy, yz, zz] = self.covariance.map(f64::from);
+        let trace = xx + yy + zz;
+        if trace.is_nan() || trace <= 0.0 {
+            return 0.0;
+        }
+        let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
+        det / (trace / 3.0).powi(3)
+    }
+}
+
 /// A particle set's colour field, ready to evaluate at any point.
 #[derive(Debug)]
 pub struct ColourField {
@@ -25,7 +51,7 @@ pub struct ColourField {
     positions: Vec<Vec3>,
     volumes: Vec<f32>,
     poly6: Poly6,
-    evaluations: AtomicU64,
+    evaluations: Counter,
 }
 
 impl ColourField {
@@ -62,7 +88,7 @@ impl ColourField {
             positions: positions.to_vec(),
             volumes,
             poly6,
-            evaluations: AtomicU64::new(0),
+            evaluations: Counter::default(),
         })
     }
 
@@ -146,21 +172,50 @@ impl ColourField {
 
     /// c, ∇c, ∇²c at `x` (one counted evaluation). Zero far from every particle and
     /// at non-finite points.
+    #[inline]
     pub fn sample(&self, x: Vec3) -> Sample {
-        self.evaluations.fetch_add(1, Ordering::Relaxed);
-        let mut s = Sample::default();
-        let (poly6, v) = (&self.poly6, &self.volumes);
-        self.grid.for_each_neighbour_of_point(x, |j, r, r2| {
-            s.c += v[j] * poly6.value_r2(r2);
-            s.gradient += v[j] * poly6.gradient_r2(r, r2);
-            s.laplacian += v[j] * poly6.laplacian_r2(r2);
+        self.evaluations.add();
+        let mut acc = Accumulator::default();
+        self.grid
+            .neighbourhood_of_point(x)
+            .for_each(|j, r, r2| acc.add(self, j, r, r2));
+        acc.sample()
+    }
+
+    /// c, ∇c, ∇²c at particle `i` and the covariance of its neighbourhood about it
+    /// (thesis eq. 35), from one scan (one counted evaluation).
+    pub fn sample_particle(&self, i: usize) -> ParticleSample {
+        self.sample_neighbourhood(self.grid.neighbourhood(i))
+    }
+
+    /// [`ColourField::sample_particle`] for a particle's neighbourhood.
+    #[inline]
+    pub(crate) fn sample_neighbourhood(&self, nb: Neighbourhood<'_>) -> ParticleSample {
+        self.evaluations.add();
+        let mut acc = Accumulator::default();
+        // Offsets are at most h, so f32 sums of a few dozen terms are exact
+        // enough for the shape test. Diagonal (xx, yy, zz) and off-diagonal
+        // (xy, xz, yz) terms, packed to keep every sum in a register.
+        let (mut diagonal, mut off) = (Vec3A::ZERO, Vec3A::ZERO);
+        let mut hits = 0u32;
+        nb.for_each(|j, r, r2| {
+            acc.add(self, j, r, r2);
+            let r = Vec3A::from(r);
+            diagonal += r * r;
+            off += Vec3A::new(r.x, r.x, r.y) * Vec3A::new(r.y, r.z, r.z);
+            hits += 1;
         });
-        s
+        ParticleSample {
+            sample: acc.sample(),
+            covariance: [diagonal.x, off.x, off.y, diagonal.y, off.z, diagonal.z],
+            // The particle finds itself.
+            neighbours: hits.saturating_sub(1),
+        }
     }
 
     /// Evaluations made so far.
     pub fn evaluations(&self) -> u64 {
-        self.evaluations.load(Ordering::Relaxed)
+        self.evaluations.total()
     }
 
     /// The distance from a lone particle of volume `volume` at which its field
@@ -172,6 +227,61 @@ impl ColourField {
         let d3 = iso as f64 / (volume as f64 * w);
         let d = d3.cbrt();
         (iso > 0.0 && d < h * h).then(|| (h * h - d).sqrt() as f32)
+    }
+}
+
+/// Running sums of c, ∇c and ∇²c over neighbours, packed as (∇c, c) so that
+/// the sums stay in registers; lane by lane the same operations as summing
+/// each quantity on its own.
+#[derive(Default)]
+struct Accumulator {
+    gradient_and_c: Vec4,
+    laplacian: f32,
+}
+
+impl Accumulator {
+    #[inline(always)]
+    fn add(&mut self, field: &ColourField, j: usize, r: Vec3, r2: f32) {
+        let (v, w) = (field.volumes[j], &field.poly6);
+        self.gradient_and_c += (v * w.gradient_r2(r, r2)).extend(v * w.value_r2(r2));
+        self.laplacian += v * w.laplacian_r2(r2);
+    }
+
+    fn sample(&self) -> Sample {
+        Sample {
+            c: self.gradient_and_c.w,
+            gradient: self.gradient_and_c.truncate(),
+            laplacian: self.laplacian,
+        }
+    }
+}
+
+/// An event counter that threads increment on separate cache lines: one shared
+/// atomic would bounce its line between cores on every evaluation.
+#[derive(Debug, Default)]
+struct Counter {
+    shards: [Shard; SHARDS],
+}
+
+/// One cache-line pair's worth of counter.
+#[derive(Debug, Default)]
+#[repr(align(128))]
+struct Shard(AtomicU64);
+
+const SHARDS: usize = 16;
+
+impl Counter {
+    #[inline]
+    fn add(&self) {
+        let shard = rayon::current_thread_index().map_or(SHARDS - 1, |i| i % SHARDS);
+        self.shards[shard].0.fetch_add(1, Ordering::Relaxed);
+    }
+
+    fn total(&self) -> u64 {
+        self.shards
+            .iter()
+            .map(|s| s.0.load(Ordering::Relaxed))
+            .sum()
     }
 }
 

@@ -1,39 +1,181 @@
 //! Hole closing (beyond the thesis): the thesis's initial guess can miss parts of
-//! the surface, and refinement cannot grow into them. After refinement, every
-//! surfel probes six points just beyond its rim in its tangent plane; a probe no
-//! surfel covers is projected onto the iso-surface by Newton-Raphson steps and,
-//! if still uncovered, becomes a new surfel. New surfels probe in the next round,
-//! so a hole is closed from its edge inwards. Probes that land on covered surface
-//! cost no field evaluation, so a hole-free surface costs only the lookups.
+//! the surface, and refinement cannot grow into them. Surfels probe six points
+//! just beyond their rim in their tangent plane; a probe no surfel covers is
+//! projected onto the iso-surface by Newton-Raphson steps and, if still
+//! uncovered, becomes a new surfel. New surfels probe in the next round, so a
+//! hole is closed from its edge inwards. Probes that land on covered surface cost
+//! no field evaluation, so a hole-free surface costs only the lookups: one
+//! neighbour query per probing surfel, against a grid over the surfel centres.
+//!
+//! The extractor runs it once, on the surfels of the first iteration before
+//! they split: the surfels it adds are split and refined like the others, and
+//! the children inherit the closed surface.
 
 use std::collections::HashMap;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use sph_core::{NeighbourGrid, Result};
 
 use crate::field::ColourField;
 use crate::thesis::{front_facing, newton_step};
 use crate::{ExtractParams, Surfel, tangent_basis};
 
+/// Probe distance from a surfel's centre, in units of its radius.
+const PROBE: f32 = 1.2;
+/// Probes per surfel, evenly spaced around its rim.
+const PROBES: usize = 6;
+
 /// Whether `q` lies on the disc of `s`: within `thickness` of its plane and within
 /// its radius of its centre in the plane.
+#[inline]
 pub fn disc_covers(s: &Surfel, q: Vec3, thickness: f32) -> bool {
     let d = q - s.position;
     let along = d.dot(s.normal);
     along.abs() <= thickness && (d - along * s.normal).length_squared() <= s.radius * s.radius
 }
 
-/// Surfels hashed by cell for "is this point covered?" queries.
-#[derive(Debug, Clone)]
+/// Surfels in a neighbour grid over their centres, for "is this point covered?"
+/// queries and for gathering the surfels around a probing surfel.
+#[derive(Debug)]
 pub struct SurfelIndex {
+    /// Over the surfel centres; its h reaches every disc that can cover a probe
+    /// of a surfel from that surfel's centre.
+    grid: Option<NeighbourGrid>,
+    thickness: f32,
+}
+
+impl SurfelIndex {
+    /// An index over all of `surfels` for discs `thickness` thick. Errors only
+    /// for non-finite surfel positions.
+    pub fn build(surfels: &[Surfel], thickness: f32) -> Result<Self> {
+        let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
+        // A disc covering a probe of surfel s has its centre within
+        // √(r_max² + thickness²) of the probe, which lies PROBE r_s from s.
+        let reach = PROBE * max_radius + max_radius.hypot(thickness);
+        let grid = if surfels.is_empty() || reach.is_nan() || reach <= 0.0 {
+            None
+        } else {
+            let centres: Vec<Vec3> = surfels.iter().map(|s| s.position).collect();
+            Some(NeighbourGrid::build(&centres, reach)?)
+        };
+        Ok(Self { grid, thickness })
+    }
+
+    /// Whether some surfel of `surfels` (the indexed ones) covers `q`.
+    pub fn covered(&self, surfels: &[Surfel], q: Vec3) -> bool {
+        let Some(grid) = &self.grid else {
+            return false;
+        };
+        let mut hit = false;
+        grid.for_each_neighbour_of_point(q, |k, _, _| {
+            hit = hit || disc_covers(&surfels[k], q, self.thickness);
+        });
+        hit
+    }
+
+    /// The indexed surfels that can cover a probe of surfel `k`, into `out`.
+    fn gather(&self, k: usize, out: &mut Vec<u32>) {
+        out.clear();
+        if let Some(grid) = &self.grid {
+            grid.for_each_neighbour(k, |j, _, _| out.push(j as u32));
+        }
+    }
+}
+
+/// The new surfel a probe `q` of `s` seeds, if the surface there is uncovered:
+/// the probe projected onto the iso-surface by two Newton-Raphson steps. `near`
+/// holds the surfels that can cover `q`.
+fn probe(
+    field: &ColourField,
+    p: &ExtractParams,
+    index: &SurfelIndex,
+    all: &[Surfel],
+    near: &[u32],
+    s: &Surfel,
+    q: Vec3,
+) -> Option<Surfel> {
+    let thickness = index.thickness;
+    if near
+        .iter()
+        .any(|&j| disc_covers(&all[j as usize], q, thickness))
+    {
+        return None;
+    }
+    let max_step = p.discard_step * p.h;
+    let (q, _) = newton_step(field, p.iso, q, max_step)?;
+    if index.covered(all, q) {
+        return None;
+    }
+    let (x, normal) = newton_step(field, p.iso, q, max_step)?;
+    let new = Surfel {
+        position: x,
+        normal,
+        radius: s.radius,
+    };
+    (front_facing(p, &new) && !index.covered(all, x)).then_some(new)
+}
+
+/// Closes holes in `surfels` (see the module docs), probing first around all of
+/// them, then around each round's new surfels; returns how many were added.
+pub fn close_holes(
+    field: &ColourField,
+    p: &ExtractParams,
+    surfels: &mut Vec<Surfel>,
+) -> Result<usize> {
+    let thickness = 0.25 * p.h;
+    let mut probing: Vec<u32> = (0..surfels.len() as u32).collect();
+    let mut added = 0;
+    for _ in 0..p.fill_rounds {
+        if probing.is_empty() {
+            break;
+        }
+        let index = SurfelIndex::build(surfels, thickness)?;
+        let all: &[Surfel] = surfels;
+        let candidates: Vec<Surfel> = probing
+            .par_iter()
+            .map_init(Vec::new, |near, &k| {
+                let s = &all[k as usize];
+                index.gather(k as usize, near);
+                let (t1, t2) = tangent_basis(s.normal);
+                let mut found = [None; PROBES];
+                for (n, slot) in found.iter_mut().enumerate() {
+                    let a = n as f32 * (std::f32::consts::TAU / PROBES as f32);
+                    let q = s.position + PROBE * s.radius * (a.cos() * t1 + a.sin() * t2);
+                    *slot = probe(field, p, &index, all, near, s, q);
+                }
+                found
+            })
+            .flat_map_iter(|found| found.into_iter().flatten())
+            .collect();
+        // Keep a candidate only if none accepted before it covers it (sequential,
+        // so the result does not depend on the thread count).
+        let first_new = surfels.len();
+        let mut fresh = Fresh::new(
+            candidates.iter().map(|s| s.radius).fold(0.0, f32::max),
+            thickness,
+        );
+        for c in candidates {
+            if !fresh.covered(&surfels[first_new..], c.position) {
+                fresh.insert((surfels.len() - first_new) as u32, c.position);
+                surfels.push(c);
+            }
+        }
+        probing = (first_new as u32..surfels.len() as u32).collect();
+        added += probing.len();
+    }
+    Ok(added)
+}
+
+/// The surfels accepted in one round, hashed by cell as they arrive.
+struct Fresh {
     inv_cell: f32,
     cells: HashMap<[i32; 3], Vec<u32>>,
     thickness: f32,
 }
 
-impl SurfelIndex {
-    /// An empty index for discs of radius up to `max_radius` and `thickness`.
-    pub fn new(max_radius: f32, thickness: f32) -> Self {
+impl Fresh {
+    fn new(max_radius: f32, thickness: f32) -> Self {
         Self {
             inv_cell: 1.0 / (max_radius + thickness).max(f32::MIN_POSITIVE),
             cells: HashMap::new(),
@@ -45,97 +187,23 @@ impl SurfelIndex {
         (x * self.inv_cell).floor().as_ivec3().to_array()
     }
 
-    /// Adds surfel number `k` centred at `x`.
-    pub fn insert(&mut self, k: u32, x: Vec3) {
+    fn insert(&mut self, k: u32, x: Vec3) {
         self.cells.entry(self.cell(x)).or_default().push(k);
     }
 
-    /// An index over all of `surfels`.
-    pub fn build(surfels: &[Surfel], thickness: f32) -> Self {
-        let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
-        let mut index = Self::new(max_radius, thickness);
-        for (k, s) in surfels.iter().enumerate() {
-            index.insert(k as u32, s.position);
-        }
-        index
-    }
-
-    /// Whether some surfel of `surfels` (the indexed ones) covers `q`.
-    pub fn covered(&self, surfels: &[Surfel], q: Vec3) -> bool {
-        if !q.is_finite() {
-            return false;
-        }
+    fn covered(&self, surfels: &[Surfel], q: Vec3) -> bool {
         let c = self.cell(q);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let key = [c[0] + dx, c[1] + dy, c[2] + dz];
-                    if let Some(list) = self.cells.get(&key)
-                        && list
-                            .iter()
-                            .any(|&k| disc_covers(&surfels[k as usize], q, self.thickness))
-                    {
-                        return true;
-                    }
-                }
-            }
-        }
-        false
-    }
-}
-
-/// Closes holes in `surfels` (see the module docs); returns how many were added.
-pub fn close_holes(field: &ColourField, p: &ExtractParams, surfels: &mut Vec<Surfel>) -> usize {
-    let thickness = 0.25 * p.h;
-    let max_step = p.discard_step * p.h;
-    let mut parents = 0..surfels.len();
-    let mut added = 0;
-    for _ in 0..p.fill_rounds {
-        let index = SurfelIndex::build(surfels, thickness);
-        let all: &[Surfel] = surfels;
-        let candidates: Vec<Surfel> = all[parents.clone()]
-            .par_iter()
-            .flat_map_iter(|s| {
-                let (t1, t2) = tangent_basis(s.normal);
-                let index = &index;
-                (0..6).filter_map(move |k| {
-                    let a = k as f32 * std::f32::consts::FRAC_PI_3;
-                    let q = s.position + 1.2 * s.radius * (a.cos() * t1 + a.sin() * t2);
-                    if index.covered(all, q) {
-                        return None;
-                    }
-                    let (q, _) = newton_step(field, p.iso, q, max_step)?;
-                    if index.covered(all, q) {
-                        return None;
-                    }
-                    let (x, normal) = newton_step(field, p.iso, q, max_step)?;
-                    let new = Surfel {
-                        position: x,
-                        normal,
-                        radius: s.radius,
-                    };
-                    (front_facing(p, &new) && !index.covered(all, x)).then_some(new)
+        (-1..=1).any(|dz| {
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    self.cells
+                        .get(&[c[0] + dx, c[1] + dy, c[2] + dz])
+                        .is_some_and(|list| {
+                            list.iter()
+                                .any(|&k| disc_covers(&surfels[k as usize], q, self.thickness))
+                        })
                 })
             })
-            .collect();
-        // Keep a candidate only if none accepted before it covers it (sequential,
-        // so the result does not depend on the thread count).
-        let first_new = surfels.len();
-        let mut fresh = SurfelIndex::new(
-            candidates.iter().map(|s| s.radius).fold(0.0, f32::max),
-            thickness,
-        );
-        for c in candidates {
-            if !fresh.covered(&surfels[first_new..], c.position) {
-                fresh.insert((surfels.len() - first_new) as u32, c.position);
-                surfels.push(c);
-            }
-        }
-        parents = first_new..surfels.len();
-        added += parents.len();
-        if parents.is_empty() {
-            break;
-        }
+        })
     }
-    added
 }

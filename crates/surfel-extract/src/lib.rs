@@ -42,7 +42,7 @@ use glam::Vec3;
 use sph_core::error::positive;
 use sph_core::{Error, Particles, Result};
 
-pub use field::{ColourField, Sample};
+pub use field::{ColourField, ParticleSample, Sample};
 
 /// A surface element: a disc on the iso-surface.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -233,8 +233,9 @@ pub fn extract(particles: &Particles, params: &ExtractParams) -> Result<Surfels>
     params.validate()?;
     let start = std::time::Instant::now();
     let field = ColourField::from_particles(particles, params.h)?;
+    let field_time = start.elapsed();
     let mut out = extract_field(&field, params)?;
-    out.stats.field_time = start.elapsed();
+    out.stats.field_time = field_time;
     Ok(out)
 }
 
@@ -244,8 +245,9 @@ pub fn extract_points(positions: &[Vec3], params: &ExtractParams) -> Result<Surf
     params.validate()?;
     let start = std::time::Instant::now();
     let field = ColourField::from_positions(positions, params.h)?;
+    let field_time = start.elapsed();
     let mut out = extract_field(&field, params)?;
-    out.stats.field_time = start.elapsed();
+    out.stats.field_time = field_time;
     Ok(out)
 }
 

@@ -3,23 +3,55 @@
 
 use std::time::Instant;
 
-use glam::{DMat3, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 use sph_core::Result;
 
-use crate::field::ColourField;
+use crate::field::{ColourField, ParticleSample};
 use crate::{AllAround, ExtractParams, Mode, Stats, Surfel, Surfels, fill, tangent_basis};
 
 /// What one particle contributes to the initial guess.
+#[derive(Debug, Clone, Copy)]
 enum Guess {
     /// Deep inside (or never reaching the iso value): nothing.
     Interior,
-    /// One surfel from the particle's own Newton-Raphson step (maybe split).
-    Surface(Vec<Surfel>),
+    /// One surfel from the particle's own Newton-Raphson step, split in four
+    /// where the laplacian is large (figure 6).
+    Surface { surfel: Surfel, split: bool },
     /// Surface on several sides: six or eight surfels around it (eq. 35–36).
-    AllAround(Vec<Surfel>),
-    /// No neighbour: the analytic iso-sphere, final as it is.
-    Lone(Vec<Surfel>),
+    AllAround,
+    /// No neighbour: its analytic iso-sphere of this radius, final as it is.
+    Lone { radius: f32 },
+}
+
+/// Up to eight surfels without allocating.
+struct Few {
+    surfels: [Surfel; 8],
+    len: usize,
+}
+
+impl Few {
+    fn new() -> Self {
+        Self {
+            surfels: [Surfel::default(); 8],
+            len: 0,
+        }
+    }
+
+    fn push_front_facing(&mut self, p: &ExtractParams, s: Surfel) {
+        if front_facing(p, &s) {
+            self.surfels[self.len] = s;
+            self.len += 1;
+        }
+    }
+}
+
+impl IntoIterator for Few {
+    type Item = Surfel;
+    type IntoIter = std::iter::Take<std::array::IntoIter<Surfel, 8>>;
+    fn into_iter(self) -> Self::IntoIter {
+        self.surfels.into_iter().take(self.len)
+    }
 }
 
 /// The 6 box-face and 8 box-corner directions.
@@ -88,56 +120,19 @@ pub(crate) fn newton_step(
     Some((x + step, -s.gradient / g2.sqrt()))
 }
 
-fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize) -> Guess {
+/// Classifies particle `i` from its field sample and neighbourhood shape.
+fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &ParticleSample) -> Guess {
     let h = p.h;
-    let x = field.positions()[i];
-    let r0 = p.radius * h;
-    // Covariance of the neighbours about the particle (eq. 35), in f64.
-    let mut cov = DMat3::ZERO;
-    let mut neighbours = 0usize;
-    field.grid().for_each_neighbour(i, |j, r, _| {
-        if j != i {
-            let d = r.as_dvec3();
-            cov += DMat3::from_cols(d * d.x, d * d.y, d * d.z);
-            neighbours += 1;
-        }
-    });
-    if neighbours == 0 {
-        let Some(radius) = field.lone_iso_radius(field.volumes()[i], p.iso) else {
-            return Guess::Interior;
+    if at.neighbours == 0 {
+        return match field.lone_iso_radius(field.volumes()[i], p.iso) {
+            Some(radius) => Guess::Lone { radius },
+            None => Guess::Interior,
         };
-        // Face and corner directions together leave no gap wider than 35.3°.
-        let surfels = box_directions(AllAround::Six)
-            .iter()
-            .chain(box_directions(AllAround::Eight))
-            .map(|&d| Surfel {
-                position: x + radius * d,
-                normal: d,
-                radius: 0.8 * radius,
-            })
-            .filter(|s| front_facing(p, s))
-            .collect();
-        return Guess::Lone(surfels);
     }
-    let trace = cov.x_axis.x + cov.y_axis.y + cov.z_axis.z;
-    let shape = if trace > 0.0 {
-        cov.determinant() / (trace / 3.0).powi(3)
-    } else {
-        0.0 // coincident particles
-    };
-    if shape < p.covariance_threshold as f64 {
-        let surfels = box_directions(p.all_around)
-            .iter()
-            .map(|&d| Surfel {
-                position: x + 0.5 * h * d,
-                normal: d,
-                radius: r0,
-            })
-            .filter(|s| front_facing(p, s))
-            .collect();
-        return Guess::AllAround(surfels);
+    if at.shape() < p.covariance_threshold as f64 {
+        return Guess::AllAround;
     }
-    let s = field.sample(x);
+    let s = at.sample;
     let g = s.gradient.length();
     if g.is_nan() || g <= 1e-6 / h {
         return Guess::Interior;
@@ -147,17 +142,58 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize) -> Guess {
     if step.abs() > p.interior_step * h {
         return Guess::Interior;
     }
-    let surfel = Surfel {
-        position: x + normal * step.clamp(-0.5 * h, 0.5 * h),
-        normal,
-        radius: r0,
-    };
-    let surfels = if s.laplacian.abs() * h * h > p.split_laplacian {
-        split(&surfel).to_vec()
-    } else {
-        vec![surfel]
-    };
-    Guess::Surface(surfels.into_iter().filter(|s| front_facing(p, s)).collect())
+    Guess::Surface {
+        surfel: Surfel {
+            position: field.positions()[i] + normal * step.clamp(-0.5 * h, 0.5 * h),
+            normal,
+            radius: p.radius * h,
+        },
+        split: s.laplacian.abs() * h * h > p.split_laplacian,
+    }
+}
+
+/// The front-facing surfels of a non-lone guess at particle position `x`.
+fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> Few {
+    let mut out = Few::new();
+    match guess {
+        Guess::Surface {
+            surfel,
+            split: true,
+        } => {
+            for s in split(&surfel) {
+                out.push_front_facing(p, s);
+            }
+        }
+        Guess::Surface { surfel, .. } => out.push_front_facing(p, surfel),
+        Guess::AllAround => {
+            for &d in box_directions(p.all_around) {
+                out.push_front_facing(
+                    p,
+                    Surfel {
+                        position: x + 0.5 * p.h * d,
+                        normal: d,
+                        radius: p.radius * p.h,
+                    },
+                );
+            }
+        }
+        Guess::Interior | Guess::Lone { .. } => {}
+    }
+    out
+}
+
+/// A lone particle's iso-sphere: face and corner directions together leave no
+/// gap wider than 35.3°.
+fn lone_surfels(p: &ExtractParams, x: Vec3, radius: f32) -> impl Iterator<Item = Surfel> {
+    box_directions(AllAround::Six)
+        .iter()
+        .chain(box_directions(AllAround::Eight))
+        .map(move |&d| Surfel {
+            position: x + radius * d,
+            normal: d,
+            radius: 0.8 * radius,
+        })
+        .filter(move |s| front_facing(p, s))
 }
 
 pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
@@ -167,26 +203,27 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     };
     let start = Instant::now();
     let e0 = field.evaluations();
-    let guesses: Vec<Guess> = (0..field.len())
-        .into_par_iter()
-        .map(|i| initial_guess(field, p, i))
+    // One scan per particle gives its field and its neighbourhood's shape;
+    // scheduled in cell order, stored by particle.
+    let guesses: Vec<Guess> = field.grid().par_map(|i, nb| {
+        let at = field.sample_neighbourhood(nb);
+        initial_guess(field, p, i, &at)
+    });
+    let positions = field.positions();
+    let mut work: Vec<Surfel> = guesses
+        .par_iter()
+        .zip(positions)
+        .flat_map_iter(|(&g, &x)| guess_surfels(p, x, g))
         .collect();
-    let mut work = Vec::new();
     let mut done = Vec::new();
-    for g in guesses {
+    for (&g, &x) in guesses.iter().zip(positions) {
         match g {
             Guess::Interior => {}
-            Guess::Surface(s) => {
-                stats.surface_particles += 1;
-                work.extend(s);
-            }
-            Guess::AllAround(s) => {
-                stats.all_around += 1;
-                work.extend(s);
-            }
-            Guess::Lone(s) => {
+            Guess::Surface { .. } => stats.surface_particles += 1,
+            Guess::AllAround => stats.all_around += 1,
+            Guess::Lone { radius } => {
                 stats.lone += 1;
-                done.extend(s);
+                done.extend(lone_surfels(p, x, radius));
             }
         }
     }
@@ -197,8 +234,9 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     let start = Instant::now();
     let e1 = field.evaluations();
     let max_step = p.discard_step * p.h;
+    let covered = p.mode == Mode::Covered;
+    let mut fill_time = std::time::Duration::ZERO;
     for it in 0..p.iterations {
-        let last = it + 1 == p.iterations;
         let stepped: Vec<Option<Surfel>> = work
             .par_iter()
             .map(|s| {
@@ -210,22 +248,32 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
                 })
             })
             .collect();
-        stats.discarded += stepped.iter().filter(|s| s.is_none()).count();
-        let kept = stepped.into_iter().flatten().filter(|s| front_facing(p, s));
+        stats.discarded += stepped.par_iter().filter(|s| s.is_none()).count();
+        let mut kept: Vec<Surfel> = stepped
+            .par_iter()
+            .filter_map(|s| s.filter(|s| front_facing(p, s)))
+            .collect();
+        // Holes are closed once, on the first iteration's surfels: fill surfels
+        // are split and refined like the others, and children inherit the
+        // closed surface.
+        let last = it + 1 == p.iterations;
+        if covered && it == 0 {
+            let t = Instant::now();
+            if last {
+                // One iteration: no coarse level; lone spheres take part.
+                kept.splice(0..0, done.drain(..));
+            }
+            stats.filled += fill::close_holes(field, p, &mut kept)?;
+            fill_time += t.elapsed();
+        }
         if last {
-            done.extend(kept);
-            work = Vec::new();
+            done.append(&mut kept);
         } else {
-            work = kept.flat_map(|s| split(&s)).collect();
+            work = kept.par_iter().flat_map_iter(split).collect();
         }
     }
-    stats.refine_time = start.elapsed();
-
-    if p.mode == Mode::Covered {
-        let start = Instant::now();
-        stats.filled = fill::close_holes(field, p, &mut done);
-        stats.fill_time = start.elapsed();
-    }
+    stats.refine_time = start.elapsed() - fill_time;
+    stats.fill_time = fill_time;
     stats.evaluations = field.evaluations() - e1;
     stats.surfels = done.len();
     Ok(Surfels {

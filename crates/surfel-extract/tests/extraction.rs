@@ -64,7 +64,7 @@ fn check(name: &str, field: &ColourField, params: &ExtractParams) -> Quality {
     let out = extract_field(field, params).unwrap();
     let r = residuals(field, params.iso, &out.surfels);
     let points = iso_points(field, params.iso, 0.25 * H);
-    let coverage = covered_fraction(&out.surfels, &points, 0.1 * H);
+    let coverage = covered_fraction(&out.surfels, &points, 0.1 * H).unwrap();
     println!(
         "{name} {:?}: {} surfels from {} particles, residual median {:.2e} p95 {:.2e}, normal median {:.2}°, coverage {:.2} % of {} iso points, efficiency {:.2}, stats {:?}",
         params.mode,
@@ -136,7 +136,7 @@ fn dam_break_frame_is_covered() {
     for mode in [Mode::Covered, Mode::Thesis] {
         let out = extract_field(&field, &ExtractParams { mode, ..params }).unwrap();
         let r = residuals(&field, 0.5, &out.surfels);
-        let coverage = covered_fraction(&out.surfels, &points, 0.004);
+        let coverage = covered_fraction(&out.surfels, &points, 0.004).unwrap();
         println!(
             "dam break {mode:?}: {} surfels from {} particles, residual median {:.2e} p95 {:.2e}, normal {:.2}°, coverage {:.2} %, efficiency {:.2}",
             out.surfels.len(),
@@ -175,7 +175,7 @@ fn iterations_and_ldc_stay_on_the_surface() {
     let ldc = extract_ldc(&field, &ExtractParams::new(H), 0.25 * H).unwrap();
     let r = residuals(&field, 0.5, &ldc.surfels);
     let points = iso_points(&field, 0.5, 0.25 * H);
-    let coverage = covered_fraction(&ldc.surfels, &points, 0.1 * H);
+    let coverage = covered_fraction(&ldc.surfels, &points, 0.1 * H).unwrap();
     println!(
         "LDC: {} surfels, {r:?}, coverage {coverage}",
         ldc.surfels.len()
@@ -201,7 +201,7 @@ fn lone_particle_gets_its_analytic_iso_sphere() {
         0.5,
         0.05 * H,
     );
-    assert!(covered_fraction(&out.surfels, &points, 0.1 * H) >= 0.99);
+    assert!(covered_fraction(&out.surfels, &points, 0.1 * H).unwrap() >= 0.99);
 }
 
 #[test]
@@ -224,7 +224,7 @@ fn degenerate_sets_give_surfels_on_the_surface() {
         let out = extract_field(&field, &ExtractParams::new(H)).unwrap();
         let r = residuals(&field, 0.5, &out.surfels);
         let points = iso_points(&field, 0.5, 0.25 * H);
-        let coverage = covered_fraction(&out.surfels, &points, 0.1 * H);
+        let coverage = covered_fraction(&out.surfels, &points, 0.1 * H).unwrap();
         println!(
             "{name}: {} surfels, {r:?}, coverage {coverage:.4}",
             out.surfels.len()

@@ -33,6 +33,9 @@ pub(super) struct Layout {
     pub rows: Vec<[SlotRange; 9]>,
     /// x, y, z in slot order, each followed by [`scan::PADDING`] NaNs.
     pub coords: [Vec<f32>; 3],
+    /// The box of a dense layout, whose prefix sums (`scratch.first`) give the
+    /// rows around any cell; `None` for a sparse layout.
+    dense: Option<Bounds>,
     /// Buffers of the dense sort kept for the next rebuild.
     scratch: Scratch,
 }
@@ -49,6 +52,7 @@ struct Scratch {
 }
 
 /// The bounding box of a set of cells.
+#[derive(Debug, Clone, Copy)]
 struct Bounds {
     lo: Cell,
     /// Cells along each axis.
@@ -86,6 +90,34 @@ impl Bounds {
     #[inline]
     fn key(&self, c: Cell) -> u64 {
         self.rel(c, 0) + self.dims[0] * (self.rel(c, 1) + self.dims[1] * self.rel(c, 2))
+    }
+
+    /// The 9 rows around cell `c` (anywhere, occupied or not): the slots of
+    /// (x − 1..=x + 1, y + dy, z + dz) clamped to the box, one contiguous range
+    /// of dense numbers each, read from `first`, the first slot per dense cell.
+    #[inline]
+    fn rows(&self, first: &[u32], c: Cell) -> [SlotRange; 9] {
+        let [nx, ny, nz] = self.dims.map(|d| d as i64);
+        let rel = [0, 1, 2].map(|a| c[a] as i64 - self.lo[a] as i64);
+        let (x0, x1) = ((rel[0] - 1).max(0), (rel[0] + 1).min(nx - 1));
+        let mut rows = [SlotRange::default(); 9];
+        if x0 > x1 {
+            return rows;
+        }
+        let mut r = 0;
+        for z in rel[2] - 1..=rel[2] + 1 {
+            for y in rel[1] - 1..=rel[1] + 1 {
+                if (0..ny).contains(&y) && (0..nz).contains(&z) {
+                    let k = (x0 + nx * (y + ny * z)) as usize;
+                    rows[r] = SlotRange {
+                        start: first[k],
+                        end: first[k + (x1 - x0) as usize + 1],
+                    };
+                }
+                r += 1;
+            }
+        }
+        rows
     }
 
     /// The cell with dense number `k`.
@@ -145,6 +177,13 @@ impl Layout {
         }
     }
 
+    /// The 9 rows around cell `c` in O(1), for a dense layout; `None` for a
+    /// sparse one (look the cells up instead).
+    #[inline]
+    pub fn dense_rows(&self, c: Cell) -> Option<[SlotRange; 9]> {
+        Some(self.dense?.rows(&self.scratch.first, c))
+    }
+
     /// Counting sort over the dense cell numbers of a densely occupied box.
     fn dense(
         self,
@@ -161,6 +200,7 @@ impl Layout {
             cell_start,
             mut rows,
             mut coords,
+            dense: _,
             scratch:
                 Scratch {
                     mut keys,
@@ -265,33 +305,9 @@ impl Layout {
             c.extend([f32::NAN; scan::PADDING]);
         }
 
-        // The rows of (x, y, z): slots of (x − 1..=x + 1, y + dy, z + dz) clamped
-        // to the box, one contiguous range of dense numbers.
-        let hi = [0, 1, 2].map(|a| bounds.lo[a] as i64 + bounds.dims[a] as i64 - 1);
         occupied
             .par_iter()
-            .map(|&c| {
-                let mut rows = [SlotRange::default(); 9];
-                let mut r = 0;
-                for dz in -1..=1i64 {
-                    for dy in -1..=1i64 {
-                        let (y, z) = (c[1] as i64 + dy, c[2] as i64 + dz);
-                        if (bounds.lo[1] as i64..=hi[1]).contains(&y)
-                            && (bounds.lo[2] as i64..=hi[2]).contains(&z)
-                        {
-                            let x0 = (c[0] as i64 - 1).max(bounds.lo[0] as i64);
-                            let x1 = (c[0] as i64 + 1).min(hi[0]);
-                            let at = |x: i64| bounds.key([x as i32, y as i32, z as i32]) as usize;
-                            rows[r] = SlotRange {
-                                start: first[at(x0)],
-                                end: first[at(x1) + 1],
-                            };
-                        }
-                        r += 1;
-                    }
-                }
-                rows
-            })
+            .map(|&c| bounds.rows(&first, c))
             .collect_into_vec(&mut rows);
         fill_slot_cells(&cell_start, n, &mut slot_cell);
         Self {
@@ -302,6 +318,7 @@ impl Layout {
             cell_start,
             rows,
             coords,
+            dense: Some(*bounds),
             scratch: Scratch { keys, next, first },
         }
     }
@@ -338,6 +355,7 @@ impl Layout {
             cell_start,
             rows,
             coords,
+            dense: None,
             scratch: Scratch::default(),
         }
     }
