@@ -23,6 +23,9 @@ use crate::{ExtractParams, Surfel, tangent_basis};
 
 /// Probe distance from a surfel's centre, in units of its radius.
 const PROBE: f32 = 1.2;
+/// Thickness of the coverage test before a probe is projected, in units of
+/// the usual thickness.
+const LOOSE: f32 = 2.0;
 /// Probes per surfel, evenly spaced around its rim.
 const PROBES: usize = 6;
 
@@ -50,9 +53,10 @@ impl SurfelIndex {
     /// for non-finite surfel positions.
     pub fn build(surfels: &[Surfel], thickness: f32) -> Result<Self> {
         let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
-        // A disc covering a probe of surfel s has its centre within
-        // √(r_max² + thickness²) of the probe, which lies PROBE r_s from s.
-        let reach = PROBE * max_radius + max_radius.hypot(thickness);
+        // A disc covering a probe of surfel s (loosely) has its centre within
+        // √(r_max² + (LOOSE thickness)²) of the probe, which lies PROBE r_s
+        // from s.
+        let reach = PROBE * max_radius + max_radius.hypot(LOOSE * thickness);
         let grid = if surfels.is_empty() || reach.is_nan() || reach <= 0.0 {
             None
         } else {
@@ -95,10 +99,13 @@ fn probe(
     s: &Surfel,
     q: Vec3,
 ) -> Option<Surfel> {
-    let thickness = index.thickness;
+    // The probe lies in the tangent plane: where the surface curves away it
+    // is off the surface, so before spending an evaluation it counts as
+    // covered by a disc it lies over within twice the usual thickness.
+    let loose = LOOSE * index.thickness;
     if near
         .iter()
-        .any(|&j| disc_covers(&all[j as usize], q, thickness))
+        .any(|&j| disc_covers(&all[j as usize], q, loose))
     {
         return None;
     }
