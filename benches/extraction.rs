@@ -3,7 +3,9 @@
 //! dam-break frame (the thesis's size) and a 101k-particle one. Each timed run
 //! includes building the colour field (grid and volumes) from the particles.
 //! Throughput is in surfels. Before timing, one untimed run per configuration
-//! prints surfels, evaluations and efficiency (surfels per surfel evaluation).
+//! prints surfels, evaluations, efficiency (surfels per surfel evaluation) and
+//! coverage of independently found iso-surface points, for the default and the
+//! thesis-faithful mode.
 //! In the same run, splashsurf's `reconstruct_surface` (marching cubes) on the
 //! same particles is the peer.
 
@@ -12,8 +14,9 @@ use std::hint::black_box;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use sph_core::{Particles, Scene};
 use splashsurf_lib::nalgebra::Vector3;
+use surfel_extract::coverage::{covered_fraction, iso_points};
 use surfel_extract::ldc::extract_ldc;
-use surfel_extract::{ColourField, ExtractParams, extract};
+use surfel_extract::{ColourField, ExtractParams, Surfel, extract};
 
 /// The dam break `Scene::dam_break(a, depth, 0.01)` after `t` seconds.
 fn frame(a: f32, depth: f32, t: f32) -> Particles {
@@ -32,20 +35,33 @@ fn extraction(c: &mut Criterion) {
         ("100k", frame(0.37, 0.37, 0.1)),
     ] {
         let h = 0.02;
+        // Untimed: coverage of iso-surface points found by bisection (spacing
+        // h/4, disc thickness h/10), and the thesis-faithful mode beside.
+        let field = ColourField::from_particles(&particles, h).expect("field");
+        let points = iso_points(&field, 0.5, 0.25 * h);
         for iterations in 1..=3 {
             let params = ExtractParams {
                 iterations,
                 ..ExtractParams::new(h)
             };
             let out = extract(&particles, &params).expect("extraction");
+            let thesis = extract(&particles, &params.thesis()).expect("extraction");
+            let coverage = |s: &[Surfel]| {
+                100.0 * covered_fraction(s, &points, 0.1 * h).expect("finite surfels")
+            };
             let s = out.stats;
             println!(
-                "{label} ({} particles), {iterations} iterations: {} surfels, {} surfel + {} particle evaluations, efficiency {:.2}",
+                "{label} ({} particles), {iterations} iterations: {} surfels, {} surfel + {} particle evaluations, efficiency {:.2}, coverage {:.2} % of {} iso points; thesis mode: {} surfels, efficiency {:.2}, coverage {:.2} %",
                 particles.len(),
                 s.surfels,
                 s.evaluations,
                 s.particle_evaluations,
-                s.efficiency()
+                s.efficiency(),
+                coverage(&out.surfels),
+                points.len(),
+                thesis.stats.surfels,
+                thesis.stats.efficiency(),
+                coverage(&thesis.surfels),
             );
             group.throughput(Throughput::Elements(s.surfels as u64));
             group.bench_function(
