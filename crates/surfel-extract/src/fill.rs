@@ -28,6 +28,18 @@ const PROBE: f32 = 1.2;
 const LOOSE: f32 = 2.0;
 /// Probes per surfel, evenly spaced around its rim.
 const PROBES: usize = 6;
+/// (cos, sin) of the probe directions, 60° apart.
+const RIM: [(f32, f32); PROBES] = {
+    const S: f32 = 0.866_025_4; // √3/2
+    [
+        (1.0, 0.0),
+        (0.5, S),
+        (-0.5, S),
+        (-1.0, 0.0),
+        (-0.5, -S),
+        (0.5, -S),
+    ]
+};
 
 /// Whether `q` lies on the disc of `s`: within `thickness` of its plane and within
 /// its radius of its centre in the plane.
@@ -146,9 +158,8 @@ pub fn close_holes(
                 index.gather(k as usize, near);
                 let (t1, t2) = tangent_basis(s.normal);
                 let mut found = [None; PROBES];
-                for (n, slot) in found.iter_mut().enumerate() {
-                    let a = n as f32 * (std::f32::consts::TAU / PROBES as f32);
-                    let q = s.position + PROBE * s.radius * (a.cos() * t1 + a.sin() * t2);
+                for (slot, (cos, sin)) in found.iter_mut().zip(RIM) {
+                    let q = s.position + PROBE * s.radius * (cos * t1 + sin * t2);
                     *slot = probe(field, p, &index, all, near, s, q);
                 }
                 found
