@@ -339,6 +339,35 @@ mod tests {
     }
 
     #[test]
+    fn particle_sample_matches_the_point_query_and_measures_shape() {
+        let cube: Vec<Vec3> = (0..343)
+            .map(|i| Vec3::new((i % 7) as f32, (i / 7 % 7) as f32, (i / 49) as f32) * 0.4)
+            .collect();
+        let field = ColourField::from_positions(&cube, 1.0).unwrap();
+        for i in [0, 24, 171, 342] {
+            let at = field.sample_particle(i);
+            // The same rows in the same order: bitwise the same sums.
+            assert_eq!(at.sample, field.sample(cube[i]));
+        }
+        // The centre of the cube: a symmetric, isotropic neighbourhood.
+        let centre = field.sample_particle(171);
+        let within = cube.iter().filter(|x| x.distance_squared(cube[171]) <= 1.0);
+        assert_eq!(centre.neighbours as usize, within.count() - 1);
+        assert_eq!(centre.neighbours, 80);
+        assert!((centre.shape() - 1.0).abs() < 1e-6, "{}", centre.shape());
+        // A plane of particles: one eigenvalue of C vanishes.
+        let plane: Vec<Vec3> = (0..49)
+            .map(|i| Vec3::new((i % 7) as f32, (i / 7) as f32, 0.0) * 0.4)
+            .collect();
+        let field = ColourField::from_positions(&plane, 1.0).unwrap();
+        assert!(field.sample_particle(24).shape().abs() < 1e-9);
+        // Coincident particles: C = 0.
+        let field = ColourField::from_positions(&[Vec3::ONE; 3], 1.0).unwrap();
+        assert_eq!(field.sample_particle(0).shape(), 0.0);
+        assert_eq!(field.sample_particle(0).neighbours, 2);
+    }
+
+    #[test]
     fn lone_particle_reaches_iso_at_the_analytic_radius() {
         let field = ColourField::from_positions(&[Vec3::ZERO], 0.1).unwrap();
         let r = field.lone_iso_radius(field.volumes()[0], 0.5).unwrap();
