@@ -5,10 +5,12 @@
 //! [`NeighbourGrid::build`] computes each particle's integer cell, sorts the
 //! particles by cell in (z, y, x) lexicographic order and stores their positions in
 //! that order, struct-of-arrays, so a cell's particles are one contiguous *slot*
-//! range. Only occupied cells are stored, and a hash table on the cell coordinates
-//! (as in Teschner et al. 2003 and the thesis, 3.3.1) finds them, so memory is
-//! O(particles) wherever the particles are: a particle at 10⁷ m costs what one at
-//! the origin costs.
+//! range. Only occupied cells are stored, so memory is O(particles) wherever the
+//! particles are: a particle at 10⁷ m costs what one at the origin costs. Where
+//! the cells fill their bounding box densely (a fluid), the counting sort's
+//! prefix sums over the box find any cell's slots; for sparse sets a hash table
+//! on the cell coordinates (as in Teschner et al. 2003 and the thesis, 3.3.1)
+//! finds the occupied cells.
 //!
 //! Because cells are sorted with x fastest, the three cells (x−1, y, z), (x, y, z),
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
@@ -86,7 +88,8 @@ pub struct NeighbourGrid {
     inv_cell: f64,
     /// Particles sorted by cell, the occupied cells and their rows.
     layout: layout::Layout,
-    /// Occupied cell → index in `layout.cells`, for queries at points.
+    /// Occupied cell → index in `layout.cells`, for queries at points in a
+    /// sparse layout (empty for a dense one, whose prefix sums serve instead).
     table: CellTable,
 }
 
@@ -149,7 +152,12 @@ impl NeighbourGrid {
         let cell = |p: Vec3| cell_of(p, inv_cell).unwrap_or(BAD_CELL);
 
         let layout = layout::Layout::new(positions, cell, reuse);
-        let table = CellTable::new(&layout.cells, table_slots);
+        let indexed: &[Cell] = if layout.is_dense() {
+            &[]
+        } else {
+            &layout.cells
+        };
+        let table = CellTable::new(indexed, table_slots);
         Ok(Self {
             h,
             h2: h * h,
@@ -391,7 +399,7 @@ fn first_bad_position(positions: &[Vec3], inv_cell: f64, h: f32) -> Error {
     }
 }
 
-/// The 9 rows around an arbitrary (possibly unoccupied) cell.
+/// The 9 rows around an arbitrary (possibly unoccupied) cell of a sparse layout.
 fn point_rows(cell: Cell, cells: &[Cell], cell_start: &[u32], table: &CellTable) -> [SlotRange; 9] {
     let mut rows = [SlotRange::default(); 9];
     let mut r = 0;

@@ -59,7 +59,7 @@ pub(crate) fn read(
 ) -> Result<Vec<u8>, GpuError> {
     let size = bytes.max(4).next_multiple_of(4);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("grid readback"),
+        label: Some("readback"),
         size,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,

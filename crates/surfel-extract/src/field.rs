@@ -4,7 +4,7 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::Vec3;
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Result};
 
 /// c, ∇c and ∇²c at a point.
@@ -175,11 +175,11 @@ impl ColourField {
     #[inline]
     pub fn sample(&self, x: Vec3) -> Sample {
         self.evaluations.add();
-        let mut acc = Accumulator::default();
+        let mut s = Sample::default();
         self.grid
             .neighbourhood_of_point(x)
-            .for_each(|j, r, r2| acc.add(self, j, r, r2));
-        acc.sample()
+            .for_each(|j, r, r2| self.accumulate(&mut s, j, r, r2));
+        s
     }
 
     /// c, ∇c, ∇²c at particle `i` and the covariance of its neighbourhood about it
@@ -192,25 +192,36 @@ impl ColourField {
     #[inline]
     pub(crate) fn sample_neighbourhood(&self, nb: Neighbourhood<'_>) -> ParticleSample {
         self.evaluations.add();
-        let mut acc = Accumulator::default();
-        // Offsets are at most h, so f32 sums of a few dozen terms are exact
-        // enough for the shape test. Diagonal (xx, yy, zz) and off-diagonal
-        // (xy, xz, yz) terms, packed to keep every sum in a register.
-        let (mut diagonal, mut off) = (Vec3A::ZERO, Vec3A::ZERO);
+        let mut s = Sample::default();
+        // xx, xy, xz, yy, yz, zz: offsets are at most h, so f32 sums of a few
+        // dozen terms are exact enough for the shape test.
+        let mut c = [0.0f32; 6];
         let mut hits = 0u32;
         nb.for_each(|j, r, r2| {
-            acc.add(self, j, r, r2);
-            let r = Vec3A::from(r);
-            diagonal += r * r;
-            off += Vec3A::new(r.x, r.x, r.y) * Vec3A::new(r.y, r.z, r.z);
+            self.accumulate(&mut s, j, r, r2);
+            c[0] += r.x * r.x;
+            c[1] += r.x * r.y;
+            c[2] += r.x * r.z;
+            c[3] += r.y * r.y;
+            c[4] += r.y * r.z;
+            c[5] += r.z * r.z;
             hits += 1;
         });
         ParticleSample {
-            sample: acc.sample(),
-            covariance: [diagonal.x, off.x, off.y, diagonal.y, off.z, diagonal.z],
+            sample: s,
+            covariance: c,
             // The particle finds itself.
             neighbours: hits.saturating_sub(1),
         }
+    }
+
+    /// Adds neighbour `j` at offset `r` (|r|² = `r2` ≤ h²) to the sums of `s`.
+    #[inline(always)]
+    fn accumulate(&self, s: &mut Sample, j: usize, r: Vec3, r2: f32) {
+        let v = self.volumes[j];
+        s.c += v * self.poly6.value_r2(r2);
+        s.gradient += v * self.poly6.gradient_r2(r, r2);
+        s.laplacian += v * self.poly6.laplacian_r2(r2);
     }
 
     /// Evaluations made so far.
@@ -227,32 +238,6 @@ impl ColourField {
         let d3 = iso as f64 / (volume as f64 * w);
         let d = d3.cbrt();
         (iso > 0.0 && d < h * h).then(|| (h * h - d).sqrt() as f32)
-    }
-}
-
-/// Running sums of c, ∇c and ∇²c over neighbours, packed as (∇c, c) so that
-/// the sums stay in registers; lane by lane the same operations as summing
-/// each quantity on its own.
-#[derive(Default)]
-struct Accumulator {
-    gradient_and_c: Vec4,
-    laplacian: f32,
-}
-
-impl Accumulator {
-    #[inline(always)]
-    fn add(&mut self, field: &ColourField, j: usize, r: Vec3, r2: f32) {
-        let (v, w) = (field.volumes[j], &field.poly6);
-        self.gradient_and_c += (v * w.gradient_r2(r, r2)).extend(v * w.value_r2(r2));
-        self.laplacian += v * w.laplacian_r2(r2);
-    }
-
-    fn sample(&self) -> Sample {
-        Sample {
-            c: self.gradient_and_c.w,
-            gradient: self.gradient_and_c.truncate(),
-            laplacian: self.laplacian,
-        }
     }
 }
 

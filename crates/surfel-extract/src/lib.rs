@@ -230,24 +230,24 @@ pub struct Surfels {
 
 /// Extracts surfels from simulated particles (volumes m/ρ).
 pub fn extract(particles: &Particles, params: &ExtractParams) -> Result<Surfels> {
-    params.validate()?;
-    on_pool(|| {
-        let start = std::time::Instant::now();
-        let field = ColourField::from_particles(particles, params.h)?;
-        let field_time = start.elapsed();
-        let mut out = extract_field(&field, params)?;
-        out.stats.field_time = field_time;
-        Ok(out)
-    })
+    extract_built(params, || ColourField::from_particles(particles, params.h))
 }
 
 /// Extracts surfels from bare points (Shepard volumes, see
 /// [`ColourField::from_positions`]).
 pub fn extract_points(positions: &[Vec3], params: &ExtractParams) -> Result<Surfels> {
+    extract_built(params, || ColourField::from_positions(positions, params.h))
+}
+
+/// Validates `params`, builds the field (timed as `field_time`) and extracts.
+fn extract_built(
+    params: &ExtractParams,
+    build: impl FnOnce() -> Result<ColourField> + Send,
+) -> Result<Surfels> {
     params.validate()?;
     on_pool(|| {
         let start = std::time::Instant::now();
-        let field = ColourField::from_positions(positions, params.h)?;
+        let field = build()?;
         let field_time = start.elapsed();
         let mut out = extract_field(&field, params)?;
         out.stats.field_time = field_time;
@@ -265,18 +265,12 @@ pub fn extract_field(field: &ColourField, params: &ExtractParams) -> Result<Surf
     on_pool(|| thesis::run(field, &params))
 }
 
-/// Runs `op` on a worker of the current rayon pool. Called from outside the
-/// pool, every parallel pass would otherwise be handed to the pool and waited
-/// for separately, and the extraction makes a few dozen of them; a worker runs
-/// them without that round trip each time.
+/// Runs `op` on a rayon worker: `rayon::scope` runs it in place on a worker
+/// thread and hands it to the global pool from any other thread. Called from
+/// outside the pool, every parallel pass would otherwise be handed over and
+/// waited for separately, and the extraction makes a few dozen of them.
 fn on_pool<T: Send>(op: impl FnOnce() -> T + Send) -> T {
-    if rayon::current_thread_index().is_some() {
-        op()
-    } else {
-        let mut out = None;
-        rayon::scope(|_| out = Some(op()));
-        out.expect("the scope ran its body")
-    }
+    rayon::scope(|_| op())
 }
 
 /// Two unit vectors spanning the plane normal to the unit vector `n`.

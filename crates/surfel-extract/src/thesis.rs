@@ -253,22 +253,21 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
             .par_iter()
             .filter_map(|s| s.filter(|s| front_facing(p, s)))
             .collect();
-        // Holes are closed once, on the first iteration's surfels: fill surfels
-        // are split and refined like the others, and children inherit the
-        // closed surface.
         let last = it + 1 == p.iterations;
-        if covered && it == 0 {
-            let t = Instant::now();
-            if last {
-                // One iteration: no coarse level; lone spheres take part.
-                kept.splice(0..0, done.drain(..));
-            }
-            stats.filled += fill::close_holes(field, p, &mut kept)?;
-            fill_time += t.elapsed();
-        }
         if last {
             done.append(&mut kept);
-        } else {
+        }
+        // Holes are closed once, on the first iteration's surfels: fill surfels
+        // are split and refined like the others, and children inherit the
+        // closed surface. With one iteration that is the result, lone spheres
+        // included.
+        if covered && it == 0 {
+            let t = Instant::now();
+            let first = if last { &mut done } else { &mut kept };
+            stats.filled += fill::close_holes(field, p, first)?;
+            fill_time += t.elapsed();
+        }
+        if !last {
             work = kept.par_iter().flat_map_iter(split).collect();
         }
     }

@@ -40,14 +40,14 @@ pub(super) struct Layout {
     scratch: Scratch,
 }
 
-/// The dense sort's temporary buffers.
+/// The dense sort's buffers, refilled by the next rebuild.
 #[derive(Debug, Clone, Default)]
 struct Scratch {
     /// Dense cell number per input particle.
     keys: Vec<u32>,
     /// Per chunk of the input: count, then next slot, per dense cell.
     next: Vec<Vec<u32>>,
-    /// First slot per dense cell, and n.
+    /// First slot per dense cell, and n; point queries read it.
     first: Vec<u32>,
 }
 
@@ -175,6 +175,11 @@ impl Layout {
                 Self::sparse(&cells, positions, order)
             }
         }
+    }
+
+    /// Whether the layout is dense, so that [`Layout::dense_rows`] answers.
+    pub fn is_dense(&self) -> bool {
+        self.dense.is_some()
     }
 
     /// The 9 rows around cell `c` in O(1), for a dense layout; `None` for a
