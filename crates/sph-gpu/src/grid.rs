@@ -252,7 +252,13 @@ impl GpuGrid {
         if !data.is_empty() {
             queue.write_buffer(&self.positions, 0, bytemuck::cast_slice(&data));
         }
-        self.n = positions.len() as u32;
+        self.set_len(queue, positions.len());
+        Ok(())
+    }
+
+    /// Sets the particle count of the positions buffer (filled on the GPU).
+    pub(crate) fn set_len(&mut self, queue: &wgpu::Queue, n: usize) {
+        self.n = n as u32;
         let params = Params {
             h: self.h,
             inv_h: 1.0 / self.h,
@@ -262,7 +268,11 @@ impl GpuGrid {
             pad: [0; 3],
         };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        Ok(())
+    }
+
+    /// The most particles the grid holds.
+    pub fn capacity(&self) -> usize {
+        self.capacity
     }
 
     /// Records the build: clear, count, scan, scatter, per-bucket sort.

@@ -15,10 +15,12 @@
 //! built yet.
 
 mod density;
+mod extract;
 mod grid;
 mod passes;
 mod solver;
 
 pub use density::GpuDensity;
+pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
 pub use solver::{GpuSolver, GpuState};

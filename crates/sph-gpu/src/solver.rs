@@ -191,6 +191,16 @@ impl GpuSolver {
         self.grid.positions_buffer()
     }
 
+    /// Densities of the last step, `f32` per particle.
+    pub fn densities_buffer(&self) -> &wgpu::Buffer {
+        self.density.densities_buffer()
+    }
+
+    /// Smoothing length.
+    pub fn h(&self) -> f32 {
+        self.params.h
+    }
+
     /// Velocities, `vec4<f32>` per particle.
     pub fn velocities_buffer(&self) -> &wgpu::Buffer {
         &self.velocities

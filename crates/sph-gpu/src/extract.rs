@@ -1,0 +1,569 @@
+//! [`GpuExtractor`]: surfel-extract's thesis-mode extractor (Vesterlund 2004,
+//! 4.2.1) as compute passes — the initial guess from the particles, then
+//! Newton-Raphson refinement with splitting — writing surfels straight into a
+//! buffer that splat-render draws indirectly, with no round trip to the CPU.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Surfel};
+use wgpu::util::DeviceExt;
+
+use crate::grid::{GpuError, GpuGrid};
+use crate::passes::read;
+use crate::solver::GpuSolver;
+
+/// Mirrors `struct Extract` in `shaders/extract.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Uniform {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    table: u32,
+    iso: f32,
+    interior_step: f32,
+    discard_step: f32,
+    split_laplacian: f32,
+    covariance_threshold: f32,
+    all_around: u32,
+    radius: f32,
+    has_camera: u32,
+    camera: [f32; 4],
+    poly6: f32,
+    poly6_grad: f32,
+    work_capacity: u32,
+    out_capacity: u32,
+}
+
+/// Mirrors `struct Stage`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Stage {
+    src: u32,
+    dst: u32,
+    last: u32,
+    iteration: u32,
+}
+
+/// Slots of the counters buffer (see the shader).
+const OUT: usize = 2;
+const SURFACE_PARTICLES: usize = 3;
+const ALL_AROUND: usize = 4;
+const LONE: usize = 5;
+const DISCARDED: usize = 6;
+const EVALUATED: usize = 7;
+const DROPPED: usize = 10;
+const COUNTERS: u64 = 16;
+
+/// Bytes of one surfel on the GPU (splat-render's splat layout).
+pub const SURFEL_BYTES: u64 = 32;
+
+/// What a GPU extraction did, read back from its counters.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GpuExtractStats {
+    /// Particles in the input.
+    pub particles: usize,
+    /// Particles that seeded one surfel (four where split).
+    pub surface_particles: usize,
+    /// Particles surrounded by six or eight surfels (eq. 36).
+    pub all_around: usize,
+    /// Lone particles given their analytic iso-sphere.
+    pub lone: usize,
+    /// Surfels discarded by the step test.
+    pub discarded: usize,
+    /// Surfels in the result (at most the capacity).
+    pub surfels: usize,
+    /// Surfels that did not fit a buffer: non-zero means the result is
+    /// incomplete and the extractor needs a larger `max_surfels`.
+    pub dropped: usize,
+    /// Field evaluations at the particles (one each).
+    pub particle_evaluations: u64,
+    /// Field evaluations at surfels (one per surfel per iteration).
+    pub evaluations: u64,
+}
+
+impl GpuExtractStats {
+    /// Surfels per surfel evaluation (the thesis's efficiency).
+    pub fn efficiency(&self) -> f64 {
+        self.surfels as f64 / self.evaluations.max(1) as f64
+    }
+}
+
+/// The thesis's extractor on the GPU, for a fixed particle capacity and
+/// surfel capacity.
+///
+/// It runs [`Mode::Thesis`] with the same equations, thresholds and decisions
+/// as `surfel_extract::extract`; hole closing ([`Mode::Covered`]) is CPU-only.
+/// Surfels are appended with atomic counters, so their order varies from run
+/// to run (the set does not, up to float rounding). The result buffer holds
+/// `vec4(position, radius), vec4(normal, 0)` per surfel — splat-render's splat
+/// layout — and [`draw_args_buffer`](Self::draw_args_buffer) the matching
+/// indirect draw (4 vertices, one instance per surfel).
+pub struct GpuExtractor {
+    uniform: Uniform,
+    iterations: u32,
+    uniform_buffer: wgpu::Buffer,
+    grid: GpuGrid,
+    volumes: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    result: wgpu::Buffer,
+    dispatch: wgpu::Buffer,
+    draw: wgpu::Buffer,
+    guess: (wgpu::ComputePipeline, wgpu::BindGroup),
+    /// Per iteration: the prepare and refine passes.
+    stages: Vec<[(wgpu::ComputePipeline, wgpu::BindGroup); 2]>,
+    finish: (wgpu::ComputePipeline, wgpu::BindGroup),
+    volumes_pass: wgpu::ComputePipeline,
+    /// The solver this extractor reads from, once [`attach`](Self::attach)ed:
+    /// its positions buffer and the bind group of the volumes pass.
+    attached: Option<(wgpu::Buffer, wgpu::BindGroup)>,
+}
+
+/// A bind group of `(binding, buffer)` pairs for `pipeline`'s group 0.
+fn bind(
+    device: &wgpu::Device,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    buffers: &[(u32, &wgpu::Buffer)],
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = buffers
+        .iter()
+        .map(|&(binding, b)| wgpu::BindGroupEntry {
+            binding,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
+}
+
+/// Workgroups of 64 for `threads`, as an (x, y) grid within the 65,535 limit.
+fn groups(threads: u32) -> (u32, u32) {
+    let groups = threads.div_ceil(64).max(1);
+    let y = groups.div_ceil(65_535);
+    (groups.div_ceil(y), y)
+}
+
+impl GpuExtractor {
+    /// An extractor for up to `particles` particles that keeps up to
+    /// `max_surfels` surfels per refinement level and in the result.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for parameters surfel-extract rejects,
+    /// [`Mode::Covered`] (hole closing is CPU-only: pass
+    /// [`ExtractParams::thesis`]), a zero capacity, or buffers beyond the
+    /// device's storage binding limit.
+    pub fn new(
+        device: &wgpu::Device,
+        particles: usize,
+        max_surfels: usize,
+        params: &ExtractParams,
+    ) -> Result<Self, GpuError> {
+        params
+            .validate()
+            .map_err(|_| GpuError::Invalid("extraction parameters rejected by surfel-extract"))?;
+        if params.mode != Mode::Thesis {
+            return Err(GpuError::Invalid(
+                "the GPU extractor runs the thesis mode (hole closing is CPU-only): use ExtractParams::thesis()",
+            ));
+        }
+        if max_surfels == 0 {
+            return Err(GpuError::Invalid("max_surfels must be > 0"));
+        }
+        let limits = device.limits();
+        let max_bytes =
+            u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        let surfel_bytes = max_surfels as u64 * SURFEL_BYTES;
+        if surfel_bytes > max_bytes || max_surfels > u32::MAX as usize {
+            return Err(GpuError::Invalid(
+                "max_surfels exceeds the device's storage buffer limit",
+            ));
+        }
+        let grid = GpuGrid::new(device, particles, params.h, 1)?;
+        let h = params.h;
+        let pi = std::f32::consts::PI;
+        let uniform = Uniform {
+            h,
+            inv_h: 1.0 / h,
+            n: 0,
+            table: grid.table_size(),
+            iso: params.iso,
+            interior_step: params.interior_step,
+            discard_step: params.discard_step,
+            split_laplacian: params.split_laplacian,
+            covariance_threshold: params.covariance_threshold,
+            all_around: match params.all_around {
+                AllAround::Six => 6,
+                AllAround::Eight => 8,
+            },
+            radius: params.radius,
+            has_camera: u32::from(params.camera.is_some()),
+            camera: params.camera.unwrap_or_default().extend(0.0).to_array(),
+            poly6: 315.0 / (64.0 * pi * h.powi(9)),
+            poly6_grad: 945.0 / (32.0 * pi * h.powi(9)),
+            work_capacity: max_surfels as u32,
+            out_capacity: max_surfels as u32,
+        };
+        use wgpu::BufferUsages as U;
+        let buffer = |label, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let uniform_buffer = buffer(
+            "extract params",
+            size_of::<Uniform>() as u64,
+            U::UNIFORM | U::COPY_DST,
+        );
+        let volumes = buffer(
+            "extract volumes",
+            4 * particles as u64,
+            U::STORAGE | U::COPY_DST,
+        );
+        let counters = buffer(
+            "extract counters",
+            4 * COUNTERS,
+            U::STORAGE | U::COPY_DST | U::COPY_SRC,
+        );
+        let work = [0, 1].map(|_| buffer("extract work", surfel_bytes, U::STORAGE));
+        let result = buffer("surfels", surfel_bytes, U::STORAGE | U::COPY_SRC);
+        let dispatch = buffer("extract dispatch", 12, U::STORAGE | U::INDIRECT);
+        let draw = buffer(
+            "surfel draw args",
+            16,
+            U::STORAGE | U::INDIRECT | U::COPY_SRC,
+        );
+        let stage_buffers: Vec<wgpu::Buffer> = (0..params.iterations)
+            .map(|i| {
+                let stage = Stage {
+                    src: i % 2,
+                    dst: (i + 1) % 2,
+                    last: u32::from(i + 1 == params.iterations),
+                    iteration: i,
+                };
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("extract stage"),
+                    contents: bytemuck::bytes_of(&stage),
+                    usage: U::UNIFORM,
+                })
+            })
+            .collect();
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("extract.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(
+                    include_str!("shaders/hash.wgsl"),
+                    include_str!("shaders/extract.wgsl")
+                )
+                .into(),
+            ),
+        });
+        let pipeline = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let field = [
+            (0, &uniform_buffer),
+            (1, grid.positions_buffer()),
+            (2, grid.counts_buffer()),
+            (3, grid.starts_buffer()),
+            (4, grid.sorted_buffer()),
+            (5, &volumes),
+            (6, &counters),
+        ];
+        let guess_pipeline = pipeline("guess");
+        let mut entries = field.to_vec();
+        entries.extend([(8, &work[0]), (9, &result)]);
+        let guess_group = bind(device, "guess", &guess_pipeline, &entries);
+        let (prepare, refine) = (pipeline("prepare"), pipeline("refine"));
+        let stages = (0..params.iterations as usize)
+            .map(|i| {
+                let stage = &stage_buffers[i];
+                let prepare_group = bind(
+                    device,
+                    "prepare",
+                    &prepare,
+                    &[
+                        (0, &uniform_buffer),
+                        (6, &counters),
+                        (10, stage),
+                        (11, &dispatch),
+                    ],
+                );
+                let mut entries = field.to_vec();
+                entries.extend([
+                    (7, &work[i % 2]),
+                    (8, &work[(i + 1) % 2]),
+                    (9, &result),
+                    (10, stage),
+                ]);
+                let refine_group = bind(device, "refine", &refine, &entries);
+                [
+                    (prepare.clone(), prepare_group),
+                    (refine.clone(), refine_group),
+                ]
+            })
+            .collect();
+        let finish_pipeline = pipeline("finish");
+        let finish_group = bind(
+            device,
+            "finish",
+            &finish_pipeline,
+            &[(0, &uniform_buffer), (6, &counters), (12, &draw)],
+        );
+        let volumes_pass = pipeline("volumes_from_densities");
+        Ok(Self {
+            uniform,
+            iterations: params.iterations,
+            uniform_buffer,
+            grid,
+            volumes,
+            counters,
+            result,
+            dispatch,
+            draw,
+            guess: (guess_pipeline, guess_group),
+            stages,
+            finish: (finish_pipeline, finish_group),
+            volumes_pass,
+            attached: None,
+        })
+    }
+
+    /// The most surfels each buffer holds.
+    pub fn capacity(&self) -> usize {
+        self.uniform.out_capacity as usize
+    }
+
+    /// Uploads particle positions and volumes V = m/ρ (for example a
+    /// [`ColourField`]'s, see [`upload_field`](Self::upload_field)).
+    ///
+    /// # Errors
+    /// [`GpuError::Capacity`]; [`GpuError::Invalid`] for a length mismatch, a
+    /// non-finite position or a volume that is not finite and positive.
+    pub fn upload(
+        &mut self,
+        queue: &wgpu::Queue,
+        positions: &[Vec3],
+        volumes: &[f32],
+    ) -> Result<(), GpuError> {
+        if volumes.len() != positions.len() {
+            return Err(GpuError::Invalid("need one volume per position"));
+        }
+        if volumes.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
+            return Err(GpuError::Invalid("volumes must be finite and > 0"));
+        }
+        self.grid.upload(queue, positions)?;
+        if !volumes.is_empty() {
+            queue.write_buffer(&self.volumes, 0, bytemuck::cast_slice(volumes));
+        }
+        self.set_len(queue, positions.len());
+        Ok(())
+    }
+
+    /// Uploads the particles and volumes of a CPU colour field: the GPU then
+    /// extracts from the same field as `surfel_extract::extract_field`.
+    ///
+    /// # Errors
+    /// As [`upload`](Self::upload), and [`GpuError::Invalid`] for a field of
+    /// another smoothing length.
+    pub fn upload_field(
+        &mut self,
+        queue: &wgpu::Queue,
+        field: &ColourField,
+    ) -> Result<(), GpuError> {
+        if field.h() != self.uniform.h {
+            return Err(GpuError::Invalid(
+                "the field's h differs from the extractor's",
+            ));
+        }
+        self.upload(queue, field.positions(), field.volumes())
+    }
+
+    fn set_len(&mut self, queue: &wgpu::Queue, n: usize) {
+        self.uniform.n = n as u32;
+        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
+    }
+
+    /// Reads the particles of `solver` from now on: [`encode_attached`](Self::encode_attached)
+    /// copies its positions and computes volumes m/ρ from its densities on the
+    /// GPU.
+    ///
+    /// # Errors
+    /// [`GpuError::Capacity`] for more particles than this extractor's capacity,
+    /// [`GpuError::Invalid`] for a solver of another smoothing length.
+    pub fn attach(&mut self, device: &wgpu::Device, solver: &GpuSolver) -> Result<(), GpuError> {
+        if solver.len() > self.grid.capacity() {
+            return Err(GpuError::Capacity {
+                given: solver.len(),
+                capacity: self.grid.capacity(),
+            });
+        }
+        if solver.h() != self.uniform.h {
+            return Err(GpuError::Invalid(
+                "the solver's h differs from the extractor's",
+            ));
+        }
+        let group = bind(
+            device,
+            "volumes from densities",
+            &self.volumes_pass,
+            &[
+                (0, &self.uniform_buffer),
+                (1, self.grid.positions_buffer()),
+                (13, solver.densities_buffer()),
+                (14, &self.volumes),
+            ],
+        );
+        self.attached = Some((solver.positions_buffer().clone(), group));
+        self.uniform.n = solver.len() as u32;
+        Ok(())
+    }
+
+    /// Records the extraction of the attached solver's current particles: a
+    /// copy of its positions, volumes from its densities, then
+    /// [`encode`](Self::encode). Nothing is read back.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] when no solver is attached.
+    pub fn encode_attached(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+    ) -> Result<(), GpuError> {
+        let Some((positions, group)) = &self.attached else {
+            return Err(GpuError::Invalid("no solver attached"));
+        };
+        let n = self.uniform.n as usize;
+        encoder.copy_buffer_to_buffer(
+            positions,
+            0,
+            self.grid.positions_buffer(),
+            0,
+            Some((16 * n as u64).max(16).min(positions.size())),
+        );
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("volumes from densities"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&self.volumes_pass);
+            pass.set_bind_group(0, group, &[]);
+            let (x, y) = groups(n as u32);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        self.grid.set_len(queue, n);
+        self.set_len(queue, n);
+        self.encode(encoder);
+        Ok(())
+    }
+
+    /// Records the extraction of the uploaded particles: grid build, initial
+    /// guess, the refinement iterations, the indirect draw arguments.
+    pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
+        self.grid.encode_build(encoder);
+        encoder.clear_buffer(&self.counters, 0, None);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("surfel extraction"),
+            timestamp_writes: None,
+        });
+        let (x, y) = groups(self.uniform.n);
+        pass.set_pipeline(&self.guess.0);
+        pass.set_bind_group(0, &self.guess.1, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+        for [prepare, refine] in &self.stages {
+            pass.set_pipeline(&prepare.0);
+            pass.set_bind_group(0, &prepare.1, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&refine.0);
+            pass.set_bind_group(0, &refine.1, &[]);
+            pass.dispatch_workgroups_indirect(&self.dispatch, 0);
+        }
+        pass.set_pipeline(&self.finish.0);
+        pass.set_bind_group(0, &self.finish.1, &[]);
+        pass.dispatch_workgroups(1, 1, 1);
+    }
+
+    /// The surfels of the last extraction, [`SURFEL_BYTES`] each:
+    /// `vec4(position, radius), vec4(normal, 0)`.
+    pub fn surfels_buffer(&self) -> &wgpu::Buffer {
+        &self.result
+    }
+
+    /// The indirect draw of the last extraction's surfels:
+    /// `[4, surfels, 0, 0]` (`wgpu::util::DrawIndirectArgs`).
+    pub fn draw_args_buffer(&self) -> &wgpu::Buffer {
+        &self.draw
+    }
+
+    /// Reads the counters of the last extraction back.
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`].
+    pub fn read_stats(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<GpuExtractStats, GpuError> {
+        let encoder = device.create_command_encoder(&Default::default());
+        let bytes = read(device, queue, encoder, &self.counters, 4 * COUNTERS)?;
+        let c: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
+        let n = self.uniform.n as usize;
+        Ok(GpuExtractStats {
+            particles: n,
+            surface_particles: c[SURFACE_PARTICLES] as usize,
+            all_around: c[ALL_AROUND] as usize,
+            lone: c[LONE] as usize,
+            discarded: c[DISCARDED] as usize,
+            surfels: c[OUT].min(self.uniform.out_capacity) as usize,
+            dropped: c[DROPPED] as usize,
+            particle_evaluations: n as u64,
+            evaluations: c[EVALUATED..EVALUATED + self.iterations as usize]
+                .iter()
+                .map(|&k| u64::from(k))
+                .sum(),
+        })
+    }
+
+    /// Reads the last extraction's surfels and counters back (tests, export).
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`].
+    pub fn read_surfels(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<(Vec<Surfel>, GpuExtractStats), GpuError> {
+        let stats = self.read_stats(device, queue)?;
+        let encoder = device.create_command_encoder(&Default::default());
+        let bytes = read(
+            device,
+            queue,
+            encoder,
+            &self.result,
+            stats.surfels as u64 * SURFEL_BYTES,
+        )?;
+        let raw: Vec<[f32; 8]> = bytemuck::pod_collect_to_vec(&bytes);
+        let surfels = raw
+            .iter()
+            .map(|v| Surfel {
+                position: Vec3::new(v[0], v[1], v[2]),
+                normal: Vec3::new(v[4], v[5], v[6]),
+                radius: v[3],
+            })
+            .collect();
+        Ok((surfels, stats))
+    }
+}

@@ -1,0 +1,394 @@
+// Surfel extraction (Vesterlund 2004, 4.2.1) as compute passes: the colour
+// field c(x) = sum_j V_j W_poly6(x - x_j) through the GPU grid, the initial
+// guess from the particles, then Newton-Raphson refinement (eq. 33) with
+// splitting. The same equations, thresholds and order of decisions as
+// surfel-extract's thesis mode; surfels are appended to buffers with atomic
+// counters, in the splat renderer's layout, and drawn indirectly.
+
+struct Extract {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    table: u32,
+    iso: f32,
+    interior_step: f32,       // x h
+    discard_step: f32,        // x h
+    split_laplacian: f32,     // |lap c| h^2 above this splits an initial surfel
+    covariance_threshold: f32,
+    all_around: u32,          // 6 or 8
+    radius: f32,              // x h
+    has_camera: u32,
+    camera: vec4<f32>,
+    poly6: f32,               // 315 / (64 pi h^9)
+    poly6_grad: f32,          // 945 / (32 pi h^9)
+    work_capacity: u32,
+    out_capacity: u32,
+};
+
+// Which counters a refinement iteration reads and appends to.
+struct Stage {
+    src: u32,
+    dst: u32,
+    last: u32,
+    iteration: u32,
+};
+
+// A surfel, laid out as splat-render's splats: centre and radius, normal.
+struct Surfel {
+    position_radius: vec4<f32>,
+    normal: vec4<f32>,
+};
+
+// counters[0], [1]: the two work buffers; [2]: output; then statistics.
+const OUT: u32 = 2u;
+const SURFACE_PARTICLES: u32 = 3u;
+const ALL_AROUND: u32 = 4u;
+const LONE: u32 = 5u;
+const DISCARDED: u32 = 6u;
+const EVALUATED: u32 = 7u;     // 7, 8, 9: surfels refined in iteration 0, 1, 2
+const DROPPED: u32 = 10u;      // surfels that did not fit a buffer
+
+@group(0) @binding(0) var<uniform> e: Extract;
+@group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> counts: array<u32>;
+@group(0) @binding(3) var<storage, read> starts: array<u32>;
+@group(0) @binding(4) var<storage, read> sorted: array<u32>;
+@group(0) @binding(5) var<storage, read> volumes: array<f32>;
+@group(0) @binding(6) var<storage, read_write> counters: array<atomic<u32>, 16>;
+@group(0) @binding(7) var<storage, read> work_in: array<Surfel>;
+@group(0) @binding(8) var<storage, read_write> work_out: array<Surfel>;
+@group(0) @binding(9) var<storage, read_write> result: array<Surfel>;
+@group(0) @binding(10) var<uniform> stage: Stage;
+@group(0) @binding(11) var<storage, read_write> dispatch_args: array<u32, 3>;
+@group(0) @binding(12) var<storage, read_write> draw_args: array<u32, 4>;
+
+struct Field {
+    c: f32,
+    gradient: vec3<f32>,
+    laplacian: f32,
+};
+
+// Accumulates neighbour j at offset d = x - x_j, |d|^2 = r2 <= h^2.
+fn add(f: ptr<function, Field>, j: u32, d: vec3<f32>, r2: f32) {
+    let v = volumes[j];
+    let q = e.h * e.h - r2;
+    (*f).c += v * e.poly6 * q * q * q;
+    (*f).gradient += v * (-e.poly6_grad * q * q) * d;
+    (*f).laplacian += v * e.poly6_grad * q * (7.0 * r2 - 3.0 * e.h * e.h);
+}
+
+// c, grad c, lap c at x: one evaluation.
+fn field_at(x: vec3<f32>) -> Field {
+    var f = Field(0.0, vec3<f32>(0.0), 0.0);
+    let c = cell_at(x, e.inv_h);
+    let h2 = e.h * e.h;
+    for (var dz = -1; dz <= 1; dz++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let cell = c + vec3<i32>(dx, dy, dz);
+                let b = bucket_of(cell, e.table);
+                let s = starts[b];
+                for (var k = 0u; k < counts[b]; k++) {
+                    let j = sorted[s + k];
+                    let y = positions[j].xyz;
+                    if any(cell_at(y, e.inv_h) != cell) {
+                        continue;
+                    }
+                    let d = x - y;
+                    let r2 = dot(d, d);
+                    if r2 <= h2 {
+                        add(&f, j, d, r2);
+                    }
+                }
+            }
+        }
+    }
+    return f;
+}
+
+// The thread's index in a dispatch of up to 65535 x 65535 groups of 64.
+fn flat_index(wid: vec3<u32>, groups: vec3<u32>, lid: u32) -> u32 {
+    return (wid.y * groups.x + wid.x) * 64u + lid;
+}
+
+fn front_facing(p: vec3<f32>, n: vec3<f32>) -> bool {
+    return e.has_camera == 0u || dot(e.camera.xyz - p, n) > 0.0;
+}
+
+fn surfel(p: vec3<f32>, n: vec3<f32>, r: f32) -> Surfel {
+    return Surfel(vec4<f32>(p, r), vec4<f32>(n, 0.0));
+}
+
+// Two unit vectors spanning the plane normal to n (surfel-extract's basis).
+fn tangent(n: vec3<f32>) -> vec3<f32> {
+    var helper = vec3<f32>(0.0, 1.0, 0.0);
+    if abs(n.x) < 0.6 {
+        helper = vec3<f32>(1.0, 0.0, 0.0);
+    }
+    return normalize(cross(n, helper));
+}
+
+// Child k (0..3) of the four covering s in its tangent plane (figure 6).
+fn child(s: Surfel, k: u32) -> Surfel {
+    let n = s.normal.xyz;
+    let t1 = tangent(n);
+    let t2 = cross(n, t1);
+    let r = s.position_radius.w;
+    let u = select(-1.0, 1.0, (k & 1u) == 0u);
+    let v = select(-1.0, 1.0, (k & 2u) == 0u);
+    let p = s.position_radius.xyz + 0.5 * r * (u * t1 + v * t2);
+    return surfel(p, n, r * 0.70710678 * 1.05);
+}
+
+// Box faces (0..5) then corners (6..13).
+fn box_direction(k: u32) -> vec3<f32> {
+    if k < 6u {
+        var d = vec3<f32>(0.0);
+        d[k / 2u] = select(1.0, -1.0, (k & 1u) == 1u);
+        return d;
+    }
+    let c = k - 6u;
+    let s = 0.57735026;
+    return vec3<f32>(
+        select(s, -s, (c & 1u) != 0u),
+        select(s, -s, (c & 2u) != 0u),
+        select(s, -s, (c & 4u) != 0u),
+    );
+}
+
+// Reserves `count` slots of buffer `slot` (0, 1: work; 2: output); returns the first.
+fn reserve(slot: u32, count: u32) -> u32 {
+    let base = atomicAdd(&counters[slot], count);
+    let capacity = select(e.work_capacity, e.out_capacity, slot == OUT);
+    let fit = min(base + count, max(capacity, base)) - base;
+    if fit < count {
+        atomicAdd(&counters[DROPPED], count - fit);
+    }
+    return base;
+}
+
+fn push_work(at: u32, s: Surfel) {
+    if at < e.work_capacity {
+        work_out[at] = s;
+    }
+}
+
+fn push_out(at: u32, s: Surfel) {
+    if at < e.out_capacity {
+        result[at] = s;
+    }
+}
+
+// The initial guess (4.2.1) at particle i, appended to work buffer 0 (through
+// dst) or, for a lone particle's final iso-sphere, to the output.
+@compute @workgroup_size(64)
+fn guess(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = flat_index(wid, groups, lid);
+    if i >= e.n {
+        return;
+    }
+    let x = positions[i].xyz;
+    let h = e.h;
+    let h2 = h * h;
+    // Field and neighbourhood covariance (eq. 35, offsets in units of h) in one scan.
+    var f = Field(0.0, vec3<f32>(0.0), 0.0);
+    var xx = 0.0;
+    var xy = 0.0;
+    var xz = 0.0;
+    var yy = 0.0;
+    var yz = 0.0;
+    var zz = 0.0;
+    var hits = 0u;
+    let c = cell_at(x, e.inv_h);
+    for (var dz = -1; dz <= 1; dz++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let cell = c + vec3<i32>(dx, dy, dz);
+                let b = bucket_of(cell, e.table);
+                let s = starts[b];
+                for (var k = 0u; k < counts[b]; k++) {
+                    let j = sorted[s + k];
+                    let y = positions[j].xyz;
+                    if any(cell_at(y, e.inv_h) != cell) {
+                        continue;
+                    }
+                    let d = x - y;
+                    let r2 = dot(d, d);
+                    if r2 <= h2 {
+                        add(&f, j, d, r2);
+                        let u = d * e.inv_h;
+                        xx += u.x * u.x;
+                        xy += u.x * u.y;
+                        xz += u.x * u.z;
+                        yy += u.y * u.y;
+                        yz += u.y * u.z;
+                        zz += u.z * u.z;
+                        hits++;
+                    }
+                }
+            }
+        }
+    }
+    if hits <= 1u {
+        // Alone: the analytic iso-sphere V W(R) = iso, final as it is.
+        let d3 = e.iso / (volumes[i] * e.poly6);
+        let d = pow(d3, 1.0 / 3.0);
+        if !(d < h2) {
+            return;
+        }
+        atomicAdd(&counters[LONE], 1u);
+        let radius = sqrt(h2 - d);
+        var keep = 0u;
+        for (var k = 0u; k < 14u; k++) {
+            let n = box_direction(k);
+            keep += u32(front_facing(x + radius * n, n));
+        }
+        var at = reserve(OUT, keep);
+        for (var k = 0u; k < 14u; k++) {
+            let n = box_direction(k);
+            if front_facing(x + radius * n, n) {
+                push_out(at, surfel(x + radius * n, n, 0.8 * radius));
+                at++;
+            }
+        }
+        return;
+    }
+    // Surface on several sides (eq. 36): P = det C / (tr C / 3)^3.
+    let trace = xx + yy + zz;
+    let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
+    var shape = 0.0;
+    if trace > 0.0 {
+        let t = trace / 3.0;
+        shape = det / (t * t * t);
+    }
+    if shape < e.covariance_threshold {
+        atomicAdd(&counters[ALL_AROUND], 1u);
+        let first = select(6u, 0u, e.all_around == 6u);
+        var keep = 0u;
+        for (var k = first; k < first + e.all_around; k++) {
+            let n = box_direction(k);
+            keep += u32(front_facing(x + 0.5 * h * n, n));
+        }
+        var at = reserve(0u, keep);
+        for (var k = first; k < first + e.all_around; k++) {
+            let n = box_direction(k);
+            if front_facing(x + 0.5 * h * n, n) {
+                push_work(at, surfel(x + 0.5 * h * n, n, e.radius * h));
+                at++;
+            }
+        }
+        return;
+    }
+    let g = length(f.gradient);
+    if !(g > 1e-6 / h) {
+        return;
+    }
+    let normal = -f.gradient / g;
+    let nr = (f.c - e.iso) / g;
+    if abs(nr) > e.interior_step * h {
+        return;
+    }
+    atomicAdd(&counters[SURFACE_PARTICLES], 1u);
+    let s = surfel(x + normal * clamp(nr, -0.5 * h, 0.5 * h), normal, e.radius * h);
+    if abs(f.laplacian) * h2 > e.split_laplacian {
+        var keep = 0u;
+        for (var k = 0u; k < 4u; k++) {
+            let q = child(s, k);
+            keep += u32(front_facing(q.position_radius.xyz, normal));
+        }
+        var at = reserve(0u, keep);
+        for (var k = 0u; k < 4u; k++) {
+            let q = child(s, k);
+            if front_facing(q.position_radius.xyz, normal) {
+                push_work(at, q);
+                at++;
+            }
+        }
+    } else if front_facing(s.position_radius.xyz, normal) {
+        push_work(reserve(0u, 1u), s);
+    }
+}
+
+// One thread: the groups for this iteration's surfels, an empty buffer to
+// append to, and the count refined.
+@compute @workgroup_size(1)
+fn prepare() {
+    let count = atomicLoad(&counters[stage.src]);
+    let n = min(count, e.work_capacity);
+    let groups = (n + 63u) / 64u;
+    let y = max((groups + 65534u) / 65535u, 1u);
+    dispatch_args[0] = (groups + y - 1u) / y;
+    dispatch_args[1] = y;
+    dispatch_args[2] = 1u;
+    if stage.last == 0u {
+        atomicStore(&counters[stage.dst], 0u);
+    }
+    atomicStore(&counters[EVALUATED + stage.iteration], n);
+}
+
+// One Newton-Raphson step (eq. 33) per surfel of the source buffer; too long a
+// step discards it; the rest are split in four (appended to dst) or, in the
+// last iteration, appended to the output.
+@compute @workgroup_size(64)
+fn refine(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = flat_index(wid, groups, lid);
+    if i >= min(atomicLoad(&counters[stage.src]), e.work_capacity) {
+        return;
+    }
+    let s = work_in[i];
+    let x = s.position_radius.xyz;
+    let f = field_at(x);
+    let g2 = dot(f.gradient, f.gradient);
+    let nr = -(f.c - e.iso) * f.gradient / g2;
+    if !(g2 > 1e-12 * e.inv_h * e.inv_h) || !(length(nr) <= e.discard_step * e.h) {
+        atomicAdd(&counters[DISCARDED], 1u);
+        return;
+    }
+    let p = x + nr;
+    let n = -f.gradient / sqrt(g2);
+    if !front_facing(p, n) {
+        return;
+    }
+    let refined = surfel(p, n, s.position_radius.w);
+    if stage.last != 0u {
+        push_out(reserve(OUT, 1u), refined);
+        return;
+    }
+    let at = reserve(stage.dst, 4u);
+    for (var k = 0u; k < 4u; k++) {
+        push_work(at + k, child(refined, k));
+    }
+}
+
+// One thread: the indirect draw of the output (4 vertices per splat).
+@compute @workgroup_size(1)
+fn finish() {
+    draw_args[0] = 4u;
+    draw_args[1] = min(atomicLoad(&counters[OUT]), e.out_capacity);
+    draw_args[2] = 0u;
+    draw_args[3] = 0u;
+}
+
+@group(0) @binding(13) var<storage, read> densities: array<f32>;
+@group(0) @binding(14) var<storage, read_write> volumes_out: array<f32>;
+
+// V = m / rho from a solver's masses (positions' w) and densities.
+@compute @workgroup_size(64)
+fn volumes_from_densities(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = flat_index(wid, groups, lid);
+    if i < e.n {
+        volumes_out[i] = positions[i].w / densities[i];
+    }
+}

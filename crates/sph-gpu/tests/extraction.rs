@@ -1,0 +1,259 @@
+//! The GPU extractor against surfel-extract's thesis mode on the same colour
+//! fields: the same residual, normal and coverage bounds as the CPU tests
+//! (`crates/surfel-extract/tests/extraction.rs`), surfel counts within 1 %,
+//! lone particles on their analytic iso-sphere, overflow reported, bad input
+//! rejected, and the solver's particles extracted without leaving the GPU. On
+//! lavapipe in CI; skipped without an adapter unless `SPH_REQUIRE_GPU=1`.
+
+use glam::Vec3;
+use sph_core::Scene;
+use sph_gpu::{GpuExtractStats, GpuExtractor, GpuSolver};
+use splat_render::GpuContext;
+use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
+use surfel_extract::{ColourField, ExtractParams, Surfel, extract_field};
+
+const SPACING: f32 = 0.01;
+const H: f32 = 2.0 * SPACING;
+
+/// Deterministic pseudo-random numbers in [-1, 1).
+fn noise(seed: &mut u64) -> f32 {
+    *seed = seed
+        .wrapping_mul(6_364_136_223_846_793_005)
+        .wrapping_add(1_442_695_040_888_963_407);
+    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+}
+
+/// The CPU tests' jittered lattice of `SPACING` cut by `keep`.
+fn lattice(n: i32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec3> {
+    let mut seed = 11;
+    let mut out = Vec::new();
+    for k in -n..=n {
+        for j in -n..=n {
+            for i in -n..=n {
+                let x = Vec3::new(i as f32, j as f32, k as f32) * SPACING;
+                let j = Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed));
+                if keep(x) {
+                    out.push(x + 0.3 * SPACING * j);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Extracts `field` on the GPU.
+fn gpu_extract(
+    ctx: &GpuContext,
+    field: &ColourField,
+    params: &ExtractParams,
+    max_surfels: usize,
+) -> (Vec<Surfel>, GpuExtractStats) {
+    let mut gpu = GpuExtractor::new(&ctx.device, field.len(), max_surfels, params).unwrap();
+    gpu.upload_field(&ctx.queue, field).unwrap();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    gpu.encode(&mut encoder);
+    ctx.queue.submit([encoder.finish()]);
+    gpu.read_surfels(&ctx.device, &ctx.queue).unwrap()
+}
+
+/// GPU and CPU thesis-mode extraction of `field`: the CPU tests' bounds on the
+/// GPU surfels, and counts within 1 % of the CPU's.
+fn compare(ctx: &GpuContext, name: &str, field: &ColourField, spacing: f32, thickness: f32) {
+    let params = ExtractParams::new(field.h()).thesis();
+    let cpu = extract_field(field, &params).unwrap();
+    let (surfels, stats) = gpu_extract(ctx, field, &params, 1 << 20);
+    let r = residuals(field, params.iso, &surfels);
+    let points = iso_points(field, params.iso, spacing);
+    let coverage = covered_fraction(&surfels, &points, thickness).unwrap();
+    let cpu_coverage = covered_fraction(&cpu.surfels, &points, thickness).unwrap();
+    println!(
+        "{name}: GPU {} surfels (CPU {}), evaluations {} (CPU {}), efficiency {:.2} (CPU {:.2}), residual median {:.2e} p95 {:.2e}, normal {:.2}°, coverage {:.2} % (CPU {:.2} %), {stats:?}",
+        surfels.len(),
+        cpu.surfels.len(),
+        stats.evaluations,
+        cpu.stats.evaluations,
+        stats.efficiency(),
+        cpu.stats.efficiency(),
+        r.median,
+        r.p95,
+        r.median_angle_deg,
+        100.0 * coverage,
+        100.0 * cpu_coverage,
+    );
+    assert_eq!(stats.dropped, 0);
+    assert!(r.median < 0.01, "{name}: median residual {}", r.median);
+    assert!(r.p95 < 0.05, "{name}: p95 residual {}", r.p95);
+    assert!(r.median_angle_deg < 5.0, "{name}: {}°", r.median_angle_deg);
+    assert!(coverage >= 0.99, "{name}: coverage {coverage}");
+    let diff = |a: usize, b: usize| (a as f64 - b as f64).abs() / b.max(1) as f64;
+    assert!(
+        diff(surfels.len(), cpu.surfels.len()) <= 0.01,
+        "{name}: surfel counts"
+    );
+    assert!(diff(stats.evaluations as usize, cpu.stats.evaluations as usize) <= 0.01);
+    assert!(diff(stats.surface_particles, cpu.stats.surface_particles) <= 0.01);
+    assert!(diff(stats.all_around, cpu.stats.all_around) <= 0.02);
+    assert!(diff(stats.discarded, cpu.stats.discarded) <= 0.05);
+    // The same surfels, in another order: nearly all within rounding of a CPU one.
+    let matched = surfels
+        .iter()
+        .filter(|g| {
+            cpu.surfels.iter().any(|c| {
+                (g.position - c.position).length() < 1e-3 * field.h()
+                    && (g.normal - c.normal).length() < 1e-3
+                    && (g.radius - c.radius).abs() < 1e-6 * field.h()
+            })
+        })
+        .count();
+    println!(
+        "{name}: {matched} of {} GPU surfels match a CPU surfel",
+        surfels.len()
+    );
+    assert!(matched as f64 >= 0.99 * surfels.len() as f64);
+}
+
+#[test]
+fn sphere_and_block_match_the_cpu_extractor() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let sphere = lattice(9, |x| x.length() <= 8.5 * SPACING);
+    let block = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
+    for (name, points) in [("sphere", sphere), ("block", block)] {
+        let field = ColourField::from_positions(&points, H).unwrap();
+        compare(&ctx, name, &field, 0.25 * H, 0.1 * H);
+    }
+}
+
+#[test]
+fn dam_break_frame_matches_the_cpu_extractor() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut world = Scene::dam_break(0.2, 0.06, 0.02).build_world().unwrap();
+    world.advance(0.4).unwrap();
+    let field = ColourField::from_particles(&world.particles, 0.04).unwrap();
+    compare(&ctx, "dam break", &field, 0.01, 0.004);
+}
+
+#[test]
+fn lone_particles_get_their_analytic_iso_sphere_and_culling_holds() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let points = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0)];
+    let field = ColourField::from_positions(&points, H).unwrap();
+    let params = ExtractParams::new(H).thesis();
+    let (surfels, stats) = gpu_extract(&ctx, &field, &params, 64);
+    assert_eq!((stats.lone, surfels.len()), (2, 28));
+    let radius = field.lone_iso_radius(field.volumes()[0], 0.5).unwrap();
+    for s in &surfels {
+        let centre = points[usize::from(s.position.x > 0.5)];
+        let d = s.position - centre;
+        assert!((d.length() - radius).abs() < 1e-4 * H, "{}", d.length());
+        assert!((d.normalize() - s.normal).length() < 1e-5);
+    }
+    let eye = Vec3::new(0.5, 0.0, 10.0);
+    let culled = ExtractParams {
+        camera: Some(eye),
+        ..params
+    };
+    let (front, _) = gpu_extract(&ctx, &field, &culled, 64);
+    assert!(!front.is_empty() && front.len() < surfels.len());
+    assert!(front.iter().all(|s| (eye - s.position).dot(s.normal) > 0.0));
+}
+
+#[test]
+fn overflow_is_reported_and_bad_input_rejected() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let points = lattice(4, |_| true);
+    let field = ColourField::from_positions(&points, H).unwrap();
+    let params = ExtractParams::new(H).thesis();
+    let (surfels, stats) = gpu_extract(&ctx, &field, &params, 100);
+    println!("capacity 100: {stats:?}");
+    assert_eq!(surfels.len(), 100);
+    assert!(stats.dropped > 0);
+
+    let device = &ctx.device;
+    assert!(GpuExtractor::new(device, 10, 100, &ExtractParams::new(H)).is_err());
+    assert!(GpuExtractor::new(device, 10, 0, &params).is_err());
+    assert!(GpuExtractor::new(device, 10, usize::MAX / 64, &params).is_err());
+    let bad = ExtractParams {
+        iterations: 4,
+        ..params
+    };
+    assert!(GpuExtractor::new(device, 10, 100, &bad).is_err());
+    let mut gpu = GpuExtractor::new(device, 2, 100, &params).unwrap();
+    let q = &ctx.queue;
+    assert!(
+        gpu.upload(q, &[Vec3::ZERO, Vec3::NAN], &[1.0, 1.0])
+            .is_err()
+    );
+    assert!(gpu.upload(q, &[Vec3::ZERO], &[0.0]).is_err());
+    assert!(gpu.upload(q, &[Vec3::ZERO], &[1.0, 1.0]).is_err());
+    assert!(gpu.upload(q, &[Vec3::ZERO; 3], &[1.0; 3]).is_err());
+    let mut encoder = device.create_command_encoder(&Default::default());
+    assert!(gpu.encode_attached(q, &mut encoder).is_err());
+    // An empty set extracts nothing.
+    gpu.upload(q, &[], &[]).unwrap();
+    gpu.encode(&mut encoder);
+    q.submit([encoder.finish()]);
+    let (surfels, stats) = gpu.read_surfels(device, q).unwrap();
+    assert!(surfels.is_empty() && stats.evaluations == 0);
+}
+
+#[test]
+fn solver_particles_are_extracted_on_the_gpu() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02);
+    let world = scene.build_world().unwrap();
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let mut solver = GpuSolver::new(
+        device,
+        queue,
+        &world.particles,
+        world.params(),
+        &scene.boundary(),
+    )
+    .unwrap();
+    for _ in 0..100 {
+        solver.step(device, queue, 1e-3).unwrap();
+    }
+    let h = world.params().h;
+    let params = ExtractParams::new(h).thesis();
+    let mut gpu = GpuExtractor::new(device, solver.len(), 1 << 18, &params).unwrap();
+    gpu.attach(device, &solver).unwrap();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    gpu.encode_attached(queue, &mut encoder).unwrap();
+    queue.submit([encoder.finish()]);
+    let (surfels, stats) = gpu.read_surfels(device, queue).unwrap();
+
+    // The CPU extractor on the read-back state (positions, densities).
+    let state = solver.read_state(device, queue).unwrap();
+    let volumes: Vec<f32> = world
+        .particles
+        .masses()
+        .iter()
+        .zip(&state.densities)
+        .map(|(m, rho)| m / rho)
+        .collect();
+    let field = ColourField::with_volumes(&state.positions, &volumes, h).unwrap();
+    let cpu = extract_field(&field, &params).unwrap();
+    let r = residuals(&field, 0.5, &surfels);
+    println!(
+        "after 100 GPU steps: {} GPU surfels vs {} CPU, residual median {:.2e} p95 {:.2e}, normal {:.2}°, {stats:?}",
+        surfels.len(),
+        cpu.surfels.len(),
+        r.median,
+        r.p95,
+        r.median_angle_deg
+    );
+    assert_eq!(stats.particles, world.particles.len());
+    assert!(r.median < 0.01 && r.p95 < 0.05 && r.median_angle_deg < 5.0);
+    let diff = (surfels.len() as f64 - cpu.surfels.len() as f64).abs();
+    assert!(diff <= 0.01 * cpu.surfels.len() as f64);
+}
