@@ -174,8 +174,9 @@ impl GpuExtractor {
             return Err(GpuError::Invalid("max_surfels must be > 0"));
         }
         let limits = device.limits();
-        let max_bytes =
-            u64::from(limits.max_storage_buffer_binding_size).min(limits.max_buffer_size);
+        let max_bytes = limits
+            .max_storage_buffer_binding_size
+            .min(limits.max_buffer_size);
         let surfel_bytes = max_surfels as u64 * SURFEL_BYTES;
         if surfel_bytes > max_bytes || max_surfels > u32::MAX as usize {
             return Err(GpuError::Invalid(

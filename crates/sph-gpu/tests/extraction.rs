@@ -257,3 +257,65 @@ fn solver_particles_are_extracted_on_the_gpu() {
     let diff = (surfels.len() as f64 - cpu.surfels.len() as f64).abs();
     assert!(diff <= 0.01 * cpu.surfels.len() as f64);
 }
+
+#[test]
+fn gpu_surfels_render_indirectly_as_their_upload_does() {
+    use splat_render::{Camera, Environment, Shading, Splat, SplatRenderer};
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let points = lattice(9, |x| x.length() <= 8.5 * SPACING);
+    let field = ColourField::from_positions(&points, H).unwrap();
+    let params = ExtractParams::new(H).thesis();
+    let mut gpu = GpuExtractor::new(&ctx.device, field.len(), 1 << 14, &params).unwrap();
+    gpu.upload_field(&ctx.queue, &field).unwrap();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    gpu.encode(&mut encoder);
+    ctx.queue.submit([encoder.finish()]);
+
+    let camera = Camera::looking_at(Vec3::new(0.1, 0.15, 0.35), Vec3::ZERO);
+    let shading = Shading {
+        depth_epsilon: 0.5 * H,
+        ..Default::default()
+    };
+    let mut renderer = SplatRenderer::new(&ctx, 96, 72, &Environment::procedural()).unwrap();
+    renderer
+        .use_gpu_splats(&ctx, gpu.surfels_buffer(), gpu.draw_args_buffer())
+        .unwrap();
+    renderer.render(&ctx, &camera, &shading).unwrap();
+    let indirect = renderer.read_accumulation(&ctx).unwrap();
+
+    // The same surfels, read back in the GPU's order and uploaded.
+    let (surfels, _) = gpu.read_surfels(&ctx.device, &ctx.queue).unwrap();
+    let splats: Vec<Splat> = surfels
+        .iter()
+        .map(|s| Splat::new(s.position, s.normal, s.radius))
+        .collect();
+    renderer.upload(&ctx, &splats).unwrap();
+    renderer.render(&ctx, &camera, &shading).unwrap();
+    let uploaded = renderer.read_accumulation(&ctx).unwrap();
+    let covered = uploaded.texels.iter().filter(|t| t[3] > 0.0).count();
+    println!("{} surfels cover {covered} of 96×72 pixels", surfels.len());
+    assert!(covered > 96 * 72 / 10, "too few pixels covered: {covered}");
+    // Equal up to the upload's renormalisation of the normals (last bits,
+    // rounded by a half-float target on lavapipe).
+    let (mut differ, mut worst) = (0, 0f32);
+    for (a, b) in indirect.texels.iter().zip(&uploaded.texels) {
+        assert_eq!(a[3] > 0.0, b[3] > 0.0, "covered pixels differ");
+        let d = (0..4).map(|k| (a[k] - b[k]).abs()).fold(0.0, f32::max);
+        differ += usize::from(d > 0.0);
+        worst = worst.max(d / b[3].max(f32::MIN_POSITIVE));
+    }
+    println!("{differ} texels differ in the last bits, worst by {worst:.1e} of their weight");
+    assert!(
+        worst < 2e-3,
+        "indirect and uploaded draws differ by {worst}"
+    );
+
+    // A draw-args buffer that cannot be one is rejected.
+    assert!(
+        renderer
+            .use_gpu_splats(&ctx, gpu.surfels_buffer(), gpu.surfels_buffer())
+            .is_err()
+    );
+}

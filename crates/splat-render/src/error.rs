@@ -63,6 +63,9 @@ pub enum RenderError {
         /// Device limit.
         max: u64,
     },
+    /// A GPU-resident splat source whose buffers cannot serve as one.
+    #[error("invalid GPU splat source: {0}")]
+    InvalidSource(&'static str),
     /// A camera that cannot be projected (non-finite, eye on target, bad clip planes).
     #[error("invalid camera: {0}")]
     InvalidCamera(&'static str),

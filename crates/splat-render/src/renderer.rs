@@ -56,6 +56,9 @@ pub struct SplatRenderer {
     splats: wgpu::Buffer,
     splat_capacity: usize,
     splat_count: u32,
+    /// The indirect draw arguments of splats produced on the GPU
+    /// ([`use_gpu_splats`](Self::use_gpu_splats)); `None` draws the uploaded ones.
+    gpu_source: Option<wgpu::Buffer>,
     staging: Vec<GpuSplat>,
     buffer_allocations: u32,
     splat_layout: wgpu::BindGroupLayout,
@@ -307,6 +310,7 @@ impl SplatRenderer {
             splats,
             splat_capacity: MIN_SPLAT_CAPACITY,
             splat_count: 0,
+            gpu_source: None,
             staging: Vec::new(),
             buffer_allocations: 1,
             splat_layout,
@@ -338,7 +342,8 @@ impl SplatRenderer {
         self.accum_format
     }
 
-    /// Number of splats last uploaded.
+    /// Number of splats last uploaded (0 while drawing GPU-resident splats,
+    /// whose count stays on the GPU).
     pub fn splat_count(&self) -> usize {
         self.splat_count as usize
     }
@@ -413,6 +418,10 @@ impl SplatRenderer {
                 max,
             });
         }
+        if self.gpu_source.take().is_some() {
+            self.splat_group =
+                splat_bind_group(&ctx.device, &self.splat_layout, &self.frame, &self.splats);
+        }
         if gpu.len() > self.splat_capacity {
             let per = size_of::<GpuSplat>() as u64;
             let capacity = gpu.len().next_power_of_two().min((max / per) as usize);
@@ -428,6 +437,50 @@ impl SplatRenderer {
         }
         self.splat_count = gpu.len() as u32;
         Ok(())
+    }
+
+    /// Draws splats that live on the GPU from now on (until the next
+    /// [`upload`](Self::upload)): `splats` holds `vec4(position, radius),
+    /// vec4(normal, 0)` per splat (32 bytes, unit normals, positive radii) and
+    /// `draw_args` a `wgpu::util::DrawIndirectArgs` of 4 vertices and one
+    /// instance per splat — what a GPU surface extractor writes. Nothing goes
+    /// through the CPU; the buffers are only referenced.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSource`] when `splats` is not a storage buffer of
+    /// whole splats within the binding limit or `draw_args` not an indirect
+    /// buffer of at least 16 bytes.
+    pub fn use_gpu_splats(
+        &mut self,
+        ctx: &GpuContext,
+        splats: &wgpu::Buffer,
+        draw_args: &wgpu::Buffer,
+    ) -> Result<()> {
+        use wgpu::BufferUsages as U;
+        let per = size_of::<GpuSplat>() as u64;
+        let max = u64::from(ctx.device.limits().max_storage_buffer_binding_size);
+        if !splats.usage().contains(U::STORAGE) || splats.size() % per != 0 || splats.size() > max {
+            return Err(RenderError::InvalidSource(
+                "splats must be a storage buffer of whole 32-byte splats within the binding limit",
+            ));
+        }
+        if !draw_args.usage().contains(U::INDIRECT) || draw_args.size() < 16 {
+            return Err(RenderError::InvalidSource(
+                "draw_args must be an indirect buffer of at least 16 bytes",
+            ));
+        }
+        self.splat_group = splat_bind_group(&ctx.device, &self.splat_layout, &self.frame, splats);
+        self.gpu_source = Some(draw_args.clone());
+        self.splat_count = 0;
+        Ok(())
+    }
+
+    /// Records the splat draw of a pass: uploaded or GPU-resident splats.
+    fn draw_splats(&self, pass: &mut wgpu::RenderPass<'_>) {
+        match &self.gpu_source {
+            Some(args) => pass.draw_indirect(args, 0),
+            None => pass.draw(0..4, 0..self.splat_count),
+        }
     }
 
     /// Records the three passes into `encoder` (visibility, attribute, shade).
@@ -485,7 +538,7 @@ impl SplatRenderer {
             });
             pass.set_pipeline(&self.visibility);
             pass.set_bind_group(0, &self.splat_group, &[]);
-            pass.draw(0..4, 0..self.splat_count);
+            self.draw_splats(&mut pass);
         }
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -504,7 +557,7 @@ impl SplatRenderer {
             });
             pass.set_pipeline(&self.attribute);
             pass.set_bind_group(0, &self.splat_group, &[]);
-            pass.draw(0..4, 0..self.splat_count);
+            self.draw_splats(&mut pass);
         }
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
