@@ -458,8 +458,11 @@ impl SplatRenderer {
     ) -> Result<()> {
         use wgpu::BufferUsages as U;
         let per = size_of::<GpuSplat>() as u64;
-        let max = u64::from(ctx.device.limits().max_storage_buffer_binding_size);
-        if !splats.usage().contains(U::STORAGE) || splats.size() % per != 0 || splats.size() > max {
+        let max = ctx.device.limits().max_storage_buffer_binding_size;
+        if !splats.usage().contains(U::STORAGE)
+            || !splats.size().is_multiple_of(per)
+            || splats.size() > max
+        {
             return Err(RenderError::InvalidSource(
                 "splats must be a storage buffer of whole 32-byte splats within the binding limit",
             ));
