@@ -74,6 +74,12 @@ pub struct Args {
     #[arg(long)]
     pub gpu_sim: bool,
 
+    /// Extract the surfels on the GPU (wgpu compute, `sph-gpu`; the thesis
+    /// mode, without the CPU's hole closing) and draw them without a round
+    /// trip to the CPU. With --gpu-sim it reads the GPU solver's buffers.
+    #[arg(long)]
+    pub gpu_extract: bool,
+
     /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,

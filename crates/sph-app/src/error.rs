@@ -32,11 +32,10 @@ pub enum AppError {
     /// The renderer failed.
     #[error("{0}")]
     Render(#[from] splat_render::RenderError),
-    /// The window could not be created.
-    /// The GPU simulation path (`--gpu-sim`) failed or does not support the scene.
-    #[error("GPU simulation: {0}")]
+    /// The GPU path (`--gpu-sim`, `--gpu-extract`) failed or does not support the scene.
+    #[error("GPU path: {0}")]
     Gpu(String),
-
+    /// The window could not be created.
     #[error("window: {0}")]
     Window(String),
     /// A headless run stopped part-way; the files of earlier frames are complete.

@@ -62,6 +62,11 @@ impl GpuSim {
         })
     }
 
+    /// The solver (its buffers feed `--gpu-extract`).
+    pub fn solver(&self) -> &GpuSolver {
+        &self.solver
+    }
+
     /// Advances `frame_dt` seconds and writes positions, velocities, densities
     /// and pressures back into `world.particles`. Returns the substeps taken.
     ///

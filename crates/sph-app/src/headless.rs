@@ -47,6 +47,14 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         };
         pipeline.set_gpu_sim(Some(ctx))?;
     }
+    if args.gpu_extract {
+        let Some(ctx) = &gpu else {
+            return Err(AppError::Gpu(
+                "--gpu-extract needs a GPU adapter, and none was found (see above)".into(),
+            ));
+        };
+        pipeline.set_gpu_extract(Some(ctx))?;
+    }
     let mut renderer = match &gpu {
         Some(ctx) => Some(SplatRenderer::new(
             ctx,
@@ -67,11 +75,16 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     let frames = args.frame_count();
     let frame_dt = 1.0 / args.fps;
     println!(
-        "scene `{}`: {} particles{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
+        "scene `{}`: {} particles{}{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
         pipeline.name,
         pipeline.world.particles.len(),
         if pipeline.gpu.is_some() {
             " (SPH step on the GPU)"
+        } else {
+            ""
+        },
+        if pipeline.gpu_extract.is_some() {
+            " (surfels extracted on the GPU)"
         } else {
             ""
         },
@@ -96,7 +109,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             let mut render_ms = 0.0;
             if let (Some(ctx), Some(renderer)) = (&gpu, renderer.as_mut()) {
                 let start = Instant::now();
-                renderer.upload(ctx, &pipeline.splats())?;
+                pipeline.show_surfels(ctx, renderer)?;
                 renderer.render(ctx, &camera, &shading)?;
                 let image = renderer.read_image(ctx)?;
                 render_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -149,7 +162,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
 }
 
 fn write_surfels(w: &mut FrameWriter, pipeline: &Pipeline, time: f64) -> Result<(), AppError> {
-    let s = &pipeline.surfels;
+    let s = pipeline.surfels_on_cpu()?;
     let positions: Vec<_> = s.iter().map(|s| s.position).collect();
     let normals: Vec<_> = s.iter().map(|s| s.normal).collect();
     let radii: Vec<_> = s.iter().map(|s| s.radius).collect();

@@ -5,6 +5,7 @@
 
 mod cli;
 mod error;
+mod gpu_extract;
 mod gpu_sim;
 mod headless;
 mod orbit;

@@ -4,10 +4,11 @@ use std::time::Instant;
 
 use glam::Vec3;
 use sph_core::{Scene, World};
-use splat_render::{Camera, GpuContext, Shading, Splat};
+use splat_render::{Camera, GpuContext, Shading, Splat, SplatRenderer};
 use surfel_extract::{ExtractParams, Surfel, extract};
 
 use crate::error::AppError;
+use crate::gpu_extract::GpuExtract;
 use crate::gpu_sim::GpuSim;
 
 /// What one frame did (a row of `frames.csv`, the stats panel).
@@ -43,12 +44,16 @@ pub struct Pipeline {
     pub world: World,
     /// Extraction parameters.
     pub extract: ExtractParams,
-    /// The last surfels.
+    /// The last surfels (empty while they are extracted on the GPU).
     pub surfels: Vec<Surfel>,
+    /// Whether the surfels belong to the current particles.
+    extracted: bool,
     /// The last frame's stats.
     pub stats: FrameStats,
     /// The GPU solver when `--gpu-sim` (or the panel) switched it on.
     pub gpu: Option<GpuSim>,
+    /// The GPU extractor when `--gpu-extract` (or the panel) switched it on.
+    pub gpu_extract: Option<GpuExtract>,
     /// Simulated time spent on the GPU path (s): the world's clock does not see it.
     gpu_time: f64,
 }
@@ -70,8 +75,10 @@ impl Pipeline {
             world,
             extract,
             surfels: Vec::new(),
+            extracted: false,
             stats: FrameStats::default(),
             gpu: None,
+            gpu_extract: None,
             gpu_time: 0.0,
         };
         p.stats.particles = p.world.particles.len();
@@ -86,6 +93,7 @@ impl Pipeline {
             self.gpu = Some(gpu.restart(&self.world, &self.scene)?);
         }
         self.surfels.clear(); // stale: the next frame extracts again
+        self.extracted = false;
         self.stats = FrameStats {
             particles: self.world.particles.len(),
             ..Default::default()
@@ -103,6 +111,23 @@ impl Pipeline {
             .map(|ctx| GpuSim::new(ctx, &self.world, &self.scene))
             .transpose()?;
         Ok(())
+    }
+
+    /// Extracts on the GPU of `ctx` (`Some`, thesis mode) or on the CPU (`None`).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] where the GPU path rejects the parameters.
+    pub fn set_gpu_extract(&mut self, ctx: Option<&GpuContext>) -> Result<(), AppError> {
+        self.gpu_extract = ctx
+            .map(|ctx| GpuExtract::new(ctx, &self.world, &self.extract))
+            .transpose()?;
+        self.extracted = false;
+        Ok(())
+    }
+
+    /// Whether the surfels are stale (particles moved, reset, mode switched).
+    pub fn needs_extraction(&self) -> bool {
+        !self.extracted
     }
 
     /// Simulated time per frame at `fps`.
@@ -124,18 +149,57 @@ impl Pipeline {
         self.stats.time = time;
         self.stats.frame += 1;
         self.stats.particles = self.world.particles.len();
+        self.extracted = false;
         Ok(())
     }
 
-    /// Extracts the surfels of the current particles.
+    /// Extracts the surfels of the current particles, on the GPU when
+    /// [`set_gpu_extract`](Self::set_gpu_extract) switched it on (the time then
+    /// includes waiting for the GPU).
     pub fn extract_surfels(&mut self) -> Result<(), AppError> {
         let start = Instant::now();
-        let out = extract(&self.world.particles, &self.extract)?;
+        if let Some(gpu) = self.gpu_extract.as_mut() {
+            let solver = self.gpu.as_ref().map(GpuSim::solver);
+            let stats = gpu.run(&self.world, solver)?;
+            self.stats.surfels = stats.surfels;
+            self.stats.evaluations = stats.evaluations + stats.particle_evaluations;
+            self.surfels.clear();
+        } else {
+            let out = extract(&self.world.particles, &self.extract)?;
+            self.stats.surfels = out.surfels.len();
+            self.stats.evaluations = out.stats.evaluations + out.stats.particle_evaluations;
+            self.surfels = out.surfels;
+        }
         self.stats.extract_ms = start.elapsed().as_secs_f64() * 1e3;
-        self.stats.surfels = out.surfels.len();
-        self.stats.evaluations = out.stats.evaluations + out.stats.particle_evaluations;
-        self.surfels = out.surfels;
+        self.extracted = true;
         Ok(())
+    }
+
+    /// Puts the last surfels in `renderer`: uploaded, or drawn from the GPU
+    /// extractor's buffer.
+    ///
+    /// # Errors
+    /// [`AppError::Render`] for an invalid surfel.
+    pub fn show_surfels(
+        &self,
+        ctx: &GpuContext,
+        renderer: &mut SplatRenderer,
+    ) -> Result<(), AppError> {
+        match &self.gpu_extract {
+            Some(gpu) => gpu.show(ctx, renderer),
+            None => Ok(renderer.upload(ctx, &self.splats())?),
+        }
+    }
+
+    /// The last surfels on the CPU (read back from the GPU extractor).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] on a readback failure.
+    pub fn surfels_on_cpu(&self) -> Result<std::borrow::Cow<'_, [Surfel]>, AppError> {
+        Ok(match &self.gpu_extract {
+            Some(gpu) => gpu.read_surfels()?.into(),
+            None => self.surfels.as_slice().into(),
+        })
     }
 
     /// The surfels as splats.

@@ -90,6 +90,10 @@ struct Settings {
     gpu_sim: bool,
     /// Why the GPU step could not be switched on, shown in the panel.
     gpu_note: Option<String>,
+    /// Whether surfels should be extracted on the GPU (`--gpu-extract`, the panel).
+    gpu_extract: bool,
+    /// Why GPU extraction could not be switched on, shown in the panel.
+    gpu_extract_note: Option<String>,
 }
 
 const VIEW_NAMES: [&str; 5] = ["shaded", "normals", "weights", "depth", "particles"];
@@ -149,6 +153,8 @@ impl App {
                 step_once: false,
                 gpu_sim: args.gpu_sim,
                 gpu_note: None,
+                gpu_extract: args.gpu_extract,
+                gpu_extract_note: None,
             },
             push,
             gfx: None,
@@ -251,6 +257,26 @@ impl App {
         }
     }
 
+    /// Switches extraction to the GPU or back when the setting changed.
+    fn sync_gpu_extract(&mut self) {
+        let Some(gfx) = self.gfx.as_ref() else {
+            return;
+        };
+        if self.settings.gpu_extract == self.pipeline.gpu_extract.is_some() {
+            return;
+        }
+        let ctx = self.settings.gpu_extract.then_some(&gfx.ctx);
+        match self.pipeline.set_gpu_extract(ctx) {
+            Ok(()) => self.settings.gpu_extract_note = None,
+            Err(e) => {
+                log::warn!("{e}");
+                self.settings.gpu_extract = false;
+                self.settings.gpu_extract_note = Some(e.to_string());
+            }
+        }
+        self.uploaded = None;
+    }
+
     fn reset(&mut self) -> Result<(), AppError> {
         self.pipeline.reset()?;
         install_push(&mut self.pipeline, &self.push);
@@ -327,7 +353,7 @@ impl App {
                 advanced = true;
             }
         }
-        if advanced || self.pipeline.surfels.is_empty() {
+        if advanced || self.pipeline.needs_extraction() {
             self.pipeline.extract_surfels()?;
             self.uploaded = None;
         }
@@ -345,12 +371,12 @@ impl App {
         // Surfels are uploaded once per extraction; particle discs face the
         // camera, so they follow it every frame.
         if particles_view || self.uploaded != Some(particles_view) {
-            let splats = if particles_view {
-                self.pipeline.particle_splats(camera.eye)
+            if particles_view {
+                let splats = self.pipeline.particle_splats(camera.eye);
+                gfx.renderer.upload(&gfx.ctx, &splats)?;
             } else {
-                self.pipeline.splats()
-            };
-            gfx.renderer.upload(&gfx.ctx, &splats)?;
+                self.pipeline.show_surfels(&gfx.ctx, &mut gfx.renderer)?;
+            }
             self.uploaded = Some(particles_view);
         }
         let mut shading = self.settings.shading;
@@ -410,6 +436,11 @@ impl App {
                 ui.checkbox(&mut settings.gpu_sim, "SPH step on the GPU")
                     .on_hover_text("wgpu compute (sph-gpu); ctrl+drag push acts on the CPU path only");
                 if let Some(note) = &settings.gpu_note {
+                    ui.small(note.as_str());
+                }
+                ui.checkbox(&mut settings.gpu_extract, "surfels extracted on the GPU")
+                    .on_hover_text("wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
+                if let Some(note) = &settings.gpu_extract_note {
                     ui.small(note.as_str());
                 }
                 egui::ComboBox::from_label("view (F)")
@@ -496,6 +527,7 @@ impl App {
             self.switch_scene(i)?;
         }
         self.sync_gpu_sim();
+        self.sync_gpu_extract();
         if self.args_screenshot_after == Some(self.frames_drawn) {
             self.screenshot()?;
             event_loop.exit();

@@ -294,3 +294,70 @@ fn gpu_sim_without_an_adapter_is_a_clear_error() {
         stderr(&o)
     );
 }
+
+#[test]
+fn gpu_extract_draws_and_exports_the_gpu_surfels() {
+    for (name, extra) in [
+        ("gpu-extract", None),
+        ("gpu-sim-and-extract", Some("--gpu-sim")),
+    ] {
+        let out = scratch(name);
+        let mut args = vec![
+            "--headless",
+            "--scene",
+            "dam-break",
+            "--frames",
+            "2",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--export-surfels",
+            "ply",
+            "--gpu-extract",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(extra);
+        let o = app(&args);
+        if !o.status.success() && stderr(&o).contains("needs a GPU adapter") {
+            assert!(
+                std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
+                "{}",
+                stderr(&o)
+            );
+            eprintln!("skipped: no GPU adapter");
+            return;
+        }
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        assert!(stdout.contains("surfels extracted on the GPU"), "{stdout}");
+        let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        for (i, line) in csv.lines().skip(1).enumerate() {
+            let surfels: usize = line.split(',').nth(3).unwrap().parse().unwrap();
+            let file = out.join(format!("surfels_{i:05}.ply"));
+            let cloud = read_ply(std::fs::File::open(&file).unwrap()).unwrap();
+            eprintln!("{name} frame {i}: {surfels} surfels");
+            assert!(surfels > 100, "{name}: {line}");
+            assert_eq!(cloud.positions.len(), surfels, "{name}: {line}");
+            assert!(out.join(format!("frame_{i:05}.png")).exists());
+        }
+    }
+}
+
+#[test]
+fn gpu_extract_without_an_adapter_is_a_clear_error() {
+    let o = Command::new(env!("CARGO_BIN_EXE_sph-app"))
+        .args(["--headless", "--frames", "1", "--gpu-extract", "--out"])
+        .arg(scratch("gpu-extract-no-adapter"))
+        .env("WGPU_BACKEND", "metal")
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("--gpu-extract needs a GPU adapter"),
+        "{}",
+        stderr(&o)
+    );
+}
