@@ -35,7 +35,7 @@ impl GpuExtract {
         let params = params.thesis();
         let particles = world.particles.len().max(1);
         // A first guess; grows on overflow.
-        let capacity = (2 * particles << (2 * (params.iterations - 1))).max(1 << 12);
+        let capacity = ((2 * particles) << (2 * (params.iterations - 1))).max(1 << 12);
         let extractor = Self::create(&ctx.device, particles, capacity, &params)?;
         Ok(Self {
             extractor,
