@@ -1,14 +1,71 @@
-//! `cargo bench --bench gpu`: one SPH step on the CPU (`World::step`, all
-//! threads) and on the GPU (`sph_gpu::GpuSolver::step`, waiting for the device)
-//! in the same run, for 100k and 1M particles of a 3D dam break at 1 cm
-//! spacing. Without a GPU this runs on lavapipe: CPU-rasteriser figures.
+//! `cargo bench --bench gpu`: the CPU path and the GPU path (`sph-gpu`) in the
+//! same run, for 100k and 1M particles of a 3D dam break at 1 cm spacing:
+//!
+//! - `sph_step`: one SPH step (`World::step`, all threads, vs
+//!   `GpuSolver::step`, waiting for the device);
+//! - `extraction`: the surfels of that state (`surfel_extract::extract`, the
+//!   default covered mode and the thesis mode, vs `GpuExtractor` reading the
+//!   solver's buffers, thesis mode, waiting for the device);
+//! - `frame`: one whole frame at 1920×1080 — step, extraction, splat rendering
+//!   (the CPU path uploads its surfels; the GPU path draws them indirectly and
+//!   nothing leaves the GPU).
+//!
+//! Without a GPU this runs on lavapipe: software figures, the "GPU" path on the
+//! same CPU cores.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use sph_core::Scene;
-use sph_gpu::GpuSolver;
-use splat_render::{GpuContext, wgpu};
+use sph_core::{Scene, World};
+use sph_gpu::{GpuExtractor, GpuSolver};
+use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, wgpu};
+use surfel_extract::{ExtractParams, extract};
 
-fn steps(c: &mut Criterion) {
+/// A 3D dam break of side `a` (m) at 1 cm spacing after one CPU step, and a
+/// GPU solver of the same particles after one step.
+fn setup(ctx: &GpuContext, a: f32) -> (Scene, World, GpuSolver) {
+    let scene = Scene::dam_break(a, a, 0.01);
+    let mut world = scene.build_world().expect("scene");
+    let mut gpu = GpuSolver::new(
+        &ctx.device,
+        &ctx.queue,
+        &world.particles,
+        world.params(),
+        &scene.boundary(),
+    )
+    .expect("GPU solver");
+    let dt = world.stable_dt();
+    world.step().expect("stable");
+    gpu.step(&ctx.device, &ctx.queue, dt).expect("step");
+    (scene, world, gpu)
+}
+
+fn wait(ctx: &GpuContext) {
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .expect("GPU finished");
+}
+
+/// A GPU extractor attached to `gpu`, sized after a first run.
+fn gpu_extractor(ctx: &GpuContext, gpu: &GpuSolver, params: &ExtractParams) -> GpuExtractor {
+    let limit = ctx.device.limits().max_storage_buffer_binding_size / sph_gpu::SURFEL_BYTES;
+    let capacity = (1usize << 23).min(limit as usize);
+    let mut x = GpuExtractor::new(&ctx.device, gpu.len(), capacity, params).expect("extractor");
+    x.attach(&ctx.device, gpu).expect("attach");
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    x.encode_attached(&ctx.queue, &mut encoder).expect("encode");
+    ctx.queue.submit([encoder.finish()]);
+    let stats = x.read_stats(&ctx.device, &ctx.queue).expect("stats");
+    println!(
+        "  GPU extraction: {} surfels, {} evaluations (efficiency {:.2}), dropped {}",
+        stats.surfels,
+        stats.evaluations,
+        stats.efficiency(),
+        stats.dropped
+    );
+    assert_eq!(stats.dropped, 0, "capacity {capacity} too small");
+    x
+}
+
+fn gpu_vs_cpu(c: &mut Criterion) {
     let ctx = match GpuContext::headless() {
         Ok(ctx) => ctx,
         Err(err) => {
@@ -17,23 +74,26 @@ fn steps(c: &mut Criterion) {
         }
     };
     println!("adapter: {}", ctx.adapter_summary());
-    let mut group = c.benchmark_group("sph_step");
-    group.sample_size(10);
     // a = 0.37 → 37 × 74 × 37 ≈ 101k particles; a = 0.8 → 80 × 160 × 80 ≈ 1.02M.
     for (label, a) in [("100k", 0.37f32), ("1M", 0.8)] {
-        let scene = Scene::dam_break(a, a, 0.01);
-        let mut world = scene.build_world().expect("scene");
+        let (scene, mut world, mut gpu) = setup(&ctx, a);
         let n = world.particles.len();
-        println!("{label}: {n} particles");
         let dt = world.stable_dt();
-        let mut gpu = GpuSolver::new(
-            &ctx.device,
-            &ctx.queue,
-            &world.particles,
-            world.params(),
-            &scene.boundary(),
-        )
-        .expect("GPU solver");
+        let h = world.params().h;
+        let covered = ExtractParams::new(h);
+        let thesis = covered.thesis();
+        let cpu_out = extract(&world.particles, &covered).expect("extract");
+        let cpu_thesis = extract(&world.particles, &thesis).expect("extract");
+        println!(
+            "{label}: {n} particles; CPU extraction: {} surfels (covered), {} (thesis, efficiency {:.2})",
+            cpu_out.surfels.len(),
+            cpu_thesis.surfels.len(),
+            cpu_thesis.stats.efficiency()
+        );
+        let mut extractor = gpu_extractor(&ctx, &gpu, &thesis);
+
+        let mut group = c.benchmark_group("sph_step");
+        group.sample_size(10);
         group.throughput(Throughput::Elements(n as u64));
         group.bench_function(BenchmarkId::new("cpu", label), |b| {
             b.iter(|| world.step().expect("stable"))
@@ -41,14 +101,84 @@ fn steps(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("gpu", label), |b| {
             b.iter(|| {
                 gpu.step(&ctx.device, &ctx.queue, dt).expect("step");
-                ctx.device
-                    .poll(wgpu::PollType::wait_indefinitely())
-                    .expect("GPU finished");
+                wait(&ctx);
             })
         });
+        group.finish();
+
+        let mut group = c.benchmark_group("extraction");
+        group.sample_size(10);
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_function(BenchmarkId::new("cpu_covered", label), |b| {
+            b.iter(|| extract(&world.particles, &covered).expect("extract"))
+        });
+        group.bench_function(BenchmarkId::new("cpu_thesis", label), |b| {
+            b.iter(|| extract(&world.particles, &thesis).expect("extract"))
+        });
+        group.bench_function(BenchmarkId::new("gpu_thesis", label), |b| {
+            b.iter(|| {
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                extractor
+                    .encode_attached(&ctx.queue, &mut encoder)
+                    .expect("encode");
+                ctx.queue.submit([encoder.finish()]);
+                wait(&ctx);
+            })
+        });
+        group.finish();
+
+        let mut renderer =
+            SplatRenderer::new(&ctx, 1920, 1080, &Environment::procedural()).expect("renderer");
+        let r = &scene.render;
+        let camera = Camera {
+            fov_y: r.fov_y.to_radians(),
+            ..Camera::looking_at(r.camera.into(), r.look_at.into())
+        };
+        let shading = Shading {
+            depth_epsilon: 0.5 * h,
+            ..Default::default()
+        };
+        let mut group = c.benchmark_group("frame_1080p");
+        group.sample_size(10);
+        group.throughput(Throughput::Elements(n as u64));
+        group.bench_function(BenchmarkId::new("cpu", label), |b| {
+            b.iter(|| {
+                world.step().expect("stable");
+                let out = extract(&world.particles, &covered).expect("extract");
+                let splats: Vec<Splat> = out
+                    .surfels
+                    .iter()
+                    .map(|s| Splat::new(s.position, s.normal, s.radius))
+                    .collect();
+                renderer.upload(&ctx, &splats).expect("upload");
+                renderer.render(&ctx, &camera, &shading).expect("render");
+                wait(&ctx);
+            })
+        });
+        renderer
+            .use_gpu_splats(
+                &ctx,
+                extractor.surfels_buffer(),
+                extractor.draw_args_buffer(),
+            )
+            .expect("GPU splats");
+        group.bench_function(BenchmarkId::new("gpu", label), |b| {
+            b.iter(|| {
+                gpu.step(&ctx.device, &ctx.queue, dt).expect("step");
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                extractor
+                    .encode_attached(&ctx.queue, &mut encoder)
+                    .expect("encode");
+                renderer
+                    .encode(&ctx, &mut encoder, &camera, &shading)
+                    .expect("render");
+                ctx.queue.submit([encoder.finish()]);
+                wait(&ctx);
+            })
+        });
+        group.finish();
     }
-    group.finish();
 }
 
-criterion_group!(benches, steps);
+criterion_group!(benches, gpu_vs_cpu);
 criterion_main!(benches);

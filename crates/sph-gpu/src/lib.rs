@@ -11,8 +11,11 @@
 //! readback; [`GpuDensity`], sph-core's density and pressure (with the box walls'
 //! density) as a compute pass over it; [`GpuSolver`], the whole step of
 //! `sph_core::solver::default_program` (box walls) with the particles resident
-//! on the GPU. Adaptive dt on the GPU, obstacles and surfel extraction are not
-//! built yet.
+//! on the GPU; [`GpuExtractor`], surfel-extract's thesis-mode extraction
+//! (initial guess, Newton-Raphson refinement with splitting) with append
+//! buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
+//! draws without a round trip to the CPU. Adaptive dt on the GPU, obstacles and
+//! hole closing are not built yet.
 
 mod density;
 mod extract;
