@@ -70,7 +70,7 @@ pub struct Args {
 
     /// Run the SPH step on the GPU (wgpu compute, `sph-gpu`) instead of the CPU;
     /// extraction stays on the CPU. Needs a GPU adapter (lavapipe will do);
-    /// scenes with obstacles are not supported on this path yet.
+    /// scenes with emitters are not supported on this path.
     #[arg(long)]
     pub gpu_sim: bool,
 

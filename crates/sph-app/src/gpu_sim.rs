@@ -27,8 +27,8 @@ impl GpuSim {
     /// Uploads `world`'s particles to the device of `ctx`.
     ///
     /// # Errors
-    /// [`AppError::Gpu`] where the GPU path does not support the scene (for
-    /// example obstacles) or the data is invalid.
+    /// [`AppError::Gpu`] where the GPU path does not support the scene
+    /// (emitters) or the data is invalid.
     pub fn new(ctx: &GpuContext, world: &World, scene: &sph_core::Scene) -> Result<Self, AppError> {
         Self::on(&ctx.device, &ctx.queue, world, scene)
     }
@@ -47,6 +47,11 @@ impl GpuSim {
         world: &World,
         scene: &sph_core::Scene,
     ) -> Result<Self, AppError> {
+        if !scene.emitters.is_empty() {
+            return Err(AppError::Gpu(
+                "emitters are not on the GPU path (its particle count is fixed): run this scene on the CPU".into(),
+            ));
+        }
         let solver = GpuSolver::new(
             device,
             queue,

@@ -361,3 +361,33 @@ fn gpu_extract_without_an_adapter_is_a_clear_error() {
         stderr(&o)
     );
 }
+
+#[test]
+fn gpu_sim_refuses_a_scene_with_emitters() {
+    let scene = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/scenes/drop_into_pool.toml"
+    );
+    let out = scratch("gpu-sim-emitters");
+    let o = app(&[
+        "--headless",
+        "--frames",
+        "1",
+        "--scene",
+        scene,
+        "--gpu-sim",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = stderr(&o);
+    if err.contains("needs a GPU adapter") {
+        assert!(
+            std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
+            "{err}"
+        );
+        eprintln!("skipped: no GPU adapter");
+        return;
+    }
+    assert!(err.contains("emitters are not on the GPU path"), "{err}");
+}

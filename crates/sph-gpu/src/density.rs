@@ -1,7 +1,7 @@
 //! [`GpuDensity`]: density and pressure as a compute pass over a [`GpuGrid`].
 
 use bytemuck::{Pod, Zeroable};
-use sph_core::{Boundary, FluidParams};
+use sph_core::{Boundary, FluidParams, Obstacle};
 
 use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{compute_pass, read};
@@ -21,7 +21,7 @@ struct Fluid {
     domain_max: [f32; 4],
 }
 
-/// Density by poly6 summation plus the box walls' density (eq. 4 and
+/// Density by poly6 summation plus the walls' and obstacles' density (eq. 4 and
 /// `sph_core::boundary`), pressure by eq. 16 — sph-core's `DensityPressure`
 /// on the GPU, reading the grid's buffers and writing its own.
 pub struct GpuDensity {
@@ -29,6 +29,7 @@ pub struct GpuDensity {
     uniform: wgpu::Buffer,
     densities: wgpu::Buffer,
     pressures: wgpu::Buffer,
+    obstacles: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
     pipeline: wgpu::ComputePipeline,
 }
@@ -38,7 +39,7 @@ impl GpuDensity {
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for parameters sph-core rejects, an `h` different
-    /// from the grid's, or obstacles (not on the GPU yet).
+    /// from the grid's, or a non-finite obstacle.
     pub fn new(
         device: &wgpu::Device,
         grid: &GpuGrid,
@@ -54,9 +55,7 @@ impl GpuDensity {
                 "the density's h must be the grid's cell size",
             ));
         }
-        if !boundary.obstacles.is_empty() {
-            return Err(GpuError::Invalid("obstacles are not on the GPU path yet"));
-        }
+        let obstacles = obstacles_buffer(device, boundary)?;
         let h = params.h;
         let fluid = Fluid {
             h,
@@ -93,12 +92,14 @@ impl GpuDensity {
             grid.sorted_buffer(),
             &densities,
             &pressures,
+            &obstacles,
         ];
         let (pipeline, bind_group) = compute_pass(
             device,
             "density",
             concat!(
                 include_str!("shaders/hash.wgsl"),
+                include_str!("shaders/walls.wgsl"),
                 include_str!("shaders/density.wgsl")
             )
             .into(),
@@ -109,6 +110,7 @@ impl GpuDensity {
             uniform,
             densities,
             pressures,
+            obstacles,
             bind_group,
             pipeline,
         })
@@ -138,6 +140,11 @@ impl GpuDensity {
         &self.densities
     }
 
+    /// The boundary's obstacles (`struct Obstacle` of `shaders/walls.wgsl`).
+    pub(crate) fn obstacles_buffer(&self) -> &wgpu::Buffer {
+        &self.obstacles
+    }
+
     /// Pressures (storage buffer of `f32`, one per particle).
     pub fn pressures_buffer(&self) -> &wgpu::Buffer {
         &self.pressures
@@ -161,4 +168,46 @@ impl GpuDensity {
             bytemuck::pod_collect_to_vec(&p),
         ))
     }
+}
+
+/// The obstacles of `boundary` in the layout of `struct Obstacle`
+/// (`shaders/walls.wgsl`), or one entry of kind NONE when there are none.
+///
+/// # Errors
+/// [`GpuError::Invalid`] for a non-finite obstacle or a non-positive radius.
+fn obstacles_buffer(device: &wgpu::Device, boundary: &Boundary) -> Result<wgpu::Buffer, GpuError> {
+    use wgpu::util::DeviceExt;
+    const BOX: f32 = 0.0;
+    const SPHERE: f32 = 1.0;
+    const NONE: f32 = 2.0;
+    let mut data: Vec<[f32; 8]> = Vec::with_capacity(boundary.obstacles.len().max(1));
+    for o in &boundary.obstacles {
+        let entry = match *o {
+            Obstacle::Box(b) => [
+                b.min.x, b.min.y, b.min.z, BOX, b.max.x, b.max.y, b.max.z, 0.0,
+            ],
+            Obstacle::Sphere { centre, radius } => {
+                if !(radius.is_finite() && radius > 0.0) {
+                    return Err(GpuError::Invalid(
+                        "a sphere obstacle's radius must be finite and > 0",
+                    ));
+                }
+                [centre.x, centre.y, centre.z, SPHERE, radius, 0.0, 0.0, 0.0]
+            }
+        };
+        if entry.iter().any(|v| !v.is_finite()) {
+            return Err(GpuError::Invalid("an obstacle is not finite"));
+        }
+        data.push(entry);
+    }
+    if data.is_empty() {
+        data.push([0.0, 0.0, 0.0, NONE, 0.0, 0.0, 0.0, 0.0]);
+    }
+    Ok(
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("obstacles"),
+            contents: bytemuck::cast_slice(&data),
+            usage: wgpu::BufferUsages::STORAGE,
+        }),
+    )
 }

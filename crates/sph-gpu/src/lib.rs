@@ -8,13 +8,14 @@
 //! Built so far: [`GpuGrid`], the uniform-grid neighbour search — cell keys,
 //! counting sort (atomic counts, prefix sum, scatter), cell start table and a
 //! deterministic order inside each cell — all compute passes with no CPU
-//! readback; [`GpuDensity`], sph-core's density and pressure (with the box walls'
-//! density) as a compute pass over it; [`GpuSolver`], the whole step of
-//! `sph_core::solver::default_program` (box walls) with the particles resident
+//! readback; [`GpuDensity`], sph-core's density and pressure (with the walls' and
+//! obstacles' density) as a compute pass over it; [`GpuSolver`], the whole step of
+//! `sph_core::solver::default_program` (domain walls, box and sphere
+//! obstacles) with the particles resident
 //! on the GPU; [`GpuExtractor`], surfel-extract's thesis-mode extraction
 //! (initial guess, Newton-Raphson refinement with splitting) with append
 //! buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
-//! draws without a round trip to the CPU. Adaptive dt on the GPU, obstacles and
+//! draws without a round trip to the CPU. Adaptive dt on the GPU, emitters and
 //! hole closing are not built yet.
 
 mod density;

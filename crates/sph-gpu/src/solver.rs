@@ -12,6 +12,9 @@ use crate::passes::{compute_pass, read};
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
 
+/// WGSL of the boundary's walls and obstacles, prepended after [`PARAMS`].
+const WALLS: &str = include_str!("shaders/walls.wgsl");
+
 /// Mirrors `struct Params` in `shaders/solver_params.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -50,9 +53,9 @@ pub struct GpuState {
 }
 
 /// The SPH step on the GPU with the same equations and parameters as
-/// `sph_core::solver::default_program` (box walls; obstacles, emitters and
-/// sinks stay on the CPU path for now). Particle order never changes, so
-/// index i is the same particle on both paths.
+/// `sph_core::solver::default_program`: domain walls and obstacles (boxes,
+/// spheres) included; emitters and sinks stay on the CPU path. Particle order
+/// never changes, so index i is the same particle on both paths.
 pub struct GpuSolver {
     params: Params,
     grid: GpuGrid,
@@ -68,8 +71,8 @@ impl GpuSolver {
     /// Uploads `particles` (positions, velocities, masses) and prepares the passes.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for parameters sph-core rejects, obstacles, or
-    /// non-finite particle data.
+    /// [`GpuError::Invalid`] for parameters sph-core rejects, a non-finite
+    /// obstacle, or non-finite particle data.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -134,7 +137,10 @@ impl GpuSolver {
         let forces = compute_pass(
             device,
             "forces",
-            format!("{hash}{PARAMS}{}", include_str!("shaders/forces.wgsl")),
+            format!(
+                "{hash}{PARAMS}{WALLS}{}",
+                include_str!("shaders/forces.wgsl")
+            ),
             &[
                 &uniform,
                 grid.positions_buffer(),
@@ -145,17 +151,19 @@ impl GpuSolver {
                 density.pressures_buffer(),
                 &velocities,
                 &accelerations,
+                density.obstacles_buffer(),
             ],
         );
         let integrate = compute_pass(
             device,
             "integrate",
-            format!("{PARAMS}{}", include_str!("shaders/integrate.wgsl")),
+            format!("{PARAMS}{WALLS}{}", include_str!("shaders/integrate.wgsl")),
             &[
                 &uniform,
                 grid.positions_buffer(),
                 &velocities,
                 &accelerations,
+                density.obstacles_buffer(),
             ],
         );
         Ok(Self {

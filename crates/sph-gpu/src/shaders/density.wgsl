@@ -1,4 +1,4 @@
-// Density by poly6 summation (eq. 4) plus the walls' half-space integral, and
+// Density by poly6 summation (eq. 4) plus the walls' half-space integrals (walls.wgsl), and
 // pressure by the equation of state p = k(rho - rho0) (eq. 16): the same
 // equations as sph-core's DensityPressure processor.
 
@@ -23,15 +23,7 @@ struct Fluid {
 @group(0) @binding(5) var<storage, read_write> densities: array<f32>;
 @group(0) @binding(6) var<storage, read_write> pressures: array<f32>;
 
-// Integral of W_poly6 over the half-space beyond a plane at distance d, in
-// units of s = d/h: 315/256 (G(1) - G(s)), G(s) = s (1 - 4s^2/3 + 6s^4/5 - 4s^6/7 + s^8/9).
-fn wall_volume_fraction(d: f32) -> f32 {
-    let s = clamp(d * f.inv_h, 0.0, 1.0);
-    let s2 = s * s;
-    let g = s * (1.0 + s2 * (-4.0 / 3.0 + s2 * (6.0 / 5.0 + s2 * (-4.0 / 7.0 + s2 / 9.0))));
-    let g1 = 1.0 - 4.0 / 3.0 + 6.0 / 5.0 - 4.0 / 7.0 + 1.0 / 9.0;
-    return 315.0 / 256.0 * (g1 - g);
-}
+@group(0) @binding(7) var<storage, read> obstacles: array<Obstacle>;
 
 @compute @workgroup_size(64)
 fn density(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -64,14 +56,10 @@ fn density(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
     }
-    for (var a = 0; a < 3; a++) {
-        let lo = x[a] - f.domain_min[a];
-        if lo < f.h {
-            rho += f.rest_density * wall_volume_fraction(max(lo, 0.0));
-        }
-        let hi = f.domain_max[a] - x[a];
-        if hi < f.h {
-            rho += f.rest_density * wall_volume_fraction(max(hi, 0.0));
+    for (var k = 0u; k < wall_count(); k++) {
+        let w = wall(k, x);
+        if w.w < f.h {
+            rho += f.rest_density * wall_volume_fraction(max(w.w, 0.0));
         }
     }
     densities[i] = rho;

@@ -2,7 +2,7 @@
 // viscosity (eq. 17), surface tension from the colour field (eq. 18-20, where
 // |n| > threshold), gravity, and the walls' pressure push — the equations of
 // sph-core's Forces processor.
-// Expects solver_params.wgsl (struct Params, binding 0 `f`) prepended.
+// Expects solver_params.wgsl (struct Params, binding 0 `f`) and walls.wgsl prepended.
 
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> counts: array<u32>;
@@ -13,12 +13,7 @@
 @group(0) @binding(7) var<storage, read> velocities: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> accelerations: array<vec4<f32>>;
 
-// 315/(256 h^9) (h^2 - d^2)^4: the wall density term's derivative.
-fn plane_density(d: f32) -> f32 {
-    let dd = clamp(d, 0.0, f.h);
-    let q = f.h * f.h - dd * dd;
-    return 315.0 / 256.0 * pow(f.inv_h, 9.0) * q * q * q * q;
-}
+@group(0) @binding(9) var<storage, read> obstacles: array<Obstacle>;
 
 @compute @workgroup_size(64)
 fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -74,17 +69,10 @@ fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
     }
-    for (var ax = 0; ax < 3; ax++) {
-        var normal = vec3<f32>(0.0);
-        let lo = x[ax] - f.domain_min[ax];
-        if lo < f.h {
-            normal[ax] = 1.0;
-            a_p += pi * f.rest_density * plane_density(max(lo, 0.0)) * normal;
-        }
-        let hi = f.domain_max[ax] - x[ax];
-        if hi < f.h {
-            normal[ax] = -1.0;
-            a_p += pi * f.rest_density * plane_density(max(hi, 0.0)) * normal;
+    for (var k = 0u; k < wall_count(); k++) {
+        let w = wall(k, x);
+        if w.w < f.h {
+            a_p += pi * f.rest_density * plane_density(max(w.w, 0.0)) * w.xyz;
         }
     }
     var a = a_p + (f.viscosity / rho_i) * a_v + f.gravity.xyz;
