@@ -1,12 +1,11 @@
 //! `--gpu-sim`: the SPH step on the GPU (`sph-gpu`) instead of the CPU world.
 //!
-//! Each frame takes substeps of the world's stable step, all on the GPU, then
-//! reads the particle state back into the world so that extraction, export and
-//! the stats work unchanged. The step comes from `World::stable_dt` on the
-//! read-back velocities (acoustic CFL); accelerations are not read back, so its
-//! force condition sees those of the last CPU step (none when started from
-//! rest) — adaptive dt on the GPU is not built yet. The CPU world stays the
-//! reference: switching back continues from the read-back state.
+//! Each frame advances in adaptive substeps whose length the GPU chooses as
+//! `World::advance` does (`GpuSolver::advance`: CFL and force condition,
+//! landing on the frame time), then reads the particle state back into the
+//! world so that CPU extraction, export and the stats work unchanged. The CPU
+//! world stays the reference: switching back continues from the read-back
+//! state.
 
 use sph_core::World;
 use sph_gpu::GpuSolver;
@@ -21,6 +20,8 @@ pub struct GpuSim {
     queue: splat_render::wgpu::Queue,
     /// Simulated time on the GPU (s).
     pub time: f64,
+    /// Substeps of the last frame: how many the next frame records per batch.
+    batch: u32,
 }
 
 impl GpuSim {
@@ -52,18 +53,20 @@ impl GpuSim {
                 "emitters are not on the GPU path (its particle count is fixed): run this scene on the CPU".into(),
             ));
         }
-        let solver = GpuSolver::new(
+        let mut solver = GpuSolver::new(
             device,
             queue,
             &world.particles,
             world.params(),
             &scene.boundary(),
         )?;
+        solver.set_time_stepping(world.time_stepping())?;
         Ok(Self {
             solver,
             device: device.clone(),
             queue: queue.clone(),
             time: 0.0,
+            batch: 0,
         })
     }
 
@@ -78,12 +81,15 @@ impl GpuSim {
     /// # Errors
     /// [`AppError::Gpu`] on a readback failure or a non-finite state.
     pub fn advance(&mut self, world: &mut World, frame_dt: f64) -> Result<u32, AppError> {
-        let dt = f64::from(world.stable_dt());
-        let substeps = (frame_dt / dt).ceil().max(1.0) as u32;
-        let sub = (frame_dt / f64::from(substeps)) as f32;
-        for _ in 0..substeps {
-            self.solver.step(&self.device, &self.queue, sub)?;
+        if self.batch == 0 {
+            self.batch = (frame_dt / f64::from(world.stable_dt()))
+                .ceil()
+                .clamp(1.0, 1e4) as u32;
         }
+        let frame = self
+            .solver
+            .advance(&self.device, &self.queue, frame_dt as f32, self.batch)?;
+        self.batch = frame.substeps.max(1);
         let state = self.solver.read_state(&self.device, &self.queue)?;
         if let Some(i) = (0..state.positions.len())
             .find(|&i| !state.positions[i].is_finite() || !state.velocities[i].is_finite())
@@ -99,6 +105,6 @@ impl GpuSim {
         f.densities.copy_from_slice(&state.densities);
         f.pressures.copy_from_slice(&state.pressures);
         self.time += frame_dt;
-        Ok(substeps)
+        Ok(frame.substeps)
     }
 }

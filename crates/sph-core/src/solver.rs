@@ -645,6 +645,11 @@ impl World {
         self.step
     }
 
+    /// The adaptive time-stepping parameters.
+    pub fn time_stepping(&self) -> &TimeStepping {
+        &self.stepping
+    }
+
     /// The next step's length from the CFL and force conditions.
     pub fn stable_dt(&self) -> f32 {
         let (v_max, a_max) = self

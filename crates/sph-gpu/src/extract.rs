@@ -9,7 +9,7 @@ use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Surfel};
 use wgpu::util::DeviceExt;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::read;
+use crate::passes::{bind_pairs as bind, read};
 use crate::solver::GpuSolver;
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
@@ -117,27 +117,6 @@ pub struct GpuExtractor {
     /// The solver this extractor reads from, once [`attach`](Self::attach)ed:
     /// its positions buffer and the bind group of the volumes pass.
     attached: Option<(wgpu::Buffer, wgpu::BindGroup)>,
-}
-
-/// A bind group of `(binding, buffer)` pairs for `pipeline`'s group 0.
-fn bind(
-    device: &wgpu::Device,
-    label: &str,
-    pipeline: &wgpu::ComputePipeline,
-    buffers: &[(u32, &wgpu::Buffer)],
-) -> wgpu::BindGroup {
-    let entries: Vec<_> = buffers
-        .iter()
-        .map(|&(binding, b)| wgpu::BindGroupEntry {
-            binding,
-            resource: b.as_entire_binding(),
-        })
-        .collect();
-    device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(label),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &entries,
-    })
 }
 
 /// Workgroups of 64 for `threads`, as an (x, y) grid within the 65,535 limit.

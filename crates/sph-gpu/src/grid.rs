@@ -20,6 +20,9 @@ pub enum GpuError {
     /// A smoothing length that is not finite and positive, or a non-finite position.
     #[error("invalid input: {0}")]
     Invalid(&'static str),
+    /// The adaptive step fell below its minimum or became NaN (a blow-up).
+    #[error("the GPU simulation became unstable: {0}")]
+    Unstable(String),
     /// Reading results back failed.
     #[error("GPU readback failed: {0}")]
     Readback(String),

@@ -11,12 +11,12 @@
 //! readback; [`GpuDensity`], sph-core's density and pressure (with the walls' and
 //! obstacles' density) as a compute pass over it; [`GpuSolver`], the whole step of
 //! `sph_core::solver::default_program` (domain walls, box and sphere
-//! obstacles) with the particles resident
-//! on the GPU; [`GpuExtractor`], surfel-extract's thesis-mode extraction
+//! obstacles) with the particles resident on the GPU, in fixed steps or in
+//! adaptive ones whose length the GPU chooses; [`GpuExtractor`], surfel-extract's thesis-mode extraction
 //! (initial guess, Newton-Raphson refinement with splitting) with append
 //! buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
-//! draws without a round trip to the CPU. Adaptive dt on the GPU, emitters and
-//! hole closing are not built yet.
+//! draws without a round trip to the CPU. Emitters, sinks and hole closing are
+//! not built yet.
 
 mod density;
 mod extract;

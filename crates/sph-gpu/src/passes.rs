@@ -49,6 +49,52 @@ pub(crate) fn compute_pass(
     (pipeline, bind_group)
 }
 
+/// The compute pipeline of entry point `entry` in WGSL `source` and its bind
+/// group 0 over `(binding, buffer)` pairs: for entry points that use only some
+/// of the module's bindings (the derived layout holds just those).
+pub(crate) fn compute_pass_with(
+    device: &wgpu::Device,
+    entry: &str,
+    source: String,
+    buffers: &[(u32, &wgpu::Buffer)],
+) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(entry),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let group = bind_pairs(device, entry, &pipeline, buffers);
+    (pipeline, group)
+}
+
+/// A bind group of `(binding, buffer)` pairs for `pipeline`'s group 0.
+pub(crate) fn bind_pairs(
+    device: &wgpu::Device,
+    label: &str,
+    pipeline: &wgpu::ComputePipeline,
+    buffers: &[(u32, &wgpu::Buffer)],
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = buffers
+        .iter()
+        .map(|&(binding, b)| wgpu::BindGroupEntry {
+            binding,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    })
+}
+
 /// Submits `encoder` plus a copy of `bytes` of `buffer` and reads them back.
 pub(crate) fn read(
     device: &wgpu::Device,

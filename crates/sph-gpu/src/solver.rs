@@ -3,11 +3,11 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use sph_core::{Boundary, FluidParams, Particles, PressureKernel};
+use sph_core::{Boundary, FluidParams, Particles, PressureKernel, TimeStepping};
 
 use crate::density::GpuDensity;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{compute_pass, read};
+use crate::passes::{compute_pass, compute_pass_with, read};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
@@ -36,7 +36,34 @@ struct Params {
     spiky_pressure: u32,
     dt: f32,
     restitution: f32,
-    pad: [f32; 2],
+    cfl: f32,
+    force_factor: f32,
+    max_dt: f32,
+    min_dt: f32,
+    sound_speed: f32,
+    frame_dt: f32,
+}
+
+/// Mirrors `struct StepState` in `shaders/timestep.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct StepState {
+    v_max: u32,
+    a_max: u32,
+    dt: f32,
+    elapsed: f32,
+    steps: u32,
+    unstable: u32,
+    pad: [u32; 2],
+}
+
+/// What [`GpuSolver::advance`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GpuFrame {
+    /// Steps taken (each of the adaptive length chosen on the GPU).
+    pub substeps: u32,
+    /// Simulated time advanced (s).
+    pub elapsed: f32,
 }
 
 /// The particle state read back from the GPU.
@@ -62,6 +89,9 @@ pub struct GpuSolver {
     density: GpuDensity,
     uniform: wgpu::Buffer,
     velocities: wgpu::Buffer,
+    state: wgpu::Buffer,
+    reduce: (wgpu::ComputePipeline, wgpu::BindGroup),
+    choose: (wgpu::ComputePipeline, wgpu::BindGroup),
     forces: (wgpu::ComputePipeline, wgpu::BindGroup),
     integrate: (wgpu::ComputePipeline, wgpu::BindGroup),
     steps: u64,
@@ -125,7 +155,12 @@ impl GpuSolver {
             spiky_pressure: u32::from(params.pressure_kernel == PressureKernel::Spiky),
             dt: 0.0,
             restitution: boundary.restitution,
-            pad: [0.0; 2],
+            cfl: 0.0,
+            force_factor: 0.0,
+            max_dt: 0.0,
+            min_dt: 0.0,
+            sound_speed: params.sound_speed(),
+            frame_dt: 0.0,
         };
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("solver params"),
@@ -154,6 +189,23 @@ impl GpuSolver {
                 density.obstacles_buffer(),
             ],
         );
+        let state = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("step state"),
+            size: size_of::<StepState>() as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let timestep = format!("{PARAMS}{}", include_str!("shaders/timestep.wgsl"));
+        let reduce = compute_pass(
+            device,
+            "reduce_max",
+            timestep.clone(),
+            &[&uniform, &velocities, &accelerations, &state],
+        );
+        let choose =
+            compute_pass_with(device, "choose_dt", timestep, &[(0, &uniform), (3, &state)]);
         let integrate = compute_pass(
             device,
             "integrate",
@@ -164,18 +216,39 @@ impl GpuSolver {
                 &velocities,
                 &accelerations,
                 density.obstacles_buffer(),
+                &state,
             ],
         );
-        Ok(Self {
+        let mut solver = Self {
             params: p,
             grid,
             density,
             uniform,
             velocities,
+            state,
+            reduce,
+            choose,
             forces,
             integrate,
             steps: 0,
-        })
+        };
+        solver.set_time_stepping(&TimeStepping::default())?;
+        Ok(solver)
+    }
+
+    /// The adaptive step's parameters (sph-core's defaults until set).
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for parameters sph-core rejects.
+    pub fn set_time_stepping(&mut self, stepping: &TimeStepping) -> Result<(), GpuError> {
+        stepping
+            .validate()
+            .map_err(|_| GpuError::Invalid("time stepping rejected by sph-core"))?;
+        self.params.cfl = stepping.cfl;
+        self.params.force_factor = stepping.force_factor;
+        self.params.max_dt = stepping.max_dt;
+        self.params.min_dt = stepping.min_dt;
+        Ok(())
     }
 
     /// Number of particles.
@@ -228,20 +301,93 @@ impl GpuSolver {
             return Err(GpuError::Invalid("dt must be finite and > 0"));
         }
         self.params.dt = dt;
+        self.params.frame_dt = 0.0;
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.params));
         let mut encoder = device.create_command_encoder(&Default::default());
-        self.grid.encode_build(&mut encoder);
-        self.density.encode(queue, &mut encoder, &self.grid);
+        self.encode_step(&mut encoder, queue);
+        queue.submit([encoder.finish()]);
+        self.steps += 1;
+        Ok(())
+    }
+
+    /// Records one step: its length (fixed, or chosen on the GPU from the
+    /// largest speed and last acceleration), grid, density, forces, integrate.
+    fn encode_step(&mut self, encoder: &mut wgpu::CommandEncoder, queue: &wgpu::Queue) {
         let groups = self.params.n.div_ceil(64).max(1);
+        {
+            let mut pass = encoder.begin_compute_pass(&Default::default());
+            if self.params.dt <= 0.0 {
+                pass.set_pipeline(&self.reduce.0);
+                pass.set_bind_group(0, &self.reduce.1, &[]);
+                pass.dispatch_workgroups(groups, 1, 1);
+            }
+            pass.set_pipeline(&self.choose.0);
+            pass.set_bind_group(0, &self.choose.1, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        self.grid.encode_build(encoder);
+        self.density.encode(queue, encoder, &self.grid);
         for (pipeline, bind_group) in [&self.forces, &self.integrate] {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind_group, &[]);
             pass.dispatch_workgroups(groups, 1, 1);
         }
-        queue.submit([encoder.finish()]);
-        self.steps += 1;
-        Ok(())
+    }
+
+    /// Advances `frame_dt` seconds in adaptive steps whose length the GPU
+    /// chooses as `World::advance` does (acoustic CFL and force condition, the
+    /// last steps landing on the frame time). Steps are recorded `batch` at a
+    /// time (steps past the frame's end do nothing); only a 32-byte state is
+    /// read back after each batch, to know whether the frame is done.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and positive
+    /// or a zero `batch`; [`GpuError::Unstable`] when the stable step falls
+    /// below `min_dt` (a blow-up); [`GpuError::Readback`].
+    pub fn advance(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame_dt: f32,
+        batch: u32,
+    ) -> Result<GpuFrame, GpuError> {
+        if !(frame_dt.is_finite() && frame_dt > 0.0) || batch == 0 {
+            return Err(GpuError::Invalid(
+                "frame_dt must be finite and > 0, batch > 0",
+            ));
+        }
+        self.params.dt = 0.0;
+        self.params.frame_dt = frame_dt;
+        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.params));
+        queue.write_buffer(&self.state, 0, bytemuck::bytes_of(&StepState::default()));
+        loop {
+            let mut encoder = device.create_command_encoder(&Default::default());
+            for _ in 0..batch {
+                self.encode_step(&mut encoder, queue);
+            }
+            let bytes = read(
+                device,
+                queue,
+                encoder,
+                &self.state,
+                size_of::<StepState>() as u64,
+            )?;
+            let state: StepState = bytemuck::pod_read_unaligned(&bytes);
+            if state.unstable != 0 {
+                return Err(GpuError::Unstable(format!(
+                    "the stable step fell below min_dt = {:e} s after {} steps of this frame",
+                    self.params.min_dt, state.steps
+                )));
+            }
+            if state.elapsed >= frame_dt || state.dt <= 0.0 {
+                self.steps += u64::from(state.steps);
+                return Ok(GpuFrame {
+                    substeps: state.steps,
+                    elapsed: state.elapsed,
+                });
+            }
+        }
     }
 
     /// Reads positions, velocities, densities and pressures back.

@@ -229,3 +229,50 @@ fn hundred_steps(ctx: &GpuContext, scene: sph_core::Scene) {
     assert!(dx < 1e-3 * params.h, "positions differ by {dx} m");
     assert!(drho < 5e-3, "densities differ by {drho}");
 }
+
+#[test]
+fn adaptive_gpu_frames_match_world_advance() {
+    use sph_gpu::GpuSolver;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
+    let mut world = scene.build_world().unwrap();
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let mut gpu = GpuSolver::new(
+        device,
+        queue,
+        &world.particles,
+        world.params(),
+        &scene.boundary(),
+    )
+    .unwrap();
+    gpu.set_time_stepping(world.time_stepping()).unwrap();
+    let h = world.params().h;
+    let frame_dt = 1.0 / 60.0;
+    for frame in 0..3 {
+        let cpu = world.advance(frame_dt).unwrap();
+        let g = gpu.advance(device, queue, frame_dt, 8).unwrap();
+        let state = gpu.read_state(device, queue).unwrap();
+        // The world reorders its particles; ids are the original indices.
+        let p = &world.particles;
+        let dx = p
+            .ids()
+            .iter()
+            .zip(p.positions())
+            .map(|(&id, x)| (state.positions[id as usize] - *x).length())
+            .fold(0f32, f32::max);
+        println!(
+            "frame {frame}: {} CPU substeps, {} GPU substeps, GPU elapsed {:.6} s of {frame_dt:.6}, max |Δx| = {:.2e} h",
+            cpu.substeps,
+            g.substeps,
+            g.elapsed,
+            dx / h
+        );
+        assert_eq!(g.substeps, cpu.substeps, "frame {frame}");
+        assert!((g.elapsed - frame_dt).abs() < 1e-6, "{}", g.elapsed);
+        assert!(dx < 1e-3 * h, "frame {frame}: positions differ by {dx} m");
+    }
+    assert!(gpu.advance(device, queue, f32::NAN, 8).is_err());
+    assert!(gpu.advance(device, queue, frame_dt, 0).is_err());
+}

@@ -8,6 +8,13 @@
 @group(0) @binding(2) var<storage, read_write> velocities: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> accelerations: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> obstacles: array<Obstacle>;
+// Only `dt` is read: the step chosen by timestep.wgsl (StepState's layout).
+struct Step {
+    v_max: u32,
+    a_max: u32,
+    dt: f32,
+};
+@group(0) @binding(5) var<storage, read> chosen: Step;
 
 fn inside(o: Obstacle, x: vec3<f32>) -> bool {
     if o.a.w == SPHERE {
@@ -31,9 +38,13 @@ fn integrate(@builtin(global_invocation_id) id: vec3<u32>) {
     if i >= f.n {
         return;
     }
+    let dt = chosen.dt;
+    if dt <= 0.0 {
+        return;
+    }
     let p = positions[i];
-    var v = velocities[i].xyz + accelerations[i].xyz * f.dt;
-    var x = p.xyz + v * f.dt;
+    var v = velocities[i].xyz + accelerations[i].xyz * dt;
+    var x = p.xyz + v * dt;
     for (var rounds = 0; rounds < 3; rounds++) {
         var moved = false;
         for (var k = 0u; k < arrayLength(&obstacles); k++) {

@@ -16,10 +16,14 @@ struct Params {
     visc_lap: f32,        // 45 / (pi h^6)
     spiky_grad: f32,      // 45 / (pi h^6)
     spiky_pressure: u32,  // 1: spiky pressure gradient, 0: poly6
-    dt: f32,
+    dt: f32,              // > 0: a fixed step; 0: adaptive (timestep.wgsl)
     restitution: f32,
-    pad0: f32,
-    pad1: f32,
+    cfl: f32,             // TimeStepping::cfl
+    force_factor: f32,    // TimeStepping::force_factor
+    max_dt: f32,
+    min_dt: f32,
+    sound_speed: f32,     // sqrt(k)
+    frame_dt: f32,        // > 0: adaptive steps land on this much time
 };
 
 @group(0) @binding(0) var<uniform> f: Params;

@@ -1,0 +1,63 @@
+// The step length on the GPU: sph-core's `World::stable_dt` (acoustic CFL and
+// force condition from the largest speed and acceleration) and `World::advance`'s
+// landing on the frame time, without a readback. Expects solver_params.wgsl.
+
+struct StepState {
+    v_max: atomic<u32>,   // bits of the largest |v| (non-negative floats order as u32)
+    a_max: atomic<u32>,   // bits of the largest |a| of the last forces pass
+    dt: f32,              // this step's length (0: the frame is done)
+    elapsed: f32,         // time advanced in this frame
+    steps: u32,           // steps with dt > 0 in this frame
+    unstable: u32,        // 1: the stable step fell below min_dt or is NaN
+    pad0: u32,
+    pad1: u32,
+};
+
+@group(0) @binding(1) var<storage, read> velocities: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> accelerations: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> state: StepState;
+
+@compute @workgroup_size(64)
+fn reduce_max(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= f.n {
+        return;
+    }
+    atomicMax(&state.v_max, bitcast<u32>(length(velocities[id.x].xyz)));
+    atomicMax(&state.a_max, bitcast<u32>(length(accelerations[id.x].xyz)));
+}
+
+@compute @workgroup_size(1)
+fn choose_dt() {
+    var dt = f.dt;
+    if dt <= 0.0 {
+        let v = bitcast<f32>(atomicLoad(&state.v_max));
+        let a = bitcast<f32>(atomicLoad(&state.a_max));
+        var stable = min(f.max_dt, f.cfl * f.h / (f.sound_speed + v));
+        if a > 0.0 {
+            stable = min(stable, f.force_factor * sqrt(f.h / a));
+        }
+        if !(stable >= f.min_dt) || state.unstable != 0u {
+            state.unstable = 1u;
+            stable = 0.0;
+        }
+        dt = stable;
+        if f.frame_dt > 0.0 && dt > 0.0 {
+            // Land on the frame time without a sliver step.
+            let remaining = f.frame_dt - state.elapsed;
+            if remaining <= 0.0 {
+                dt = 0.0;
+            } else if remaining <= stable {
+                dt = remaining;
+            } else if remaining < 2.0 * stable {
+                dt = 0.5 * remaining;
+            }
+        }
+    }
+    atomicStore(&state.v_max, 0u);
+    atomicStore(&state.a_max, 0u);
+    state.dt = dt;
+    if dt > 0.0 {
+        state.elapsed += dt;
+        state.steps += 1u;
+    }
+}
