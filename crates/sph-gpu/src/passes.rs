@@ -25,51 +25,45 @@ pub(crate) fn bind_buffers(
     })
 }
 
-/// The compute pipeline of entry point `entry` in WGSL `source` (layout derived
-/// from the shader) and its bind group 0 over `buffers`.
+/// The compute pipeline of entry point `entry` in WGSL `source`, its layout
+/// derived from the shader (only the bindings the entry point uses).
+fn pipeline(device: &wgpu::Device, entry: &str, source: String) -> wgpu::ComputePipeline {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(entry),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry),
+        layout: None,
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// The compute pipeline of entry point `entry` in WGSL `source` and its bind
+/// group 0 with `buffers[i]` at binding `i`.
 pub(crate) fn compute_pass(
     device: &wgpu::Device,
     entry: &str,
     source: String,
     buffers: &[&wgpu::Buffer],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(entry),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry),
-        layout: None,
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
-    });
+    let pipeline = pipeline(device, entry, source);
     let bind_group = bind_buffers(device, entry, &pipeline.get_bind_group_layout(0), buffers);
     (pipeline, bind_group)
 }
 
-/// The compute pipeline of entry point `entry` in WGSL `source` and its bind
-/// group 0 over `(binding, buffer)` pairs: for entry points that use only some
-/// of the module's bindings (the derived layout holds just those).
+/// The same with `(binding, buffer)` pairs, for entry points that use only
+/// some of the module's bindings.
 pub(crate) fn compute_pass_with(
     device: &wgpu::Device,
     entry: &str,
     source: String,
     buffers: &[(u32, &wgpu::Buffer)],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(entry),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry),
-        layout: None,
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
-    });
+    let pipeline = pipeline(device, entry, source);
     let group = bind_pairs(device, entry, &pipeline, buffers);
     (pipeline, group)
 }
