@@ -22,6 +22,8 @@ pub struct GpuExtract {
     particles: usize,
     device: wgpu::Device,
     queue: wgpu::Queue,
+    /// Volumes uploaded from the CPU world, kept between frames.
+    volumes: Vec<f32>,
     /// The positions buffer of the GPU solver the extractor reads, if any.
     attached: Option<wgpu::Buffer>,
 }
@@ -43,6 +45,7 @@ impl GpuExtract {
             particles,
             device: ctx.device.clone(),
             queue: ctx.queue.clone(),
+            volumes: Vec::new(),
             attached: None,
         })
     }
@@ -93,8 +96,10 @@ impl GpuExtract {
                 }
                 None => {
                     self.attached = None;
-                    let (positions, volumes) = positions_and_volumes(world, self.params.h)?;
-                    self.extractor.upload(&self.queue, positions, &volumes)?;
+                    volumes_into(&mut self.volumes, world, self.params.h)?;
+                    let positions = world.particles.positions();
+                    self.extractor
+                        .upload(&self.queue, positions, &self.volumes)?;
                     self.extractor.encode(&mut encoder);
                 }
             }
@@ -140,18 +145,16 @@ impl GpuExtract {
     }
 }
 
-/// Positions and volumes m/ρ of the world's particles (recomputed as
-/// surfel-extract does where densities are not known yet).
-fn positions_and_volumes(world: &World, h: f32) -> Result<(&[glam::Vec3], Vec<f32>), AppError> {
+/// The volumes m/ρ of the world's particles into `out` (its memory kept
+/// between frames), recomputed as surfel-extract does where densities are not
+/// known yet.
+fn volumes_into(out: &mut Vec<f32>, world: &World, h: f32) -> Result<(), AppError> {
     let p = &world.particles;
-    let volumes = if p.densities().iter().all(|r| r.is_finite() && *r > 0.0) {
-        p.masses()
-            .iter()
-            .zip(p.densities())
-            .map(|(m, r)| m / r)
-            .collect()
+    out.clear();
+    if p.densities().iter().all(|r| r.is_finite() && *r > 0.0) {
+        out.extend(p.masses().iter().zip(p.densities()).map(|(m, r)| m / r));
     } else {
-        ColourField::from_particles(p, h)?.volumes().to_vec()
-    };
-    Ok((p.positions(), volumes))
+        out.extend_from_slice(ColourField::from_particles(p, h)?.volumes());
+    }
+    Ok(())
 }

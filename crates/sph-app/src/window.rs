@@ -86,14 +86,44 @@ struct Settings {
     view: usize,
     paused: bool,
     step_once: bool,
-    /// Whether the SPH step should run on the GPU (`--gpu-sim`, the panel).
-    gpu_sim: bool,
-    /// Why the GPU step could not be switched on, shown in the panel.
-    gpu_note: Option<String>,
-    /// Whether surfels should be extracted on the GPU (`--gpu-extract`, the panel).
-    gpu_extract: bool,
-    /// Why GPU extraction could not be switched on, shown in the panel.
-    gpu_extract_note: Option<String>,
+    /// The SPH step on the GPU (`--gpu-sim`, the panel).
+    gpu_sim: Toggle,
+    /// Surfel extraction on the GPU (`--gpu-extract`, the panel).
+    gpu_extract: Toggle,
+}
+
+/// A GPU path the panel switches on and off.
+struct Toggle {
+    /// Whether it should run.
+    on: bool,
+    /// Why it could not be switched on, shown in the panel.
+    note: Option<String>,
+}
+
+impl Toggle {
+    fn new(on: bool) -> Self {
+        Self { on, note: None }
+    }
+
+    /// Records the outcome of switching: an error unticks the box and says why.
+    fn settle(&mut self, result: Result<(), AppError>) {
+        match result {
+            Ok(()) => self.note = None,
+            Err(e) => {
+                log::warn!("{e}");
+                self.on = false;
+                self.note = Some(e.to_string());
+            }
+        }
+    }
+
+    /// The checkbox and the note under it.
+    fn show(&mut self, ui: &mut egui::Ui, label: &str, hover: &str) {
+        ui.checkbox(&mut self.on, label).on_hover_text(hover);
+        if let Some(note) = &self.note {
+            ui.small(note.as_str());
+        }
+    }
 }
 
 const VIEW_NAMES: [&str; 5] = ["shaded", "normals", "weights", "depth", "particles"];
@@ -151,10 +181,8 @@ impl App {
                 view: 0,
                 paused: false,
                 step_once: false,
-                gpu_sim: args.gpu_sim,
-                gpu_note: None,
-                gpu_extract: args.gpu_extract,
-                gpu_extract_note: None,
+                gpu_sim: Toggle::new(args.gpu_sim),
+                gpu_extract: Toggle::new(args.gpu_extract),
             },
             push,
             gfx: None,
@@ -237,44 +265,24 @@ impl App {
         Ok(())
     }
 
-    /// Switches the SPH step to the GPU or back when the setting changed; a
-    /// scene the GPU path cannot run unticks the box and says why.
-    fn sync_gpu_sim(&mut self) {
+    /// Switches the SPH step and the extraction to the GPU or back when their
+    /// settings changed; a scene the GPU path cannot run unticks the box and
+    /// says why.
+    fn sync_gpu(&mut self) {
         let Some(gfx) = self.gfx.as_ref() else {
             return;
         };
-        if self.settings.gpu_sim == self.pipeline.gpu.is_some() {
-            return;
+        let (sim, extract) = (&mut self.settings.gpu_sim, &mut self.settings.gpu_extract);
+        if sim.on != self.pipeline.gpu.is_some() {
+            sim.settle(self.pipeline.set_gpu_sim(sim.on.then_some(&gfx.ctx)));
         }
-        let ctx = self.settings.gpu_sim.then_some(&gfx.ctx);
-        match self.pipeline.set_gpu_sim(ctx) {
-            Ok(()) => self.settings.gpu_note = None,
-            Err(e) => {
-                log::warn!("{e}");
-                self.settings.gpu_sim = false;
-                self.settings.gpu_note = Some(e.to_string());
-            }
+        if extract.on != self.pipeline.gpu_extract.is_some() {
+            extract.settle(
+                self.pipeline
+                    .set_gpu_extract(extract.on.then_some(&gfx.ctx)),
+            );
+            self.uploaded = None;
         }
-    }
-
-    /// Switches extraction to the GPU or back when the setting changed.
-    fn sync_gpu_extract(&mut self) {
-        let Some(gfx) = self.gfx.as_ref() else {
-            return;
-        };
-        if self.settings.gpu_extract == self.pipeline.gpu_extract.is_some() {
-            return;
-        }
-        let ctx = self.settings.gpu_extract.then_some(&gfx.ctx);
-        match self.pipeline.set_gpu_extract(ctx) {
-            Ok(()) => self.settings.gpu_extract_note = None,
-            Err(e) => {
-                log::warn!("{e}");
-                self.settings.gpu_extract = false;
-                self.settings.gpu_extract_note = Some(e.to_string());
-            }
-        }
-        self.uploaded = None;
     }
 
     fn reset(&mut self) -> Result<(), AppError> {
@@ -433,16 +441,8 @@ impl App {
                 ));
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
-                ui.checkbox(&mut settings.gpu_sim, "SPH step on the GPU")
-                    .on_hover_text("wgpu compute (sph-gpu); ctrl+drag push acts on the CPU path only");
-                if let Some(note) = &settings.gpu_note {
-                    ui.small(note.as_str());
-                }
-                ui.checkbox(&mut settings.gpu_extract, "surfels extracted on the GPU")
-                    .on_hover_text("wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
-                if let Some(note) = &settings.gpu_extract_note {
-                    ui.small(note.as_str());
-                }
+                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu); ctrl+drag push acts on the CPU path only");
+                settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
                 egui::ComboBox::from_label("view (F)")
                     .selected_text(VIEW_NAMES[settings.view])
                     .show_ui(ui, |ui| {
@@ -526,8 +526,7 @@ impl App {
         if let Some(i) = scene_choice {
             self.switch_scene(i)?;
         }
-        self.sync_gpu_sim();
-        self.sync_gpu_extract();
+        self.sync_gpu();
         if self.args_screenshot_after == Some(self.frames_drawn) {
             self.screenshot()?;
             event_loop.exit();

@@ -26,6 +26,21 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// Whether a `--gpu-*` run failed for want of an adapter: a skip, unless
+/// `SPH_REQUIRE_GPU=1` (CI) makes it a failure.
+fn skipped_without_adapter(o: &Output) -> bool {
+    if o.status.success() || !stderr(o).contains("needs a GPU adapter") {
+        return false;
+    }
+    assert!(
+        std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
+        "{}",
+        stderr(o)
+    );
+    eprintln!("skipped: no GPU adapter");
+    true
+}
+
 #[test]
 fn headless_frames_csv_and_exports() {
     let out = scratch("headless");
@@ -243,13 +258,7 @@ fn gpu_sim_follows_the_cpu_solver() {
         (app(&args), out)
     };
     let (o, gpu) = run("gpu-sim", true);
-    if !o.status.success() && stderr(&o).contains("needs a GPU adapter") {
-        assert!(
-            std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
-            "{}",
-            stderr(&o)
-        );
-        eprintln!("skipped: no GPU adapter");
+    if skipped_without_adapter(&o) {
         return;
     }
     assert!(o.status.success(), "{}", stderr(&o));
@@ -279,20 +288,22 @@ fn gpu_sim_follows_the_cpu_solver() {
 }
 
 #[test]
-fn gpu_sim_without_an_adapter_is_a_clear_error() {
-    let o = Command::new(env!("CARGO_BIN_EXE_sph-app"))
-        .args(["--headless", "--frames", "1", "--gpu-sim", "--out"])
-        .arg(scratch("gpu-sim-no-adapter"))
-        .env("WGPU_BACKEND", "metal")
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("--gpu-sim needs a GPU adapter"),
-        "{}",
-        stderr(&o)
-    );
+fn gpu_paths_without_an_adapter_are_a_clear_error() {
+    for flag in ["--gpu-sim", "--gpu-extract"] {
+        let o = Command::new(env!("CARGO_BIN_EXE_sph-app"))
+            .args(["--headless", "--frames", "1", flag, "--out"])
+            .arg(scratch(&format!(
+                "{}-no-adapter",
+                flag.trim_start_matches('-')
+            )))
+            .env("WGPU_BACKEND", "metal")
+            .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        let expected = format!("{flag} needs a GPU adapter");
+        assert!(stderr(&o).contains(&expected), "{}", stderr(&o));
+    }
 }
 
 #[test]
@@ -320,13 +331,7 @@ fn gpu_extract_draws_and_exports_the_gpu_surfels() {
         ];
         args.extend(extra);
         let o = app(&args);
-        if !o.status.success() && stderr(&o).contains("needs a GPU adapter") {
-            assert!(
-                std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
-                "{}",
-                stderr(&o)
-            );
-            eprintln!("skipped: no GPU adapter");
+        if skipped_without_adapter(&o) {
             return;
         }
         assert!(o.status.success(), "{name}: {}", stderr(&o));
@@ -343,23 +348,6 @@ fn gpu_extract_draws_and_exports_the_gpu_surfels() {
             assert!(out.join(format!("frame_{i:05}.png")).exists());
         }
     }
-}
-
-#[test]
-fn gpu_extract_without_an_adapter_is_a_clear_error() {
-    let o = Command::new(env!("CARGO_BIN_EXE_sph-app"))
-        .args(["--headless", "--frames", "1", "--gpu-extract", "--out"])
-        .arg(scratch("gpu-extract-no-adapter"))
-        .env("WGPU_BACKEND", "metal")
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .unwrap();
-    assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("--gpu-extract needs a GPU adapter"),
-        "{}",
-        stderr(&o)
-    );
 }
 
 #[test]
@@ -380,14 +368,9 @@ fn gpu_sim_refuses_a_scene_with_emitters() {
         out.to_str().unwrap(),
     ]);
     assert!(!o.status.success());
-    let err = stderr(&o);
-    if err.contains("needs a GPU adapter") {
-        assert!(
-            std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
-            "{err}"
-        );
-        eprintln!("skipped: no GPU adapter");
+    if skipped_without_adapter(&o) {
         return;
     }
+    let err = stderr(&o);
     assert!(err.contains("emitters are not on the GPU path"), "{err}");
 }

@@ -3,6 +3,8 @@
 use bytemuck::{Pod, Zeroable};
 use sph_core::{Boundary, FluidParams, Obstacle};
 
+use wgpu::util::DeviceExt;
+
 use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{compute_pass, read};
 
@@ -69,11 +71,10 @@ impl GpuDensity {
             domain_min: boundary.domain.min.extend(0.0).to_array(),
             domain_max: boundary.domain.max.extend(0.0).to_array(),
         };
-        let uniform = device.create_buffer(&wgpu::BufferDescriptor {
+        let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("density params"),
-            size: size_of::<Fluid>() as u64,
+            contents: bytemuck::bytes_of(&fluid),
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
         });
         let field = |label| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -124,8 +125,13 @@ impl GpuDensity {
         encoder: &mut wgpu::CommandEncoder,
         grid: &GpuGrid,
     ) {
-        self.fluid.n = grid.len() as u32;
-        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.fluid));
+        // Written only when the count changes: a batch of steps records this
+        // pass many times with the same uniform.
+        let n = grid.len() as u32;
+        if n != self.fluid.n {
+            self.fluid.n = n;
+            queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.fluid));
+        }
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("density"),
             timestamp_writes: None,
@@ -176,7 +182,6 @@ impl GpuDensity {
 /// # Errors
 /// [`GpuError::Invalid`] for a non-finite obstacle or a non-positive radius.
 fn obstacles_buffer(device: &wgpu::Device, boundary: &Boundary) -> Result<wgpu::Buffer, GpuError> {
-    use wgpu::util::DeviceExt;
     const BOX: f32 = 0.0;
     const SPHERE: f32 = 1.0;
     const NONE: f32 = 2.0;

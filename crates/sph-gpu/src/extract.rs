@@ -9,7 +9,7 @@ use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Surfel};
 use wgpu::util::DeviceExt;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{bind_pairs as bind, read};
+use crate::passes::{bind_pairs, pipeline, read, shader};
 use crate::solver::GpuSolver;
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
@@ -101,7 +101,6 @@ impl GpuExtractStats {
 /// indirect draw (4 vertices, one instance per surfel).
 pub struct GpuExtractor {
     uniform: Uniform,
-    iterations: u32,
     uniform_buffer: wgpu::Buffer,
     grid: GpuGrid,
     volumes: wgpu::Buffer,
@@ -234,26 +233,16 @@ impl GpuExtractor {
                 })
             })
             .collect();
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("extract.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(
-                concat!(
-                    include_str!("shaders/hash.wgsl"),
-                    include_str!("shaders/extract.wgsl")
-                )
-                .into(),
-            ),
-        });
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let module = shader(
+            device,
+            "extract.wgsl",
+            concat!(
+                include_str!("shaders/hash.wgsl"),
+                include_str!("shaders/extract.wgsl")
+            )
+            .into(),
+        );
+        let pipeline = |entry: &str| pipeline(device, &module, entry);
         let field = [
             (0, &uniform_buffer),
             (1, grid.positions_buffer()),
@@ -266,12 +255,12 @@ impl GpuExtractor {
         let guess_pipeline = pipeline("guess");
         let mut entries = field.to_vec();
         entries.extend([(8, &work[0]), (9, &result)]);
-        let guess_group = bind(device, "guess", &guess_pipeline, &entries);
+        let guess_group = bind_pairs(device, "guess", &guess_pipeline, &entries);
         let (prepare, refine) = (pipeline("prepare"), pipeline("refine"));
         let stages = (0..params.iterations as usize)
             .map(|i| {
                 let stage = &stage_buffers[i];
-                let prepare_group = bind(
+                let prepare_group = bind_pairs(
                     device,
                     "prepare",
                     &prepare,
@@ -289,7 +278,7 @@ impl GpuExtractor {
                     (9, &result),
                     (10, stage),
                 ]);
-                let refine_group = bind(device, "refine", &refine, &entries);
+                let refine_group = bind_pairs(device, "refine", &refine, &entries);
                 [
                     (prepare.clone(), prepare_group),
                     (refine.clone(), refine_group),
@@ -297,7 +286,7 @@ impl GpuExtractor {
             })
             .collect();
         let finish_pipeline = pipeline("finish");
-        let finish_group = bind(
+        let finish_group = bind_pairs(
             device,
             "finish",
             &finish_pipeline,
@@ -306,7 +295,6 @@ impl GpuExtractor {
         let volumes_pass = pipeline("volumes_from_densities");
         Ok(Self {
             uniform,
-            iterations: params.iterations,
             uniform_buffer,
             grid,
             volumes,
@@ -396,7 +384,7 @@ impl GpuExtractor {
                 "the solver's h differs from the extractor's",
             ));
         }
-        let group = bind(
+        let group = bind_pairs(
             device,
             "volumes from densities",
             &self.volumes_pass,
@@ -510,7 +498,7 @@ impl GpuExtractor {
             surfels: c[OUT].min(self.uniform.out_capacity) as usize,
             dropped: c[DROPPED] as usize,
             particle_evaluations: n as u64,
-            evaluations: c[EVALUATED..EVALUATED + self.iterations as usize]
+            evaluations: c[EVALUATED..EVALUATED + self.stages.len()]
                 .iter()
                 .map(|&k| u64::from(k))
                 .sum(),

@@ -25,17 +25,25 @@ pub(crate) fn bind_buffers(
     })
 }
 
-/// The compute pipeline of entry point `entry` in WGSL `source`, its layout
-/// derived from the shader (only the bindings the entry point uses).
-fn pipeline(device: &wgpu::Device, entry: &str, source: String) -> wgpu::ComputePipeline {
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(entry),
+/// A shader module from WGSL `source`.
+pub(crate) fn shader(device: &wgpu::Device, label: &str, source: String) -> wgpu::ShaderModule {
+    device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
         source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
+    })
+}
+
+/// The compute pipeline of entry point `entry` in `module`, its layout derived
+/// from the shader (only the bindings the entry point uses).
+pub(crate) fn pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+) -> wgpu::ComputePipeline {
     device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(entry),
         layout: None,
-        module: &module,
+        module,
         entry_point: Some(entry),
         compilation_options: Default::default(),
         cache: None,
@@ -50,7 +58,7 @@ pub(crate) fn compute_pass(
     source: String,
     buffers: &[&wgpu::Buffer],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
-    let pipeline = pipeline(device, entry, source);
+    let pipeline = pipeline(device, &shader(device, entry, source), entry);
     let bind_group = bind_buffers(device, entry, &pipeline.get_bind_group_layout(0), buffers);
     (pipeline, bind_group)
 }
@@ -63,7 +71,7 @@ pub(crate) fn compute_pass_with(
     source: String,
     buffers: &[(u32, &wgpu::Buffer)],
 ) -> (wgpu::ComputePipeline, wgpu::BindGroup) {
-    let pipeline = pipeline(device, entry, source);
+    let pipeline = pipeline(device, &shader(device, entry, source), entry);
     let group = bind_pairs(device, entry, &pipeline, buffers);
     (pipeline, group)
 }

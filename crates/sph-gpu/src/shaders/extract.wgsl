@@ -77,9 +77,21 @@ fn add(f: ptr<function, Field>, j: u32, d: vec3<f32>, r2: f32) {
     (*f).laplacian += v * e.poly6_grad * q * (7.0 * r2 - 3.0 * e.h * e.h);
 }
 
-// c, grad c, lap c at x: one evaluation.
-fn field_at(x: vec3<f32>) -> Field {
+// The field at x and the covariance of the neighbourhood within h (eq. 35,
+// offsets in units of h) from one scan: one evaluation. `refine` uses the
+// field only (the compiler drops the unused sums).
+struct Scan {
+    field: Field,
+    diagonal: vec3<f32>,  // xx, yy, zz
+    off: vec3<f32>,       // xy, xz, yz
+    hits: u32,            // particles within h, x's own included
+};
+
+fn scan(x: vec3<f32>) -> Scan {
     var f = Field(0.0, vec3<f32>(0.0), 0.0);
+    var diagonal = vec3<f32>(0.0);
+    var off = vec3<f32>(0.0);
+    var hits = 0u;
     let c = cell_at(x, e.inv_h);
     let h2 = e.h * e.h;
     for (var dz = -1; dz <= 1; dz++) {
@@ -87,9 +99,9 @@ fn field_at(x: vec3<f32>) -> Field {
             for (var dx = -1; dx <= 1; dx++) {
                 let cell = c + vec3<i32>(dx, dy, dz);
                 let b = bucket_of(cell, e.table);
-                let s = starts[b];
+                let first = starts[b];
                 for (var k = 0u; k < counts[b]; k++) {
-                    let j = sorted[s + k];
+                    let j = sorted[first + k];
                     let y = positions[j].xyz;
                     if any(cell_at(y, e.inv_h) != cell) {
                         continue;
@@ -98,12 +110,16 @@ fn field_at(x: vec3<f32>) -> Field {
                     let r2 = dot(d, d);
                     if r2 <= h2 {
                         add(&f, j, d, r2);
+                        let u = d * e.inv_h;
+                        diagonal += u * u;
+                        off += u.xxy * u.yzz;
+                        hits++;
                     }
                 }
             }
         }
     }
-    return f;
+    return Scan(f, diagonal, off, hits);
 }
 
 // The thread's index in a dispatch of up to 65535 x 65535 groups of 64.
@@ -194,46 +210,9 @@ fn guess(
     let x = positions[i].xyz;
     let h = e.h;
     let h2 = h * h;
-    // Field and neighbourhood covariance (eq. 35, offsets in units of h) in one scan.
-    var f = Field(0.0, vec3<f32>(0.0), 0.0);
-    var xx = 0.0;
-    var xy = 0.0;
-    var xz = 0.0;
-    var yy = 0.0;
-    var yz = 0.0;
-    var zz = 0.0;
-    var hits = 0u;
-    let c = cell_at(x, e.inv_h);
-    for (var dz = -1; dz <= 1; dz++) {
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                let cell = c + vec3<i32>(dx, dy, dz);
-                let b = bucket_of(cell, e.table);
-                let s = starts[b];
-                for (var k = 0u; k < counts[b]; k++) {
-                    let j = sorted[s + k];
-                    let y = positions[j].xyz;
-                    if any(cell_at(y, e.inv_h) != cell) {
-                        continue;
-                    }
-                    let d = x - y;
-                    let r2 = dot(d, d);
-                    if r2 <= h2 {
-                        add(&f, j, d, r2);
-                        let u = d * e.inv_h;
-                        xx += u.x * u.x;
-                        xy += u.x * u.y;
-                        xz += u.x * u.z;
-                        yy += u.y * u.y;
-                        yz += u.y * u.z;
-                        zz += u.z * u.z;
-                        hits++;
-                    }
-                }
-            }
-        }
-    }
-    if hits <= 1u {
+    let at = scan(x);
+    let f = at.field;
+    if at.hits <= 1u {
         // Alone: the analytic iso-sphere V W(R) = iso, final as it is.
         let d3 = e.iso / (volumes[i] * e.poly6);
         let d = pow(d3, 1.0 / 3.0);
@@ -258,6 +237,12 @@ fn guess(
         return;
     }
     // Surface on several sides (eq. 36): P = det C / (tr C / 3)^3.
+    let xx = at.diagonal.x;
+    let yy = at.diagonal.y;
+    let zz = at.diagonal.z;
+    let xy = at.off.x;
+    let xz = at.off.y;
+    let yz = at.off.z;
     let trace = xx + yy + zz;
     let det = xx * (yy * zz - yz * yz) - xy * (xy * zz - yz * xz) + xz * (xy * yz - yy * xz);
     var shape = 0.0;
@@ -345,7 +330,7 @@ fn refine(
     }
     let s = work_in[i];
     let x = s.position_radius.xyz;
-    let f = field_at(x);
+    let f = scan(x).field;
     let g2 = dot(f.gradient, f.gradient);
     let nr = -(f.c - e.iso) * f.gradient / g2;
     if !(g2 > 1e-12 * e.inv_h * e.inv_h) || !(length(nr) <= e.discard_step * e.h) {
