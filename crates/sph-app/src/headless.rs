@@ -39,21 +39,18 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             None
         }
     };
+    let adapter = |flag: &str| {
+        gpu.as_ref().ok_or_else(|| {
+            AppError::Gpu(format!(
+                "{flag} needs a GPU adapter, and none was found (see above)"
+            ))
+        })
+    };
     if args.gpu_sim {
-        let Some(ctx) = &gpu else {
-            return Err(AppError::Gpu(
-                "--gpu-sim needs a GPU adapter, and none was found (see above)".into(),
-            ));
-        };
-        pipeline.set_gpu_sim(Some(ctx))?;
+        pipeline.set_gpu_sim(Some(adapter("--gpu-sim")?))?;
     }
     if args.gpu_extract {
-        let Some(ctx) = &gpu else {
-            return Err(AppError::Gpu(
-                "--gpu-extract needs a GPU adapter, and none was found (see above)".into(),
-            ));
-        };
-        pipeline.set_gpu_extract(Some(ctx))?;
+        pipeline.set_gpu_extract(Some(adapter("--gpu-extract")?))?;
     }
     let mut renderer = match &gpu {
         Some(ctx) => Some(SplatRenderer::new(
