@@ -1,4 +1,5 @@
-//! The demo's error type: every failure is one line and a non-zero exit.
+//! The demo's error type: every failure is a message naming the problem and a
+//! non-zero exit, never a panic.
 
 use std::path::PathBuf;
 

@@ -1,4 +1,4 @@
-//! The built-in scenes (keys 1–9 in the window) and `--scene` resolution.
+//! The built-in scenes (keys 1–5 in the window) and `--scene` resolution.
 
 use std::path::Path;
 
@@ -9,7 +9,7 @@ use crate::error::AppError;
 /// A built-in scene: name, description, constructor.
 pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
-/// Built-in scenes, in key order (1–9).
+/// Built-in scenes, in key order (keys 1–5).
 pub const BUILT_IN: [BuiltIn; 5] = [
     ("dam-break", "thin-slab dam break, 1,200 particles", || {
         Scene::dam_break(0.25, 0.08, 0.02)
@@ -32,7 +32,7 @@ pub const BUILT_IN: [BuiltIn; 5] = [
     ),
 ];
 
-/// A built-in scene by name or index (0-based), or a scene file.
+/// A built-in scene by name, or a scene file (`.toml`, or any existing path).
 pub fn resolve(scene: &str) -> Result<(String, Scene), AppError> {
     if let Some((name, _, make)) = BUILT_IN.iter().find(|(n, _, _)| *n == scene) {
         return Ok((name.to_string(), make()));
@@ -50,7 +50,7 @@ pub fn resolve(scene: &str) -> Result<(String, Scene), AppError> {
 
 /// The `--list-scenes` text.
 pub fn listing() -> String {
-    let mut out = String::from("built-in scenes (--scene NAME, keys 1-9 in the window):\n");
+    let mut out = String::from("built-in scenes (--scene NAME, keys 1-5 in the window):\n");
     for (i, (name, what, _)) in BUILT_IN.iter().enumerate() {
         out.push_str(&format!("  {}  {name:<18} {what}\n", i + 1));
     }

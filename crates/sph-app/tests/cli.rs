@@ -146,7 +146,7 @@ fn fails_with(args: &[&str], expected: &str) {
 }
 
 #[test]
-fn bad_input_is_one_line_and_a_failure() {
+fn bad_input_is_a_clear_error_and_a_failure() {
     let dir = scratch("errors");
     std::fs::create_dir_all(&dir).unwrap();
     fails_with(

@@ -1,6 +1,6 @@
 //! Point-cloud export: binary PLY and legacy binary VTK, each frame stamped with
 //! its simulated time, and a [`FrameWriter`] that writes numbered frames plus a CSV
-//! index (`index.csv`: frame, time, points, file).
+//! index (`{prefix}_index.csv`: frame, time, points, file).
 //!
 //! Both formats are read by ParaView, Blender (PLY) and splashsurf (PLY, VTK):
 //! - PLY: `binary_little_endian 1.0`, one `vertex` element with `float`

@@ -3,8 +3,11 @@
 //! A pure-Rust Smoothed Particle Hydrodynamics core after Müller, Charypar & Gross
 //! (2003) as used in Vesterlund's 2004 thesis: the smoothing [`kernels`], a
 //! parallel uniform-grid neighbour search over an unbounded domain
-//! ([`NeighbourGrid`]) and the extensible struct-of-arrays particle container
-//! ([`Particles`]).
+//! ([`NeighbourGrid`]), the extensible struct-of-arrays particle container
+//! ([`Particles`]), the solver ([`World`]: the thesis's "conveyor belt" of
+//! [`Processor`]s in a [`Program`], adaptive time stepping), domain walls and
+//! obstacles ([`boundary`]), TOML scene files ([`Scene`]) and particle export
+//! (PLY/VTK, [`export`]).
 //!
 //! Everything here is independent of rendering: downstream crates (the surfel
 //! extractor, user simulations) use the neighbour grid and the kernels directly.

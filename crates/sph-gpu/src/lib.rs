@@ -6,9 +6,9 @@
 //! the GPU.
 //!
 //! Built so far: [`GpuGrid`], the uniform-grid neighbour search — cell keys,
-//! counting sort (atomic counts, prefix sum, scatter), cell start table and a
-//! deterministic order inside each cell — all compute passes with no CPU
-//! readback; [`GpuDensity`], sph-core's density and pressure (with the walls' and
+//! hashed into a power-of-two table, counting sort (atomic counts, prefix sum,
+//! scatter), bucket start table and a deterministic order inside each bucket
+//! (a bucket may hold several cells) — all compute passes with no CPU readback; [`GpuDensity`], sph-core's density and pressure (with the walls' and
 //! obstacles' density) as a compute pass over it; [`GpuSolver`], the whole step of
 //! `sph_core::solver::default_program` (domain walls, box and sphere
 //! obstacles) with the particles resident on the GPU, in fixed steps or in
@@ -27,4 +27,4 @@ mod solver;
 pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
-pub use solver::{GpuSolver, GpuState};
+pub use solver::{GpuFrame, GpuSolver, GpuState};
