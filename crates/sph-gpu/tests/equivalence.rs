@@ -232,7 +232,7 @@ fn hundred_steps(ctx: &GpuContext, scene: sph_core::Scene) {
 
 #[test]
 fn adaptive_gpu_frames_match_world_advance() {
-    use sph_gpu::GpuSolver;
+    use sph_gpu::{GpuError, GpuSolver};
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
@@ -275,4 +275,12 @@ fn adaptive_gpu_frames_match_world_advance() {
     }
     assert!(gpu.advance(device, queue, f32::NAN, 8).is_err());
     assert!(gpu.advance(device, queue, frame_dt, 0).is_err());
+    // A blown-up particle stops the frame with an error, not a NaN state.
+    queue.write_buffer(
+        gpu.velocities_buffer(),
+        0,
+        bytemuck::cast_slice(&[f32::NAN, 0.0, f32::NAN, 0.0]),
+    );
+    let err = gpu.advance(device, queue, frame_dt, 8).unwrap_err();
+    assert!(matches!(err, GpuError::Unstable(_)), "{err}");
 }

@@ -17,13 +17,21 @@ struct StepState {
 @group(0) @binding(2) var<storage, read> accelerations: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> state: StepState;
 
+// The bits of |v| for an atomic max: non-negative floats order as u32. A
+// non-finite length (NaN of either sign, inf) becomes +inf, so a blown-up
+// particle makes the stable step 0 and the state unstable, whatever `min`
+// does with NaN.
+fn magnitude_bits(v: vec3<f32>) -> u32 {
+    return min(bitcast<u32>(length(v)) & 0x7fffffffu, 0x7f800000u);
+}
+
 @compute @workgroup_size(64)
 fn reduce_max(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= f.n {
         return;
     }
-    atomicMax(&state.v_max, bitcast<u32>(length(velocities[id.x].xyz)));
-    atomicMax(&state.a_max, bitcast<u32>(length(accelerations[id.x].xyz)));
+    atomicMax(&state.v_max, magnitude_bits(velocities[id.x].xyz));
+    atomicMax(&state.a_max, magnitude_bits(accelerations[id.x].xyz));
 }
 
 @compute @workgroup_size(1)
