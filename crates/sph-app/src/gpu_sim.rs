@@ -2,10 +2,12 @@
 //!
 //! Each frame advances in adaptive substeps whose length the GPU chooses as
 //! `World::advance` does (`GpuSolver::advance`: CFL and force condition,
-//! landing on the frame time), then reads the particle state back into the
-//! world so that CPU extraction, export and the stats work unchanged. The CPU
-//! world stays the reference: switching back continues from the read-back
-//! state.
+//! landing on the frame time). The particles stay on the GPU: nothing but the
+//! 32-byte step state is read back per batch of steps. [`GpuSim::read_into`]
+//! copies the state into the CPU world when something there needs it (CPU
+//! extraction, exports, the particles view, switching back to the CPU, a
+//! world rebuilt after a parameter change). The CPU world stays the reference:
+//! switching back continues from the read-back state.
 
 use sph_core::World;
 use sph_gpu::GpuSolver;
@@ -75,12 +77,14 @@ impl GpuSim {
         &self.solver
     }
 
-    /// Advances `frame_dt` seconds and writes positions, velocities, densities
-    /// and pressures back into `world.particles`. Returns the substeps taken.
+    /// Advances `frame_dt` seconds on the GPU (the first frame sizes its batches
+    /// from `world`'s stable step) and returns the substeps taken. The world's
+    /// particles are left as they were: see [`GpuSim::read_into`].
     ///
     /// # Errors
-    /// [`AppError::Gpu`] on a readback failure or a non-finite state.
-    pub fn advance(&mut self, world: &mut World, frame_dt: f64) -> Result<u32, AppError> {
+    /// [`AppError::Gpu`] on a readback failure or a blow-up (a non-finite
+    /// velocity or acceleration makes the GPU's stable step vanish).
+    pub fn advance(&mut self, world: &World, frame_dt: f64) -> Result<u32, AppError> {
         if self.batch == 0 {
             self.batch = (frame_dt / f64::from(world.stable_dt()))
                 .ceil()
@@ -90,6 +94,16 @@ impl GpuSim {
             .solver
             .advance(&self.device, &self.queue, frame_dt as f32, self.batch)?;
         self.batch = frame.substeps.max(1);
+        self.time += frame_dt;
+        Ok(frame.substeps)
+    }
+
+    /// Writes the GPU's positions, velocities, densities and pressures into
+    /// `world.particles` (the same particles, in the order they were uploaded).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] on a readback failure or a non-finite state.
+    pub fn read_into(&self, world: &mut World) -> Result<(), AppError> {
         let state = self.solver.read_state(&self.device, &self.queue)?;
         if let Some(i) = (0..state.positions.len())
             .find(|&i| !state.positions[i].is_finite() || !state.velocities[i].is_finite())
@@ -104,7 +118,6 @@ impl GpuSim {
         f.velocities.copy_from_slice(&state.velocities);
         f.densities.copy_from_slice(&state.densities);
         f.pressures.copy_from_slice(&state.pressures);
-        self.time += frame_dt;
-        Ok(frame.substeps)
+        Ok(())
     }
 }

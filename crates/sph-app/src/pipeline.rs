@@ -40,7 +40,8 @@ pub struct Pipeline {
     pub name: String,
     /// The scene as loaded (used by reset).
     pub scene: Scene,
-    /// The simulation.
+    /// The simulation. While the SPH step runs on the GPU its particles lag
+    /// behind the GPU's: [`Pipeline::sync_world`] brings them up to date.
     pub world: World,
     /// Extraction parameters.
     pub extract: ExtractParams,
@@ -56,6 +57,8 @@ pub struct Pipeline {
     pub gpu_extract: Option<GpuExtract>,
     /// Simulated time spent on the GPU path (s): the world's clock does not see it.
     gpu_time: f64,
+    /// The GPU solver has stepped past `world.particles`.
+    gpu_ahead: bool,
 }
 
 impl Pipeline {
@@ -80,6 +83,7 @@ impl Pipeline {
             gpu: None,
             gpu_extract: None,
             gpu_time: 0.0,
+            gpu_ahead: false,
         };
         p.stats.particles = p.world.particles.len();
         Ok(p)
@@ -89,6 +93,7 @@ impl Pipeline {
     pub fn reset(&mut self) -> Result<(), AppError> {
         self.world = self.scene.build_world()?;
         self.gpu_time = 0.0;
+        self.gpu_ahead = false;
         if let Some(gpu) = &self.gpu {
             self.gpu = Some(gpu.restart(&self.world, &self.scene)?);
         }
@@ -105,8 +110,10 @@ impl Pipeline {
     /// (`Some`), or back on the CPU from the GPU's last state (`None`).
     ///
     /// # Errors
-    /// [`AppError::Gpu`] where the GPU path does not support the scene.
+    /// [`AppError::Gpu`] where the GPU path does not support the scene, or on a
+    /// readback failure.
     pub fn set_gpu_sim(&mut self, ctx: Option<&GpuContext>) -> Result<(), AppError> {
+        self.sync_world()?;
         self.gpu = ctx
             .map(|ctx| GpuSim::new(ctx, &self.world, &self.scene))
             .transpose()?;
@@ -125,6 +132,19 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Reads the GPU solver's particles back into `world` if it has stepped
+    /// past them (a no-op on the CPU path, or when they are up to date).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] on a readback failure or a non-finite state.
+    pub fn sync_world(&mut self) -> Result<(), AppError> {
+        if let (true, Some(gpu)) = (self.gpu_ahead, &self.gpu) {
+            gpu.read_into(&mut self.world)?;
+        }
+        self.gpu_ahead = false;
+        Ok(())
+    }
+
     /// Whether the surfels are stale (particles moved, reset, mode switched).
     pub fn needs_extraction(&self) -> bool {
         !self.extracted
@@ -135,8 +155,9 @@ impl Pipeline {
         let start = Instant::now();
         let (substeps, time) = match self.gpu.as_mut() {
             Some(gpu) => {
-                let substeps = gpu.advance(&mut self.world, frame_dt)?;
+                let substeps = gpu.advance(&self.world, frame_dt)?;
                 self.gpu_time += frame_dt;
+                self.gpu_ahead = true;
                 (substeps, self.world.time() + self.gpu_time)
             }
             None => {
@@ -165,6 +186,7 @@ impl Pipeline {
             self.stats.evaluations = stats.evaluations + stats.particle_evaluations;
             self.surfels.clear();
         } else {
+            self.sync_world()?;
             let out = extract(&self.world.particles, &self.extract)?;
             self.stats.surfels = out.surfels.len();
             self.stats.evaluations = out.stats.evaluations + out.stats.particle_evaluations;
@@ -210,15 +232,21 @@ impl Pipeline {
             .collect()
     }
 
-    /// The particles as small discs facing `eye` (the "particles" debug view).
-    pub fn particle_splats(&self, eye: Vec3) -> Vec<Splat> {
+    /// The particles as small discs facing `eye` (the "particles" debug view),
+    /// read back from the GPU solver first if it runs.
+    ///
+    /// # Errors
+    /// As [`Pipeline::sync_world`].
+    pub fn particle_splats(&mut self, eye: Vec3) -> Result<Vec<Splat>, AppError> {
+        self.sync_world()?;
         let r = 0.5 * self.scene.spacing;
-        self.world
+        Ok(self
+            .world
             .particles
             .positions()
             .iter()
             .map(|&x| Splat::new(x, (eye - x).try_normalize().unwrap_or(Vec3::Y), r))
-            .collect()
+            .collect())
     }
 
     /// The scene's camera hint.
@@ -236,5 +264,63 @@ impl Pipeline {
             depth_epsilon: 0.5 * self.world.params().h,
             ..Default::default()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With the step and the extraction on the GPU, frames read no particle
+    /// back; whatever needs them on the CPU gets the GPU's current state.
+    #[test]
+    fn gpu_frames_leave_the_particles_on_the_gpu_until_needed() {
+        let Some(ctx) = GpuContext::headless_or_skip() else {
+            return;
+        };
+        let scene = Scene::dam_break(0.2, 0.06, 0.02);
+        let mut p = Pipeline::new("dam".into(), scene, 2).unwrap();
+        let start = p.world.particles.positions().to_vec();
+        p.set_gpu_sim(Some(&ctx)).unwrap();
+        p.set_gpu_extract(Some(&ctx)).unwrap();
+        let gpu_positions = |p: &Pipeline| {
+            let solver = p.gpu.as_ref().unwrap().solver();
+            solver
+                .read_state(&ctx.device, &ctx.queue)
+                .unwrap()
+                .positions
+        };
+        for _ in 0..3 {
+            p.advance(1.0 / 60.0).unwrap();
+            p.extract_surfels().unwrap();
+        }
+        assert!(p.stats.surfels > 0);
+        assert_eq!(p.world.particles.positions(), &start[..], "read back");
+        let moved = gpu_positions(&p)
+            .iter()
+            .zip(&start)
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0f32, f32::max);
+        assert!(moved > 1e-4, "the fluid did not move on the GPU: {moved}");
+
+        // The particles view reads the current state.
+        let discs = p.particle_splats(Vec3::new(0.0, 0.5, 2.0)).unwrap();
+        assert_eq!(discs.len(), start.len());
+        assert_eq!(p.world.particles.positions(), &gpu_positions(&p)[..]);
+
+        // CPU extraction of a GPU-simulated frame sees that frame.
+        p.set_gpu_extract(None).unwrap();
+        p.advance(1.0 / 60.0).unwrap();
+        p.extract_surfels().unwrap();
+        assert_eq!(p.world.particles.positions(), &gpu_positions(&p)[..]);
+        assert_eq!(p.stats.surfels, p.surfels.len());
+
+        // Back on the CPU, the world continues from the GPU's last state.
+        p.advance(1.0 / 60.0).unwrap();
+        let last = gpu_positions(&p);
+        p.set_gpu_sim(None).unwrap();
+        assert_eq!(p.world.particles.positions(), &last[..]);
+        p.advance(1.0 / 60.0).unwrap();
+        assert_ne!(p.world.particles.positions(), &last[..]);
     }
 }

@@ -293,6 +293,7 @@ impl App {
 
     /// Rebuilds the world around the current particles after a parameter change.
     fn apply_fluid_params(&mut self) -> Result<(), AppError> {
+        self.pipeline.sync_world()?;
         let particles = self.pipeline.world.particles.clone();
         self.pipeline.world = self.pipeline.scene.world_with(particles)?;
         if let Some(gpu) = &self.pipeline.gpu {
@@ -380,7 +381,7 @@ impl App {
         // camera, so they follow it every frame.
         if particles_view || self.uploaded != Some(particles_view) {
             if particles_view {
-                let splats = self.pipeline.particle_splats(camera.eye);
+                let splats = self.pipeline.particle_splats(camera.eye)?;
                 gfx.renderer.upload(&gfx.ctx, &splats)?;
             } else {
                 self.pipeline.show_surfels(&gfx.ctx, &mut gfx.renderer)?;
