@@ -90,12 +90,89 @@ impl SurfelIndex {
         hit
     }
 
-    /// The indexed surfels that can cover a probe of surfel `k`, into `out`.
-    fn gather(&self, k: usize, out: &mut Vec<u32>) {
-        out.clear();
+    /// Appends to `out` the indexed surfels of `surfels` that can cover a
+    /// probe of a surfel at `x` no larger than the largest indexed one.
+    fn gather(&self, surfels: &[Surfel], x: Vec3, out: &mut Discs) {
         if let Some(grid) = &self.grid {
-            grid.for_each_neighbour(k, |j, _, _| out.push(j as u32));
+            grid.for_each_neighbour_of_point(x, |j, _, _| out.push(&surfels[j]));
         }
+    }
+}
+
+/// The surfels during hole closing: those it started with, indexed once, and
+/// those it added, indexed again each round (few, so rounds after the first
+/// cost little).
+struct Parts<'a> {
+    old: (&'a SurfelIndex, &'a [Surfel]),
+    new: (SurfelIndex, &'a [Surfel]),
+}
+
+impl Parts<'_> {
+    /// The surfels that can cover a probe of a surfel at `x`, into `out`.
+    fn gather(&self, x: Vec3, out: &mut Discs) {
+        out.clear();
+        self.old.0.gather(self.old.1, x, out);
+        self.new.0.gather(self.new.1, x, out);
+    }
+
+    /// Whether a surfel covers `q`.
+    fn covered(&self, q: Vec3) -> bool {
+        self.old.0.covered(self.old.1, q) || self.new.0.covered(self.new.1, q)
+    }
+}
+
+/// Discs as structure of arrays, so that testing a point against all of them
+/// is one branch-free loop the compiler vectorises.
+#[derive(Debug, Default)]
+struct Discs {
+    x: Vec<f32>,
+    y: Vec<f32>,
+    z: Vec<f32>,
+    nx: Vec<f32>,
+    ny: Vec<f32>,
+    nz: Vec<f32>,
+    r2: Vec<f32>,
+}
+
+impl Discs {
+    fn clear(&mut self) {
+        for v in [
+            &mut self.x,
+            &mut self.y,
+            &mut self.z,
+            &mut self.nx,
+            &mut self.ny,
+            &mut self.nz,
+            &mut self.r2,
+        ] {
+            v.clear();
+        }
+    }
+
+    fn push(&mut self, s: &Surfel) {
+        self.x.push(s.position.x);
+        self.y.push(s.position.y);
+        self.z.push(s.position.z);
+        self.nx.push(s.normal.x);
+        self.ny.push(s.normal.y);
+        self.nz.push(s.normal.z);
+        self.r2.push(s.radius * s.radius);
+    }
+
+    /// Whether one of the discs covers `q` ([`disc_covers`], the same float
+    /// operations in the same order).
+    fn cover(&self, q: Vec3, thickness: f32) -> bool {
+        let n = self.x.len();
+        let (x, y, z) = (&self.x[..n], &self.y[..n], &self.z[..n]);
+        let (nx, ny, nz, r2) = (&self.nx[..n], &self.ny[..n], &self.nz[..n], &self.r2[..n]);
+        let mut hit = false;
+        for i in 0..n {
+            let (dx, dy, dz) = (q.x - x[i], q.y - y[i], q.z - z[i]);
+            let along = dx * nx[i] + dy * ny[i] + dz * nz[i];
+            let (px, py, pz) = (dx - along * nx[i], dy - along * ny[i], dz - along * nz[i]);
+            hit |= (along.abs() <= thickness) & (px * px + py * py + pz * pz <= r2[i]);
+        }
+        hit
     }
 }
 
@@ -105,25 +182,20 @@ impl SurfelIndex {
 fn probe(
     field: &ColourField,
     p: &ExtractParams,
-    index: &SurfelIndex,
-    all: &[Surfel],
-    near: &[u32],
+    parts: &Parts<'_>,
+    near: &Discs,
     s: &Surfel,
     q: Vec3,
 ) -> Option<Surfel> {
     // The probe lies in the tangent plane: where the surface curves away it
     // is off the surface, so before spending an evaluation it counts as
     // covered by a disc it lies over within twice the usual thickness.
-    let loose = LOOSE * index.thickness;
-    if near
-        .iter()
-        .any(|&j| disc_covers(&all[j as usize], q, loose))
-    {
+    if near.cover(q, LOOSE * parts.old.0.thickness) {
         return None;
     }
     let max_step = p.discard_step * p.h;
     let (q, _) = newton_step(field, p.iso, q, max_step)?;
-    if index.covered(all, q) {
+    if parts.covered(q) {
         return None;
     }
     let (x, normal) = newton_step(field, p.iso, q, max_step)?;
@@ -132,7 +204,7 @@ fn probe(
         normal,
         radius: s.radius,
     };
-    (front_facing(p, &new) && !index.covered(all, x)).then_some(new)
+    (front_facing(p, &new) && !parts.covered(x)).then_some(new)
 }
 
 /// Closes holes in `surfels` (see the module docs), probing first around all of
@@ -143,24 +215,29 @@ pub fn close_holes(
     surfels: &mut Vec<Surfel>,
 ) -> Result<usize> {
     let thickness = 0.25 * p.h;
-    let mut probing: Vec<u32> = (0..surfels.len() as u32).collect();
-    let mut added = 0;
+    let first_new = surfels.len();
+    let old_index = SurfelIndex::build(surfels, thickness)?;
+    let mut probing: Vec<u32> = (0..first_new as u32).collect();
     for _ in 0..p.fill_rounds {
         if probing.is_empty() {
             break;
         }
-        let index = SurfelIndex::build(surfels, thickness)?;
         let all: &[Surfel] = surfels;
+        let (old, new) = all.split_at(first_new);
+        let parts = Parts {
+            old: (&old_index, old),
+            new: (SurfelIndex::build(new, thickness)?, new),
+        };
         let candidates: Vec<Surfel> = probing
             .par_iter()
-            .map_init(Vec::new, |near, &k| {
+            .map_init(Discs::default, |near, &k| {
                 let s = &all[k as usize];
-                index.gather(k as usize, near);
+                parts.gather(s.position, near);
                 let (t1, t2) = tangent_basis(s.normal);
                 let mut found = [None; PROBES];
                 for (slot, (cos, sin)) in found.iter_mut().zip(RIM) {
                     let q = s.position + PROBE * s.radius * (cos * t1 + sin * t2);
-                    *slot = probe(field, p, &index, all, near, s, q);
+                    *slot = probe(field, p, &parts, near, s, q);
                 }
                 found
             })
@@ -168,21 +245,20 @@ pub fn close_holes(
             .collect();
         // Keep a candidate only if none accepted before it covers it (sequential,
         // so the result does not depend on the thread count).
-        let first_new = surfels.len();
+        let round_start = surfels.len();
         let mut fresh = Fresh::new(
             candidates.iter().map(|s| s.radius).fold(0.0, f32::max),
             thickness,
         );
         for c in candidates {
-            if !fresh.covered(&surfels[first_new..], c.position) {
-                fresh.insert((surfels.len() - first_new) as u32, c.position);
+            if !fresh.covered(&surfels[round_start..], c.position) {
+                fresh.insert((surfels.len() - round_start) as u32, c.position);
                 surfels.push(c);
             }
         }
-        probing = (first_new as u32..surfels.len() as u32).collect();
-        added += probing.len();
+        probing = (round_start as u32..surfels.len() as u32).collect();
     }
-    Ok(added)
+    Ok(surfels.len() - first_new)
 }
 
 /// The surfels accepted in one round, hashed by cell as they arrive.
