@@ -5,7 +5,8 @@
 //! uncovered, becomes a new surfel. New surfels probe in the next round, so a
 //! hole is closed from its edge inwards. Probes that land on covered surface cost
 //! no field evaluation, so a hole-free surface costs only the lookups: one
-//! neighbour query per probing surfel, against a grid over the surfel centres.
+//! neighbour query per probing surfel against a grid over the surfel centres
+//! (and one against the few surfels added in earlier rounds).
 //!
 //! The extractor runs it once, on the surfels of the first iteration before
 //! they split: the surfels it adds are split and refined like the others, and
