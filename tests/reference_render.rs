@@ -19,6 +19,7 @@ use sph_core::Scene;
 use splat_render::shading::shade_pixel;
 use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer};
 use surfel_extract::raycast::Raycaster;
+use surfel_extract::samples::jittered_lattice;
 use surfel_extract::{ColourField, ExtractParams, extract_field};
 
 const W: u32 = 512;
@@ -26,30 +27,9 @@ const H_PX: u32 = 384;
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
 
-/// Deterministic pseudo-random numbers in [-1, 1).
-fn noise(seed: &mut u64) -> f32 {
-    *seed = seed
-        .wrapping_mul(6_364_136_223_846_793_005)
-        .wrapping_add(1_442_695_040_888_963_407);
-    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-}
-
-/// A jittered cubic lattice of `SPACING` cut by `keep`.
+/// The tests' jittered lattice of `SPACING` cut by `keep`.
 fn lattice(n: i32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec3> {
-    let mut seed = 5;
-    let mut out = Vec::new();
-    for k in -n..=n {
-        for j in -n..=n {
-            for i in -n..=n {
-                let x = Vec3::new(i as f32, j as f32, k as f32) * SPACING;
-                let jitter = Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed));
-                if keep(x) {
-                    out.push(x + 0.3 * SPACING * jitter);
-                }
-            }
-        }
-    }
-    out
+    jittered_lattice(n, SPACING, 0.3, 5, keep)
 }
 
 struct Case {

@@ -34,6 +34,7 @@ pub mod field;
 pub mod fill;
 pub mod ldc;
 pub mod raycast;
+pub mod samples;
 mod thesis;
 
 use std::time::Duration;

@@ -6,37 +6,15 @@ use glam::Vec3;
 use sph_core::Scene;
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
 use surfel_extract::ldc::extract_ldc;
+use surfel_extract::samples::jittered_lattice;
 use surfel_extract::{ColourField, ExtractParams, Mode, extract_field, extract_points};
 
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
 
-/// Deterministic pseudo-random numbers in [-1, 1).
-fn noise(seed: &mut u64) -> f32 {
-    *seed = seed
-        .wrapping_mul(6_364_136_223_846_793_005)
-        .wrapping_add(1_442_695_040_888_963_407);
-    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-}
-
-/// A cubic lattice of `SPACING` cut by `keep`, each point moved by up to
-/// `JITTER` × spacing per axis (a fluid is never a perfect lattice).
+/// The tests' jittered lattice of `SPACING` cut by `keep`.
 fn lattice(n: i32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec3> {
-    const JITTER: f32 = 0.3;
-    let mut seed = 11;
-    let mut out = Vec::new();
-    for k in -n..=n {
-        for j in -n..=n {
-            for i in -n..=n {
-                let x = Vec3::new(i as f32, j as f32, k as f32) * SPACING;
-                let j = Vec3::new(noise(&mut seed), noise(&mut seed), noise(&mut seed));
-                if keep(x) {
-                    out.push(x + JITTER * SPACING * j);
-                }
-            }
-        }
-    }
-    out
+    jittered_lattice(n, SPACING, 0.3, 11, keep)
 }
 
 fn sphere() -> Vec<Vec3> {
