@@ -16,7 +16,8 @@
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
 //! contiguous slot ranges ("rows"), computed once per cell at build time. A query
 //! scans those 9 ranges a chunk of candidates at a time (AVX-512 or SSE2 on x86-64,
-//! see `scan.rs`).
+//! see `scan.rs`). [`Neighbourhood::poly6_sums`] sums kernel-weighted values
+//! straight from the chunks (`sums.rs`), for the colour field and density.
 //!
 //! # Exactness
 //!
@@ -31,7 +32,8 @@
 //! Slot order depends only on (cell, input index), and each query visits rows in a
 //! fixed order and slots in increasing order, so every particle sees its neighbours
 //! in the same order for any number of threads: sums over neighbours are bitwise
-//! reproducible.
+//! reproducible. [`Neighbourhood::poly6_sums`] is too, for a given CPU path (its
+//! AVX-512 and scalar paths round differently).
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -40,7 +42,9 @@ use crate::error::{Error, Result, check_h};
 
 mod layout;
 mod scan;
+mod sums;
 use scan::Scan;
+pub use sums::{Poly6Sums, SecondMoment};
 
 /// Cell edge relative to h: a little wider than h, see the module docs.
 const CELL_SCALE: f64 = 1.0 + 1e-5;
@@ -199,6 +203,19 @@ impl NeighbourGrid {
         &self.layout.order
     }
 
+    /// `values` (one per particle, by input index) in slot order, as
+    /// [`Neighbourhood::poly6_sums`] takes its weights.
+    ///
+    /// Panics if `values.len() != self.len()`.
+    pub fn to_slot_order(&self, values: &[f32]) -> Vec<f32> {
+        assert_eq!(values.len(), self.len(), "one value per particle");
+        self.layout
+            .order
+            .par_iter()
+            .map(|&i| values[i as usize])
+            .collect()
+    }
+
     /// Renumbers the grid's particles by slot, for use after the particle storage
     /// was reordered with `particles.permute(grid.order())`: particle `k` of the
     /// reordered storage is slot `k`, and queries and [`NeighbourGrid::par_map`]
@@ -317,6 +334,13 @@ impl Neighbourhood<'_> {
     /// `|centre − x_j|² ≤ h²`, rows in a fixed order, slots increasing.
     #[inline]
     pub fn for_each(&self, mut f: impl FnMut(usize, Vec3, f32)) {
+        let order = &self.grid.layout.order;
+        self.for_each_slot(|k, d, r2| f(order[k] as usize, d, r2));
+    }
+
+    /// [`Neighbourhood::for_each`] with each neighbour's slot instead of its index.
+    #[inline]
+    fn for_each_slot(&self, mut f: impl FnMut(usize, Vec3, f32)) {
         let (g, c) = (&self.grid.layout, self.centre);
         let [xs, ys, zs] = &g.coords;
         let mut scan = Scan::new(c, self.grid.h2, [xs, ys, zs], &self.rows);
@@ -327,7 +351,7 @@ impl Neighbourhood<'_> {
                 let k = k as usize;
                 // The scan's arithmetic, so `r2` is the value it tested.
                 let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
-                f(g.order[k] as usize, d, d.x * d.x + d.y * d.y + d.z * d.z);
+                f(k, d, d.x * d.x + d.y * d.y + d.z * d.z);
             }
         }
     }

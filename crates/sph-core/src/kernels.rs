@@ -53,6 +53,13 @@ impl Poly6 {
         })
     }
 
+    /// (a, b) with W = a (h² − r²)³, ∇W = −b (h² − r²)² r and
+    /// ∇²W = b (h² − r²)(7r² − 3h²).
+    #[inline]
+    pub fn coefficients(&self) -> (f32, f32) {
+        (self.w, self.grad)
+    }
+
     /// W from the squared distance r² (no square root).
     #[inline]
     pub fn value_r2(&self, r2: f32) -> f32 {

@@ -5,7 +5,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
-use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Result};
+use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Poly6Sums, Result};
 
 /// c, ∇c and ∇²c at a point.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -16,6 +16,17 @@ pub struct Sample {
     pub gradient: Vec3,
     /// ∇²c(x).
     pub laplacian: f32,
+}
+
+impl From<Poly6Sums> for Sample {
+    /// c = Σ V_j W, ∇c = Σ V_j ∇W, ∇²c = Σ V_j ∇²W from sums weighted by volume.
+    fn from(s: Poly6Sums) -> Self {
+        Self {
+            c: s.value,
+            gradient: s.gradient,
+            laplacian: s.laplacian,
+        }
+    }
 }
 
 /// The field at a particle and the shape of its neighbourhood.
@@ -50,6 +61,8 @@ pub struct ColourField {
     grid: NeighbourGrid,
     positions: Vec<Vec3>,
     volumes: Vec<f32>,
+    /// `volumes` in the grid's slot order, as its vectorised sums read them.
+    slot_volumes: Vec<f32>,
     poly6: Poly6,
     evaluations: Counter,
 }
@@ -84,6 +97,7 @@ impl ColourField {
             });
         }
         Ok(Self {
+            slot_volumes: grid.to_slot_order(&volumes),
             grid,
             positions: positions.to_vec(),
             volumes,
@@ -175,11 +189,8 @@ impl ColourField {
     #[inline]
     pub fn sample(&self, x: Vec3) -> Sample {
         self.evaluations.add();
-        let mut s = Sample::default();
-        self.grid
-            .neighbourhood_of_point(x)
-            .for_each(|j, r, r2| self.accumulate(&mut s, j, r, r2));
-        s
+        let nb = self.grid.neighbourhood_of_point(x);
+        nb.poly6_sums(&self.poly6, &self.slot_volumes).into()
     }
 
     /// c, ∇c, ∇²c at particle `i` and the covariance of its neighbourhood about it
@@ -192,36 +203,15 @@ impl ColourField {
     #[inline]
     pub(crate) fn sample_neighbourhood(&self, nb: Neighbourhood<'_>) -> ParticleSample {
         self.evaluations.add();
-        let mut s = Sample::default();
-        // xx, xy, xz, yy, yz, zz: offsets are at most h, so f32 sums of a few
-        // dozen terms are exact enough for the shape test.
-        let mut c = [0.0f32; 6];
-        let mut hits = 0u32;
-        nb.for_each(|j, r, r2| {
-            self.accumulate(&mut s, j, r, r2);
-            c[0] += r.x * r.x;
-            c[1] += r.x * r.y;
-            c[2] += r.x * r.z;
-            c[3] += r.y * r.y;
-            c[4] += r.y * r.z;
-            c[5] += r.z * r.z;
-            hits += 1;
-        });
+        // Offsets are at most h, so f32 sums of a few dozen terms are exact
+        // enough for the shape test.
+        let (sums, covariance) = nb.poly6_sums_and_second_moment(&self.poly6, &self.slot_volumes);
         ParticleSample {
-            sample: s,
-            covariance: c,
+            sample: sums.into(),
+            covariance,
             // The particle finds itself.
-            neighbours: hits.saturating_sub(1),
+            neighbours: sums.count.saturating_sub(1),
         }
-    }
-
-    /// Adds neighbour `j` at offset `r` (|r|² = `r2` ≤ h²) to the sums of `s`.
-    #[inline(always)]
-    fn accumulate(&self, s: &mut Sample, j: usize, r: Vec3, r2: f32) {
-        let v = self.volumes[j];
-        s.c += v * self.poly6.value_r2(r2);
-        s.gradient += v * self.poly6.gradient_r2(r, r2);
-        s.laplacian += v * self.poly6.laplacian_r2(r2);
     }
 
     /// Evaluations made so far.

@@ -30,7 +30,7 @@ const MAX_LANES: usize = 16;
 /// Whether this CPU runs the AVX-512 path (std caches the answer).
 #[cfg(target_arch = "x86_64")]
 #[inline]
-fn avx512() -> bool {
+pub(super) fn avx512() -> bool {
     std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("popcnt")
 }
 
