@@ -266,9 +266,9 @@ impl Processor for DensityPressure {
             boundary: b,
         } = &self.0;
         let (poly6, rho0, h) = (kernels.poly6, params.rest_density, params.h);
+        let masses = grid.to_slot_order(masses);
         let rho = grid.par_map(|_, nb| {
-            let mut rho = 0.0f32;
-            nb.for_each(|j, _, r2| rho += masses[j] * poly6.value_r2(r2));
+            let mut rho = nb.poly6_sums(&poly6, &masses).value;
             b.for_each_wall_within(nb.centre(), h, |d, _| rho += rho0 * wall.volume_fraction(d));
             rho
         });
