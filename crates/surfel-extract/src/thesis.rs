@@ -1,6 +1,7 @@
 //! The extractor of thesis 4.2.1: initial guess from the particles, then
 //! Newton-Raphson refinement with splitting.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
@@ -236,41 +237,49 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     let max_step = p.discard_step * p.h;
     let covered = p.mode == Mode::Covered;
     let mut fill_time = std::time::Duration::ZERO;
-    for it in 0..p.iterations {
-        let stepped: Vec<Option<Surfel>> = work
-            .par_iter()
-            .map(|s| {
-                let (position, normal) = newton_step(field, p.iso, s.position, max_step)?;
-                Some(Surfel {
-                    position,
-                    normal,
-                    radius: s.radius,
-                })
-            })
-            .collect();
-        stats.discarded += stepped.par_iter().filter(|s| s.is_none()).count();
-        let mut kept: Vec<Surfel> = stepped
-            .par_iter()
-            .filter_map(|s| s.filter(|s| front_facing(p, s)))
-            .collect();
-        let last = it + 1 == p.iterations;
-        if last {
-            done.append(&mut kept);
+    // Each iteration is one parallel pass over `work`: the Newton-Raphson
+    // step, the discard test, culling and (but in the last) the split.
+    let discarded = AtomicUsize::new(0);
+    let step = |s: &Surfel| match newton_step(field, p.iso, s.position, max_step) {
+        None => {
+            discarded.fetch_add(1, Ordering::Relaxed);
+            None
         }
-        // Holes are closed once, on the first iteration's surfels: fill surfels
-        // are split and refined like the others, and children inherit the
-        // closed surface. With one iteration that is the result, lone spheres
-        // included.
+        Some((position, normal)) => Some(Surfel {
+            position,
+            normal,
+            radius: s.radius,
+        })
+        .filter(|s| front_facing(p, s)),
+    };
+    for it in 0..p.iterations {
+        let last = it + 1 == p.iterations;
         if covered && it == 0 {
-            let t = Instant::now();
+            // Holes are closed once, on the first iteration's surfels: fill
+            // surfels are split and refined like the others, and children
+            // inherit the closed surface. With one iteration that is the
+            // result, lone spheres included.
+            let mut kept: Vec<Surfel> = work.par_iter().filter_map(step).collect();
+            if last {
+                done.append(&mut kept);
+            }
             let first = if last { &mut done } else { &mut kept };
+            let t = Instant::now();
             stats.filled += fill::close_holes(field, p, first)?;
             fill_time += t.elapsed();
-        }
-        if !last {
-            work = kept.par_iter().flat_map_iter(split).collect();
+            if !last {
+                work = kept.par_iter().flat_map_iter(split).collect();
+            }
+        } else if last {
+            done.par_extend(work.par_iter().filter_map(step));
+        } else {
+            work = (work.par_iter())
+                .filter_map(step)
+                .flat_map_iter(|s| split(&s))
+                .collect();
         }
     }
+    stats.discarded = discarded.into_inner();
     stats.refine_time = start.elapsed() - fill_time;
     stats.fill_time = fill_time;
     stats.evaluations = field.evaluations() - e1;
