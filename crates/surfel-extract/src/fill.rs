@@ -136,6 +136,21 @@ struct Discs {
 }
 
 impl Discs {
+    /// Room for a typical neighbourhood: rayon calls `map_init`'s init once per
+    /// piece of work it splits off, so growing from empty would repeat often.
+    fn new() -> Self {
+        let v = || Vec::with_capacity(128);
+        Self {
+            x: v(),
+            y: v(),
+            z: v(),
+            nx: v(),
+            ny: v(),
+            nz: v(),
+            r2: v(),
+        }
+    }
+
     fn clear(&mut self) {
         for v in [
             &mut self.x,
@@ -231,7 +246,7 @@ pub fn close_holes(
         };
         let candidates: Vec<Surfel> = probing
             .par_iter()
-            .map_init(Discs::default, |near, &k| {
+            .map_init(Discs::new, |near, &k| {
                 let s = &all[k as usize];
                 parts.gather(s.position, near);
                 let (t1, t2) = tangent_basis(s.normal);
