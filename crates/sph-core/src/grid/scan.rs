@@ -198,15 +198,7 @@ impl<'a> Scan<'a> {
                 let x = _mm512_maskz_loadu_ps(valid, xs.as_ptr().add(k));
                 let y = _mm512_maskz_loadu_ps(valid, ys.as_ptr().add(k));
                 let z = _mm512_maskz_loadu_ps(valid, zs.as_ptr().add(k));
-                let (dx, dy, dz) = (
-                    _mm512_sub_ps(cx, x),
-                    _mm512_sub_ps(cy, y),
-                    _mm512_sub_ps(cz, z),
-                );
-                let r2 = _mm512_add_ps(
-                    _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)),
-                    _mm512_mul_ps(dz, dz),
-                );
+                let (_, r2) = offsets_avx512([cx, cy, cz], [x, y, z]);
                 let mask = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(valid, r2, lim);
                 let slots = _mm512_add_epi32(_mm512_set1_epi32(k as i32), lane);
                 // Compress in a register and store all 16 lanes: much faster than
@@ -218,6 +210,28 @@ impl<'a> Scan<'a> {
             }
         })
     }
+}
+
+/// d = c − x and d.x² + d.y² + d.z² for 16 lanes: the expression, in the
+/// order, that every path tests against h² (no fused multiply-add).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+pub(super) fn offsets_avx512(
+    c: [std::arch::x86_64::__m512; 3],
+    x: [std::arch::x86_64::__m512; 3],
+) -> ([std::arch::x86_64::__m512; 3], std::arch::x86_64::__m512) {
+    use std::arch::x86_64::*;
+    let d = [
+        _mm512_sub_ps(c[0], x[0]),
+        _mm512_sub_ps(c[1], x[1]),
+        _mm512_sub_ps(c[2], x[2]),
+    ];
+    let r2 = _mm512_add_ps(
+        _mm512_add_ps(_mm512_mul_ps(d[0], d[0]), _mm512_mul_ps(d[1], d[1])),
+        _mm512_mul_ps(d[2], d[2]),
+    );
+    (d, r2)
 }
 
 #[cfg(test)]

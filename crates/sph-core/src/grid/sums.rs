@@ -11,6 +11,8 @@
 
 use glam::Vec3;
 
+#[cfg(target_arch = "x86_64")]
+use super::scan::offsets_avx512;
 use super::{Neighbourhood, SlotRange};
 use crate::{Kernel, Poly6};
 
@@ -163,15 +165,7 @@ impl Neighbourhood<'_> {
                     )
                 };
                 // The scan's distance test, operation for operation.
-                let (dx, dy, dz) = (
-                    _mm512_sub_ps(cx, x),
-                    _mm512_sub_ps(cy, y),
-                    _mm512_sub_ps(cz, z),
-                );
-                let r2 = _mm512_add_ps(
-                    _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy)),
-                    _mm512_mul_ps(dz, dz),
-                );
+                let ([dx, dy, dz], r2) = offsets_avx512([cx, cy, cz], [x, y, z]);
                 let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(valid, r2, lim);
                 count += hit.count_ones();
                 let t = _mm512_sub_ps(lim, r2);
