@@ -32,8 +32,8 @@
 //! Slot order depends only on (cell, input index), and each query visits rows in a
 //! fixed order and slots in increasing order, so every particle sees its neighbours
 //! in the same order for any number of threads: sums over neighbours are bitwise
-//! reproducible. [`Neighbourhood::poly6_sums`] is too, for a given CPU path (its
-//! AVX-512 and scalar paths round differently).
+//! reproducible. [`Neighbourhood::poly6_sums`] is too, and its AVX-512 and
+//! scalar paths give bitwise the same sums, so results do not depend on the CPU.
 
 use glam::Vec3;
 use rayon::prelude::*;

@@ -4,10 +4,13 @@
 //! buffer and the per-neighbour scalar loop of [`Neighbourhood::for_each`].
 //!
 //! Neighbours are exactly [`Neighbourhood::for_each`]'s: the distance test is
-//! the scan's (same operations, no fused multiply-add). The sums differ from a
-//! sequential loop's in rounding only (lanes are summed separately, then
-//! reduced); for a given CPU path they are a fixed function of the query, so
-//! results are identical for any number of threads.
+//! the scan's (same operations, no fused multiply-add). Each sum is kept in 16
+//! lanes, lane l taking the candidates 16m + l of each row, and the lanes are
+//! reduced by a fixed tree. The scalar path (any CPU without AVX-512) keeps the
+//! same lanes with the same operations in the same order (no fused
+//! multiply-add anywhere), so both paths give bitwise the same sums: a
+//! simulation or an extraction gives the same result on every x86-64 CPU and
+//! for any number of threads.
 
 use glam::Vec3;
 
@@ -35,15 +38,37 @@ pub struct Poly6Sums {
 /// d_j = x − x_j, as [xx, xy, xz, yy, yz, zz].
 pub type SecondMoment = [f32; 6];
 
+/// Lanes per chunk, on both paths.
+const LANES: usize = 16;
+
 /// Raw sums before the kernel's constants: with t = h² − r²,
 /// Σ w t³, Σ w t² d, Σ w t (7r² − 3h²) and Σ d dᵀ.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Raw {
     count: u32,
     t3: f32,
     t2d: [f32; 3],
     lap: f32,
     second: [f32; 6],
+}
+
+/// The per-lane sums of the scalar path, in [`Raw`]'s order.
+#[derive(Clone, Copy)]
+struct Lanes {
+    t3: [f32; LANES],
+    t2d: [[f32; LANES]; 3],
+    lap: [f32; LANES],
+    second: [[f32; LANES]; 6],
+}
+
+/// Sums 16 lanes by the tree the AVX-512 path uses: lane i + lane i+8, then
+/// i + i+4, i + i+2, and the last two.
+#[inline]
+fn reduce(l: &[f32; LANES]) -> f32 {
+    let a: [f32; 8] = std::array::from_fn(|i| l[i] + l[i + 8]);
+    let b: [f32; 4] = std::array::from_fn(|i| a[i] + a[i + 4]);
+    let c: [f32; 2] = std::array::from_fn(|i| b[i] + b[i + 2]);
+    c[0] + c[1]
 }
 
 impl Raw {
@@ -96,31 +121,58 @@ impl Neighbourhood<'_> {
         self.raw_scalar::<SECOND>(weights)
     }
 
-    /// One neighbour at a time through [`Neighbourhood::for_each`]'s scan.
+    /// The AVX-512 path's lanes and operations, one candidate at a time.
     fn raw_scalar<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
-        let h2 = self.grid.h2;
-        let mut raw = Raw::default();
-        self.for_each_slot(|k, d, r2| {
-            let t = h2 - r2;
-            let wt = weights[k] * t;
-            let wt2 = wt * t;
-            raw.count += 1;
-            raw.t3 += wt2 * t;
-            raw.t2d[0] += wt2 * d.x;
-            raw.t2d[1] += wt2 * d.y;
-            raw.t2d[2] += wt2 * d.z;
-            raw.lap += wt * (7.0 * r2 - 3.0 * h2);
-            if SECOND {
-                let s = &mut raw.second;
-                s[0] += d.x * d.x;
-                s[1] += d.x * d.y;
-                s[2] += d.x * d.z;
-                s[3] += d.y * d.y;
-                s[4] += d.y * d.z;
-                s[5] += d.z * d.z;
+        let [xs, ys, zs] = &self.grid.layout.coords;
+        let (c, h2) = (self.centre, self.grid.h2);
+        let three_h2 = 3.0 * h2;
+        let mut l = Lanes {
+            t3: [0.0; LANES],
+            t2d: [[0.0; LANES]; 3],
+            lap: [0.0; LANES],
+            second: [[0.0; LANES]; 6],
+        };
+        let mut count = 0;
+        for &SlotRange { start, end } in &self.rows {
+            for k in start as usize..end as usize {
+                let lane = (k - start as usize) % LANES;
+                // The scan's distance test, operation for operation.
+                let d = [c.x - xs[k], c.y - ys[k], c.z - zs[k]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                // NaN is no hit, as in the vector compare.
+                if r2.partial_cmp(&h2).is_none_or(|o| o.is_gt()) {
+                    continue;
+                }
+                count += 1;
+                let t = h2 - r2;
+                let wt = weights[k] * t;
+                let wt2 = wt * t;
+                l.t3[lane] += wt2 * t;
+                for (sum, da) in l.t2d.iter_mut().zip(d) {
+                    sum[lane] += wt2 * da;
+                }
+                l.lap[lane] += wt * (7.0 * r2 - three_h2);
+                if SECOND {
+                    for (e, (a, b)) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        l.second[e][lane] += d[a] * d[b];
+                    }
+                }
             }
-        });
-        raw
+        }
+        Raw {
+            count,
+            t3: reduce(&l.t3),
+            t2d: l.t2d.map(|v| reduce(&v)),
+            lap: reduce(&l.lap),
+            second: if SECOND {
+                l.second.map(|v| reduce(&v))
+            } else {
+                [0.0; 6]
+            },
+        }
     }
 
     /// Sixteen candidates at a time: masked loads at a row's end, every sum
@@ -169,49 +221,68 @@ impl Neighbourhood<'_> {
                 let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(valid, r2, lim);
                 count += hit.count_ones();
                 let t = _mm512_sub_ps(lim, r2);
-                // Zero outside the hits, so every product below is too.
+                // Zero outside the hits, so every product below is too, and
+                // adding it leaves a lane as the scalar path leaves it. No
+                // fused multiply-add: the scalar path has none to match.
                 let wt = _mm512_maskz_mul_ps(hit, w, t);
                 let wt2 = _mm512_mul_ps(wt, t);
-                t3 = _mm512_fmadd_ps(wt2, t, t3);
-                gx = _mm512_fmadd_ps(wt2, dx, gx);
-                gy = _mm512_fmadd_ps(wt2, dy, gy);
-                gz = _mm512_fmadd_ps(wt2, dz, gz);
-                lap = _mm512_fmadd_ps(wt, _mm512_fmsub_ps(seven, r2, three_h2), lap);
+                let add = |acc, a, b| _mm512_add_ps(acc, _mm512_mul_ps(a, b));
+                t3 = add(t3, wt2, t);
+                gx = add(gx, wt2, dx);
+                gy = add(gy, wt2, dy);
+                gz = add(gz, wt2, dz);
+                lap = add(lap, wt, _mm512_sub_ps(_mm512_mul_ps(seven, r2), three_h2));
                 if SECOND {
                     let (dx, dy, dz) = (
                         _mm512_maskz_mov_ps(hit, dx),
                         _mm512_maskz_mov_ps(hit, dy),
                         _mm512_maskz_mov_ps(hit, dz),
                     );
-                    second[0] = _mm512_fmadd_ps(dx, dx, second[0]);
-                    second[1] = _mm512_fmadd_ps(dx, dy, second[1]);
-                    second[2] = _mm512_fmadd_ps(dx, dz, second[2]);
-                    second[3] = _mm512_fmadd_ps(dy, dy, second[3]);
-                    second[4] = _mm512_fmadd_ps(dy, dz, second[4]);
-                    second[5] = _mm512_fmadd_ps(dz, dz, second[5]);
+                    second[0] = add(second[0], dx, dx);
+                    second[1] = add(second[1], dx, dy);
+                    second[2] = add(second[2], dx, dz);
+                    second[3] = add(second[3], dy, dy);
+                    second[4] = add(second[4], dy, dz);
+                    second[5] = add(second[5], dz, dz);
                 }
                 k += 16;
             }
         }
         Raw {
             count,
-            t3: _mm512_reduce_add_ps(t3),
-            t2d: [
-                _mm512_reduce_add_ps(gx),
-                _mm512_reduce_add_ps(gy),
-                _mm512_reduce_add_ps(gz),
-            ],
-            lap: _mm512_reduce_add_ps(lap),
+            t3: reduce_avx512(t3),
+            t2d: [reduce_avx512(gx), reduce_avx512(gy), reduce_avx512(gz)],
+            lap: reduce_avx512(lap),
             second: [
-                _mm512_reduce_add_ps(second[0]),
-                _mm512_reduce_add_ps(second[1]),
-                _mm512_reduce_add_ps(second[2]),
-                _mm512_reduce_add_ps(second[3]),
-                _mm512_reduce_add_ps(second[4]),
-                _mm512_reduce_add_ps(second[5]),
+                reduce_avx512(second[0]),
+                reduce_avx512(second[1]),
+                reduce_avx512(second[2]),
+                reduce_avx512(second[3]),
+                reduce_avx512(second[4]),
+                reduce_avx512(second[5]),
             ],
         }
     }
+}
+
+/// [`reduce`]'s tree on a vector's 16 lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn reduce_avx512(v: std::arch::x86_64::__m512) -> f32 {
+    use std::arch::x86_64::*;
+    // a[i] = l[i] + l[i + 8], as two 4-lane halves.
+    let a_lo = _mm_add_ps(
+        _mm512_extractf32x4_ps::<0>(v),
+        _mm512_extractf32x4_ps::<2>(v),
+    );
+    let a_hi = _mm_add_ps(
+        _mm512_extractf32x4_ps::<1>(v),
+        _mm512_extractf32x4_ps::<3>(v),
+    );
+    let b = _mm_add_ps(a_lo, a_hi);
+    let c = _mm_add_ps(b, _mm_movehl_ps(b, b));
+    _mm_cvtss_f32(_mm_add_ss(c, _mm_shuffle_ps::<0b01>(c, c)))
 }
 
 #[cfg(test)]
@@ -285,9 +356,9 @@ mod tests {
         }
     }
 
-    /// Every path (the one this CPU runs, and the scalar one) agrees with a
-    /// term-by-term sum to rounding and finds exactly its neighbours, around
-    /// particles, at arbitrary points, far away and for NaN.
+    /// The sums agree with a term-by-term sum to rounding and find exactly its
+    /// neighbours, around particles, at arbitrary points, far away and for
+    /// NaN; the scalar path gives bitwise the sums of the path this CPU runs.
     #[test]
     fn sums_match_term_by_term_sums() {
         let x = cloud();
@@ -315,8 +386,10 @@ mod tests {
             assert_close(got, want);
             assert_eq!(nb.poly6_sums(&kernel, &by_slot), got.0);
             assert_eq!(got.0.count as usize, nb.count());
+            // Bitwise the path this CPU runs: results do not depend on it.
             let scalar = nb.raw_scalar::<true>(&by_slot);
-            assert_close((scalar.finish(&kernel), scalar.second), want);
+            assert_eq!(scalar, nb.raw::<true>(&kernel, &by_slot));
+            assert_eq!((scalar.finish(&kernel), scalar.second), got);
         }
         assert!(found > 1000, "the queries must find neighbours: {found}");
         let none = grid.neighbourhood_of_point(Vec3::NAN);
