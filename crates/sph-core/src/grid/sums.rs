@@ -88,14 +88,15 @@ impl Neighbourhood<'_> {
     /// `weights_by_slot[k]` where slot k holds j (see
     /// [`super::NeighbourGrid::to_slot_order`]). `kernel` must have the grid's h.
     ///
-    /// Panics if `weights_by_slot` is shorter than the grid.
+    /// Panics if `weights_by_slot` is shorter than the grid or the kernel's h
+    /// is not the grid's.
     #[inline]
     pub fn poly6_sums(&self, kernel: &Poly6, weights_by_slot: &[f32]) -> Poly6Sums {
         self.raw::<false>(kernel, weights_by_slot).finish(kernel)
     }
 
     /// [`Neighbourhood::poly6_sums`] and the second moment of the neighbour
-    /// offsets, from one scan.
+    /// offsets, from one scan. Panics as `poly6_sums` does.
     #[inline]
     pub fn poly6_sums_and_second_moment(
         &self,
@@ -112,7 +113,7 @@ impl Neighbourhood<'_> {
             weights.len() >= self.grid.len(),
             "one weight per particle, in slot order"
         );
-        debug_assert_eq!(kernel.h(), self.grid.h, "the kernel's h is the grid's");
+        assert_eq!(kernel.h(), self.grid.h, "the kernel's h must be the grid's");
         #[cfg(target_arch = "x86_64")]
         if super::scan::avx512() {
             // SAFETY: the CPU supports AVX-512F and POPCNT (checked just above).
@@ -394,6 +395,14 @@ mod tests {
         assert!(found > 1000, "the queries must find neighbours: {found}");
         let none = grid.neighbourhood_of_point(Vec3::NAN);
         assert_eq!(none.poly6_sums(&kernel, &by_slot), Poly6Sums::default());
+    }
+
+    #[test]
+    #[should_panic(expected = "the kernel's h must be the grid's")]
+    fn a_kernel_of_another_h_panics() {
+        let grid = NeighbourGrid::build(&[Vec3::ZERO, Vec3::X], 1.0).unwrap();
+        grid.neighbourhood(0)
+            .poly6_sums(&Poly6::new(0.5).unwrap(), &[1.0, 1.0]);
     }
 
     #[test]
