@@ -35,6 +35,8 @@
 //! reproducible. [`Neighbourhood::poly6_sums`] is too, and its AVX-512 and
 //! scalar paths give bitwise the same sums, so results do not depend on the CPU.
 
+use std::borrow::Cow;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -95,6 +97,8 @@ pub struct NeighbourGrid {
     /// Occupied cell → index in `layout.cells`, for queries at points in a
     /// sparse layout (empty for a dense one, whose prefix sums serve instead).
     table: CellTable,
+    /// Whether particle k is slot k ([`NeighbourGrid::renumber_by_slot`]).
+    by_slot: bool,
 }
 
 impl NeighbourGrid {
@@ -168,6 +172,7 @@ impl NeighbourGrid {
             inv_cell,
             layout,
             table,
+            by_slot: false,
         })
     }
 
@@ -207,13 +212,15 @@ impl NeighbourGrid {
     /// [`Neighbourhood::poly6_sums`] takes its weights.
     ///
     /// Panics if `values.len() != self.len()`.
-    pub fn to_slot_order(&self, values: &[f32]) -> Vec<f32> {
+    /// After [`NeighbourGrid::renumber_by_slot`] (a solver's particles stored in
+    /// grid order) they already are, and are borrowed, not copied.
+    pub fn to_slot_order<'v>(&self, values: &'v [f32]) -> Cow<'v, [f32]> {
         assert_eq!(values.len(), self.len(), "one value per particle");
-        self.layout
-            .order
-            .par_iter()
-            .map(|&i| values[i as usize])
-            .collect()
+        if self.by_slot {
+            return Cow::Borrowed(values);
+        }
+        let order = &self.layout.order;
+        Cow::Owned(order.par_iter().map(|&i| values[i as usize]).collect())
     }
 
     /// Renumbers the grid's particles by slot, for use after the particle storage
@@ -231,6 +238,7 @@ impl NeighbourGrid {
             .par_iter_mut()
             .enumerate()
             .for_each(|(k, r)| *r = k as u32);
+        self.by_slot = true;
     }
 
     /// Calls `f(j, x_i − x_j, |x_i − x_j|²)` for every particle `j` within h of

@@ -155,6 +155,31 @@ proptest! {
     }
 }
 
+/// Values in slot order: gathered through `order()`, and borrowed as they are
+/// once the particles are numbered by slot.
+#[test]
+fn values_in_slot_order() {
+    let positions: Vec<Vec3> = (0..50)
+        .map(|i| Vec3::new((i * 7 % 13) as f32, (i % 5) as f32, (i * 3 % 11) as f32) * 0.3)
+        .collect();
+    let values: Vec<f32> = (0..50).map(|i| i as f32).collect();
+    let mut grid = NeighbourGrid::build(&positions, 1.0).unwrap();
+    let by_slot = grid.to_slot_order(&values);
+    assert!(matches!(by_slot, std::borrow::Cow::Owned(_)));
+    let gathered: Vec<f32> = grid.order().iter().map(|&i| values[i as usize]).collect();
+    assert_eq!(*by_slot, gathered[..]);
+    grid.renumber_by_slot();
+    assert!(matches!(
+        grid.to_slot_order(&gathered),
+        std::borrow::Cow::Borrowed(_)
+    ));
+    grid.rebuild(&positions).unwrap();
+    assert!(matches!(
+        grid.to_slot_order(&values),
+        std::borrow::Cow::Owned(_)
+    ));
+}
+
 #[test]
 fn degenerate_sets() {
     let h = 0.1;

@@ -97,7 +97,7 @@ impl ColourField {
             });
         }
         Ok(Self {
-            slot_volumes: grid.to_slot_order(&volumes),
+            slot_volumes: grid.to_slot_order(&volumes).into_owned(),
             grid,
             positions: positions.to_vec(),
             volumes,

@@ -124,7 +124,7 @@ impl Parts<'_> {
 
 /// Discs as structure of arrays, so that testing a point against all of them
 /// is one branch-free loop the compiler vectorises.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Discs {
     x: Vec<f32>,
     y: Vec<f32>,

@@ -43,7 +43,7 @@ const LANES: usize = 16;
 
 /// Raw sums before the kernel's constants: with t = h² − r²,
 /// Σ w t³, Σ w t² d, Σ w t (7r² − 3h²) and Σ d dᵀ.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Raw {
     count: u32,
     t3: f32,
@@ -53,7 +53,6 @@ struct Raw {
 }
 
 /// The per-lane sums of the scalar path, in [`Raw`]'s order.
-#[derive(Clone, Copy)]
 struct Lanes {
     t3: [f32; LANES],
     t2d: [[f32; LANES]; 3],
