@@ -15,8 +15,8 @@
 //! Because cells are sorted with x fastest, the three cells (x−1, y, z), (x, y, z),
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
 //! contiguous slot ranges ("rows"), computed once per cell at build time. A query
-//! scans those 9 ranges a chunk of candidates at a time (AVX-512 or SSE2 on x86-64,
-//! see `scan.rs`). [`Neighbourhood::poly6_sums`] sums kernel-weighted values
+//! scans those 9 ranges a chunk of candidates at a time (AVX-512, AVX2 or SSE2 on
+//! x86-64, chosen at run time: [`simd_level`], see `scan.rs`). [`Neighbourhood::poly6_sums`] sums kernel-weighted values
 //! straight from the chunks (`sums.rs`), for the colour field and density.
 //!
 //! # Exactness
@@ -32,7 +32,7 @@
 //! Slot order depends only on (cell, input index), and each query visits rows in a
 //! fixed order and slots in increasing order, so every particle sees its neighbours
 //! in the same order for any number of threads: sums over neighbours are bitwise
-//! reproducible. [`Neighbourhood::poly6_sums`] is too, and its AVX-512 and
+//! reproducible. [`Neighbourhood::poly6_sums`] is too, and its AVX-512, AVX2 and
 //! scalar paths give bitwise the same sums, so results do not depend on the CPU.
 
 use std::borrow::Cow;
@@ -44,8 +44,10 @@ use crate::error::{Error, Result, check_h};
 
 mod layout;
 mod scan;
+mod simd;
 mod sums;
 use scan::Scan;
+pub use simd::{Simd, simd_level};
 pub use sums::{Poly6Sums, SecondMoment};
 
 /// Cell edge relative to h: a little wider than h, see the module docs.

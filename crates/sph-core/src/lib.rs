@@ -27,7 +27,7 @@ pub mod solver;
 pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
 pub use export::{FrameWriter, PointCloud};
-pub use grid::{NeighbourGrid, Neighbourhood, Poly6Sums};
+pub use grid::{NeighbourGrid, Neighbourhood, Poly6Sums, Simd, simd_level};
 pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program};

@@ -2,9 +2,9 @@
 //!
 //! A [`Scan`] walks the 9 slot ranges ("rows") of a neighbourhood and writes the
 //! slots within h of the centre into a hit buffer, a chunk of candidates at a
-//! time: 16 lanes with AVX-512F when the CPU has it (detected at run time), else
-//! 4 lanes with SSE2 (part of every x86-64 CPU), else one at a time. The chunks
-//! write their hits branch-free (a compress-store with AVX-512), and the caller
+//! time: 16 lanes with AVX-512F, 8 with AVX2, 4 with SSE2 (part of every x86-64
+//! CPU), else one at a time ([`super::simd_level`] picks). The chunks write
+//! their hits branch-free (a compress-store with AVX-512), and the caller
 //! then visits the buffer in one loop: its closure has a single call site, so the
 //! compiler inlines it and keeps the caller's sums in registers.
 //!
@@ -16,23 +16,18 @@
 use glam::Vec3;
 
 use super::SlotRange;
+#[cfg(target_arch = "x86_64")]
+use super::simd::{Simd, simd_level};
 
 /// Entries past the last slot that the coordinate arrays must carry (any finite
-/// or NaN value): the SSE2 path loads whole 4-lane chunks.
-pub(super) const PADDING: usize = 3;
+/// or NaN value): the AVX2 and SSE2 paths load whole 8- and 4-lane chunks.
+pub(super) const PADDING: usize = 7;
 
 /// Hit buffer size; a fill stops while at least one 16-lane chunk still fits.
 pub(super) const HIT_CAPACITY: usize = 256;
 
 /// The widest chunk any path writes.
 const MAX_LANES: usize = 16;
-
-/// Whether this CPU runs the AVX-512 path (std caches the answer).
-#[cfg(target_arch = "x86_64")]
-#[inline]
-pub(super) fn avx512() -> bool {
-    std::arch::is_x86_feature_detected!("avx512f") && std::arch::is_x86_feature_detected!("popcnt")
-}
 
 /// Candidates over the rows of one neighbourhood, resumable: each
 /// [`Scan::fill`] continues where the previous one stopped.
@@ -81,13 +76,14 @@ impl<'a> Scan<'a> {
     #[inline]
     pub(super) fn fill(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
         #[cfg(target_arch = "x86_64")]
-        {
-            if avx512() {
-                // SAFETY: the CPU supports AVX-512F and POPCNT (checked just above).
-                return unsafe { self.fill_avx512(hits) };
+        // SAFETY: `simd_level` never exceeds what the CPU supports (AVX-512F and
+        // POPCNT, or AVX2), and SSE2 is part of the x86-64 baseline.
+        unsafe {
+            match simd_level() {
+                Simd::Avx512 => self.fill_avx512(hits),
+                Simd::Avx2 => self.fill_avx2(hits),
+                Simd::Baseline => self.fill_sse2(hits),
             }
-            // SAFETY: SSE2 is part of the x86-64 baseline.
-            unsafe { self.fill_sse2(hits) }
         }
         #[cfg(not(target_arch = "x86_64"))]
         self.fill_scalar(hits)
@@ -144,7 +140,7 @@ impl<'a> Scan<'a> {
         let (cx, cy, cz) = (_mm_set1_ps(c.x), _mm_set1_ps(c.y), _mm_set1_ps(c.z));
         let lim = _mm_set1_ps(h2);
         self.drive::<4>(hits, |k, end, hits, mut n| {
-            // SAFETY: k < end and the arrays extend PADDING = 3 entries past every
+            // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
             // row's end (asserted in `new`), so xs/ys/zs[k..k + 4] are in bounds.
             let (x, y, z) = unsafe {
                 (
@@ -161,6 +157,42 @@ impl<'a> Scan<'a> {
             let valid = (1u32 << (end - k).min(4)) - 1;
             let mask = _mm_movemask_ps(_mm_cmple_ps(r2, lim)) as u32 & valid;
             for l in 0..4 {
+                hits[n] = (k + l) as u32;
+                n += ((mask >> l) & 1) as usize;
+            }
+            n
+        })
+    }
+
+    /// Eight candidates at a time, as [`Scan::fill_sse2`] does four.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn fill_avx2(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
+        use std::arch::x86_64::*;
+        let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
+        let cs = [
+            _mm256_set1_ps(c.x),
+            _mm256_set1_ps(c.y),
+            _mm256_set1_ps(c.z),
+        ];
+        let lim = _mm256_set1_ps(h2);
+        self.drive::<8>(hits, |k, end, hits, mut n| {
+            // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
+            // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds.
+            let x = unsafe {
+                [
+                    _mm256_loadu_ps(xs.as_ptr().add(k)),
+                    _mm256_loadu_ps(ys.as_ptr().add(k)),
+                    _mm256_loadu_ps(zs.as_ptr().add(k)),
+                ]
+            };
+            let (_, r2) = offsets_avx2(cs, x);
+            let valid = (1u32 << (end - k).min(8)) - 1;
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim)) as u32 & valid;
+            for l in 0..8 {
                 hits[n] = (k + l) as u32;
                 n += ((mask >> l) & 1) as usize;
             }
@@ -230,6 +262,27 @@ pub(super) fn offsets_avx512(
     let r2 = _mm512_add_ps(
         _mm512_add_ps(_mm512_mul_ps(d[0], d[0]), _mm512_mul_ps(d[1], d[1])),
         _mm512_mul_ps(d[2], d[2]),
+    );
+    (d, r2)
+}
+
+/// [`offsets_avx512`] for 8 lanes.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn offsets_avx2(
+    c: [std::arch::x86_64::__m256; 3],
+    x: [std::arch::x86_64::__m256; 3],
+) -> ([std::arch::x86_64::__m256; 3], std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    let d = [
+        _mm256_sub_ps(c[0], x[0]),
+        _mm256_sub_ps(c[1], x[1]),
+        _mm256_sub_ps(c[2], x[2]),
+    ];
+    let r2 = _mm256_add_ps(
+        _mm256_add_ps(_mm256_mul_ps(d[0], d[0]), _mm256_mul_ps(d[1], d[1])),
+        _mm256_mul_ps(d[2], d[2]),
     );
     (d, r2)
 }
@@ -306,7 +359,12 @@ mod tests {
                 // SAFETY: SSE2 is part of the x86-64 baseline.
                 let sse2 = all_hits(scan(), |s, h| unsafe { s.fill_sse2(h) });
                 assert_eq!(sse2, scalar, "SSE2, rows of {len}");
-                if avx512() {
+                if Simd::detect() >= Simd::Avx2 {
+                    // SAFETY: AVX2 was detected.
+                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx2(h) });
+                    assert_eq!(avx, scalar, "AVX2, rows of {len}");
+                }
+                if Simd::detect() >= Simd::Avx512 {
                     // SAFETY: AVX-512F and POPCNT were detected.
                     let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx512(h) });
                     assert_eq!(avx, scalar, "AVX-512, rows of {len}");

@@ -6,16 +6,19 @@
 //! Neighbours are exactly [`Neighbourhood::for_each`]'s: the distance test is
 //! the scan's (same operations, no fused multiply-add). Each sum is kept in 16
 //! lanes, lane l taking the candidates 16m + l of each row, and the lanes are
-//! reduced by a fixed tree. The scalar path (any CPU without AVX-512) keeps the
-//! same lanes with the same operations in the same order (no fused
-//! multiply-add anywhere), so both paths give bitwise the same sums: a
-//! simulation or an extraction gives the same result on every x86-64 CPU and
-//! for any number of threads.
+//! reduced by a fixed tree. The AVX2 path keeps the 16 lanes as two 8-lane
+//! halves, and the scalar path (the baseline) visits them one candidate at a
+//! time; both do the same operations in the same order (no fused multiply-add
+//! anywhere), so every path gives bitwise the same sums: a simulation or an
+//! extraction gives the same result on every CPU and for any number of
+//! threads.
 
 use glam::Vec3;
 
 #[cfg(target_arch = "x86_64")]
-use super::scan::offsets_avx512;
+use super::scan::{offsets_avx2, offsets_avx512};
+#[cfg(target_arch = "x86_64")]
+use super::simd::{Simd, simd_level};
 use super::{Neighbourhood, SlotRange};
 use crate::{Kernel, Poly6};
 
@@ -114,9 +117,12 @@ impl Neighbourhood<'_> {
         );
         assert_eq!(kernel.h(), self.grid.h, "the kernel's h must be the grid's");
         #[cfg(target_arch = "x86_64")]
-        if super::scan::avx512() {
-            // SAFETY: the CPU supports AVX-512F and POPCNT (checked just above).
-            return unsafe { self.raw_avx512::<SECOND>(weights) };
+        match simd_level() {
+            // SAFETY: `simd_level` never exceeds what the CPU supports.
+            Simd::Avx512 => return unsafe { self.raw_avx512::<SECOND>(weights) },
+            // SAFETY: as above.
+            Simd::Avx2 => return unsafe { self.raw_avx2::<SECOND>(weights) },
+            Simd::Baseline => {}
         }
         self.raw_scalar::<SECOND>(weights)
     }
@@ -169,6 +175,109 @@ impl Neighbourhood<'_> {
             lap: reduce(&l.lap),
             second: if SECOND {
                 l.second.map(|v| reduce(&v))
+            } else {
+                [0.0; 6]
+            },
+        }
+    }
+
+    /// The AVX-512 path's 16 lanes as two 8-lane halves: lanes 0–7 and 8–15 of
+    /// each chunk, every sum kept per half and lane and reduced at the end by
+    /// the same tree. Masked loads at a row's end (the weights are not padded).
+    ///
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn raw_avx2<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
+        use std::arch::x86_64::*;
+        let [xs, ys, zs] = &self.grid.layout.coords;
+        let (c, h2) = (self.centre, self.grid.h2);
+        let cs = [
+            _mm256_set1_ps(c.x),
+            _mm256_set1_ps(c.y),
+            _mm256_set1_ps(c.z),
+        ];
+        let lim = _mm256_set1_ps(h2);
+        let (seven, three_h2) = (_mm256_set1_ps(7.0), _mm256_set1_ps(3.0 * h2));
+        let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+        let zero = _mm256_setzero_ps();
+        // [half][sum]: t3, t2d x/y/z, lap, then the second moment's six.
+        let mut acc = [[zero; 11]; 2];
+        let mut count = 0u32;
+        for &SlotRange { start, end } in &self.rows {
+            let (mut k, end) = (start as usize, end as usize);
+            let mut half = 0;
+            while k < end {
+                // SAFETY: full chunks lie inside the arrays; a row's last chunk
+                // loads only the lanes before `end` (the others read as 0).
+                let (x, y, z, w) = unsafe {
+                    if end - k >= 8 {
+                        (
+                            _mm256_loadu_ps(xs.as_ptr().add(k)),
+                            _mm256_loadu_ps(ys.as_ptr().add(k)),
+                            _mm256_loadu_ps(zs.as_ptr().add(k)),
+                            _mm256_loadu_ps(weights.as_ptr().add(k)),
+                        )
+                    } else {
+                        let m = _mm256_cmpgt_epi32(_mm256_set1_epi32((end - k) as i32), lane);
+                        (
+                            _mm256_maskload_ps(xs.as_ptr().add(k), m),
+                            _mm256_maskload_ps(ys.as_ptr().add(k), m),
+                            _mm256_maskload_ps(zs.as_ptr().add(k), m),
+                            _mm256_maskload_ps(weights.as_ptr().add(k), m),
+                        )
+                    }
+                };
+                // The scan's distance test, operation for operation. Lanes past
+                // `end` have x = 0 and are masked out.
+                let ([dx, dy, dz], r2) = offsets_avx2(cs, [x, y, z]);
+                let in_row = _mm256_castsi256_ps(_mm256_cmpgt_epi32(
+                    _mm256_set1_epi32(end.saturating_sub(k).min(8) as i32),
+                    lane,
+                ));
+                let hit = _mm256_and_ps(in_row, _mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim));
+                count += (_mm256_movemask_ps(hit) as u32).count_ones();
+                let t = _mm256_sub_ps(lim, r2);
+                // As the AVX-512 path: zero outside the hits, no fused multiply-add.
+                let wt = _mm256_and_ps(hit, _mm256_mul_ps(w, t));
+                let wt2 = _mm256_mul_ps(wt, t);
+                let a = &mut acc[half];
+                let add = |acc: &mut __m256, p, q| *acc = _mm256_add_ps(*acc, _mm256_mul_ps(p, q));
+                add(&mut a[0], wt2, t);
+                add(&mut a[1], wt2, dx);
+                add(&mut a[2], wt2, dy);
+                add(&mut a[3], wt2, dz);
+                add(
+                    &mut a[4],
+                    wt,
+                    _mm256_sub_ps(_mm256_mul_ps(seven, r2), three_h2),
+                );
+                if SECOND {
+                    let (dx, dy, dz) = (
+                        _mm256_and_ps(hit, dx),
+                        _mm256_and_ps(hit, dy),
+                        _mm256_and_ps(hit, dz),
+                    );
+                    add(&mut a[5], dx, dx);
+                    add(&mut a[6], dx, dy);
+                    add(&mut a[7], dx, dz);
+                    add(&mut a[8], dy, dy);
+                    add(&mut a[9], dy, dz);
+                    add(&mut a[10], dz, dz);
+                }
+                half ^= 1;
+                k += 8;
+            }
+        }
+        let r: [f32; 11] = std::array::from_fn(|i| reduce_avx2(acc[0][i], acc[1][i]));
+        Raw {
+            count,
+            t3: r[0],
+            t2d: [r[1], r[2], r[3]],
+            lap: r[4],
+            second: if SECOND {
+                [r[5], r[6], r[7], r[8], r[9], r[10]]
             } else {
                 [0.0; 6]
             },
@@ -285,6 +394,19 @@ fn reduce_avx512(v: std::arch::x86_64::__m512) -> f32 {
     _mm_cvtss_f32(_mm_add_ss(c, _mm_shuffle_ps::<0b01>(c, c)))
 }
 
+/// [`reduce`]'s tree on 16 lanes held as two 8-lane halves.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn reduce_avx2(lo: std::arch::x86_64::__m256, hi: std::arch::x86_64::__m256) -> f32 {
+    use std::arch::x86_64::*;
+    // a[i] = l[i] + l[i + 8].
+    let a = _mm256_add_ps(lo, hi);
+    let b = _mm_add_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps::<1>(a));
+    let c = _mm_add_ps(b, _mm_movehl_ps(b, b));
+    _mm_cvtss_f32(_mm_add_ss(c, _mm_shuffle_ps::<0b01>(c, c)))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -386,9 +508,25 @@ mod tests {
             assert_close(got, want);
             assert_eq!(nb.poly6_sums(&kernel, &by_slot), got.0);
             assert_eq!(got.0.count as usize, nb.count());
-            // Bitwise the path this CPU runs: results do not depend on it.
+            // Bitwise the path this CPU runs, and every vector path it can
+            // run: results do not depend on the CPU.
             let scalar = nb.raw_scalar::<true>(&by_slot);
             assert_eq!(scalar, nb.raw::<true>(&kernel, &by_slot));
+            #[cfg(target_arch = "x86_64")]
+            {
+                if Simd::detect() >= Simd::Avx2 {
+                    // SAFETY: AVX2 was detected.
+                    let avx2 = unsafe { nb.raw_avx2::<true>(&by_slot) };
+                    assert_eq!(avx2, scalar, "AVX2");
+                    let avx2 = unsafe { nb.raw_avx2::<false>(&by_slot) };
+                    assert_eq!(avx2.t2d, scalar.t2d, "AVX2");
+                }
+                if Simd::detect() >= Simd::Avx512 {
+                    // SAFETY: AVX-512F and POPCNT were detected.
+                    let avx512 = unsafe { nb.raw_avx512::<true>(&by_slot) };
+                    assert_eq!(avx512, scalar, "AVX-512");
+                }
+            }
             assert_eq!((scalar.finish(&kernel), scalar.second), got);
         }
         assert!(found > 1000, "the queries must find neighbours: {found}");

@@ -1,0 +1,86 @@
+//! Which vector instructions the neighbour scan and the sums use: the best this
+//! CPU has (detected once at run time), or a lower level named by the
+//! `SPH_SIMD` environment variable. Every level gives bitwise the same results,
+//! so the variable changes only the speed: it is there to measure the paths
+//! side by side on one machine and to check that they agree.
+
+use std::sync::OnceLock;
+
+/// A set of vector instructions the grid's inner loops are written for.
+///
+/// Ordered from the least to the most capable.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Simd {
+    /// What every CPU of the target has: SSE2 on x86-64 (4-lane scan, scalar
+    /// sums), scalar code elsewhere.
+    Baseline,
+    /// AVX2 on x86-64: 8-lane scan and sums (most desktop CPUs since 2013).
+    Avx2,
+    /// AVX-512F on x86-64: 16-lane scan and sums with masked loads.
+    Avx512,
+}
+
+impl Simd {
+    /// The level's name as `SPH_SIMD` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Simd::Baseline => "baseline",
+            Simd::Avx2 => "avx2",
+            Simd::Avx512 => "avx512",
+        }
+    }
+
+    /// The best level this CPU supports, whatever `SPH_SIMD` says.
+    pub fn detect() -> Simd {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            if has!("avx512f") && has!("popcnt") {
+                return Simd::Avx512;
+            }
+            if has!("avx2") {
+                return Simd::Avx2;
+            }
+        }
+        Simd::Baseline
+    }
+}
+
+/// The level the grid uses: [`Simd::detect`], lowered to `SPH_SIMD` when that
+/// is set to `baseline`, `avx2` or `avx512` (a level above the CPU's is not
+/// taken). Read once per process; an unknown value is reported on stderr once
+/// and ignored.
+pub fn simd_level() -> Simd {
+    static LEVEL: OnceLock<Simd> = OnceLock::new();
+    *LEVEL.get_or_init(|| {
+        let best = Simd::detect();
+        match std::env::var("SPH_SIMD") {
+            Err(_) => best,
+            Ok(v) => match [Simd::Baseline, Simd::Avx2, Simd::Avx512]
+                .into_iter()
+                .find(|l| l.name() == v.trim().to_ascii_lowercase())
+            {
+                Some(asked) => asked.min(best),
+                None => {
+                    eprintln!(
+                        "sph-core: SPH_SIMD={v:?} is not baseline, avx2 or avx512; using {}",
+                        best.name()
+                    );
+                    best
+                }
+            },
+        }
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_level_never_exceeds_the_cpu() {
+        assert!(simd_level() <= Simd::detect());
+        assert!(Simd::Baseline < Simd::Avx2 && Simd::Avx2 < Simd::Avx512);
+        assert_eq!(Simd::Avx2.name(), "avx2");
+    }
+}
