@@ -164,12 +164,14 @@ impl<'a> Scan<'a> {
         })
     }
 
-    /// Eight candidates at a time, as [`Scan::fill_sse2`] does four.
+    /// Eight candidates at a time; the hit slots are packed to the front of a
+    /// register by a permutation looked up by the hit mask ([`PACK`]) and
+    /// stored with one 8-lane store.
     ///
     /// # Safety
-    /// The CPU must support AVX2.
+    /// The CPU must support AVX2 and POPCNT.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,popcnt")]
     unsafe fn fill_avx2(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
@@ -179,24 +181,25 @@ impl<'a> Scan<'a> {
             _mm256_set1_ps(c.z),
         ];
         let lim = _mm256_set1_ps(h2);
-        self.drive::<8>(hits, |k, end, hits, mut n| {
+        self.drive::<8>(hits, |k, end, hits, n| {
             // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
-            // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds.
-            let x = unsafe {
-                [
+            // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds;
+            // the store writes 8 entries at hits[n..], and the driver calls with
+            // n <= HIT_CAPACITY - 16.
+            unsafe {
+                let x = [
                     _mm256_loadu_ps(xs.as_ptr().add(k)),
                     _mm256_loadu_ps(ys.as_ptr().add(k)),
                     _mm256_loadu_ps(zs.as_ptr().add(k)),
-                ]
-            };
-            let (_, r2) = offsets_avx2(cs, x);
-            let valid = (1u32 << (end - k).min(8)) - 1;
-            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim)) as u32 & valid;
-            for l in 0..8 {
-                hits[n] = (k + l) as u32;
-                n += ((mask >> l) & 1) as usize;
+                ];
+                let (_, r2) = offsets_avx2(cs, x);
+                let valid = (1u32 << (end - k).min(8)) - 1;
+                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim)) as u32 & valid;
+                let order = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(PACK[mask as usize] as i64));
+                let packed = _mm256_add_epi32(_mm256_set1_epi32(k as i32), order);
+                _mm256_storeu_si256(hits.as_mut_ptr().add(n).cast(), packed);
+                n + mask.count_ones() as usize
             }
-            n
         })
     }
 
@@ -265,6 +268,26 @@ pub(super) fn offsets_avx512(
     );
     (d, r2)
 }
+
+/// For each 8-lane hit mask, the lanes of its set bits in increasing order, one
+/// per byte from the lowest (the rest 0): the AVX2 path's packing permutation.
+#[cfg(target_arch = "x86_64")]
+static PACK: [u64; 256] = {
+    let mut table = [0u64; 256];
+    let mut mask = 0;
+    while mask < 256 {
+        let (mut lane, mut n) = (0, 0);
+        while lane < 8 {
+            if mask & (1 << lane) != 0 {
+                table[mask] |= (lane as u64) << (8 * n);
+                n += 1;
+            }
+            lane += 1;
+        }
+        mask += 1;
+    }
+    table
+};
 
 /// [`offsets_avx512`] for 8 lanes.
 #[cfg(target_arch = "x86_64")]
@@ -360,7 +383,7 @@ mod tests {
                 let sse2 = all_hits(scan(), |s, h| unsafe { s.fill_sse2(h) });
                 assert_eq!(sse2, scalar, "SSE2, rows of {len}");
                 if Simd::detect() >= Simd::Avx2 {
-                    // SAFETY: AVX2 was detected.
+                    // SAFETY: AVX2 and POPCNT were detected.
                     let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx2(h) });
                     assert_eq!(avx, scalar, "AVX2, rows of {len}");
                 }

@@ -14,7 +14,8 @@ pub enum Simd {
     /// What every CPU of the target has: SSE2 on x86-64 (4-lane scan, scalar
     /// sums), scalar code elsewhere.
     Baseline,
-    /// AVX2 on x86-64: 8-lane scan and sums (most desktop CPUs since 2013).
+    /// AVX2 (and POPCNT) on x86-64: 8-lane scan and sums (most desktop CPUs
+    /// since 2013).
     Avx2,
     /// AVX-512F on x86-64: 16-lane scan and sums with masked loads.
     Avx512,
@@ -38,7 +39,7 @@ impl Simd {
             if has!("avx512f") && has!("popcnt") {
                 return Simd::Avx512;
             }
-            if has!("avx2") {
+            if has!("avx2") && has!("popcnt") {
                 return Simd::Avx2;
             }
         }

@@ -186,9 +186,9 @@ impl Neighbourhood<'_> {
     /// the same tree. Masked loads at a row's end (the weights are not padded).
     ///
     /// # Safety
-    /// The CPU must support AVX2.
+    /// The CPU must support AVX2 and POPCNT.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,popcnt")]
     unsafe fn raw_avx2<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
         use std::arch::x86_64::*;
         let [xs, ys, zs] = &self.grid.layout.coords;
@@ -515,7 +515,7 @@ mod tests {
             #[cfg(target_arch = "x86_64")]
             {
                 if Simd::detect() >= Simd::Avx2 {
-                    // SAFETY: AVX2 was detected.
+                    // SAFETY: AVX2 and POPCNT were detected.
                     let avx2 = unsafe { nb.raw_avx2::<true>(&by_slot) };
                     assert_eq!(avx2, scalar, "AVX2");
                     let avx2 = unsafe { nb.raw_avx2::<false>(&by_slot) };
