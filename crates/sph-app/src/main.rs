@@ -52,6 +52,10 @@ fn run(args: &Args) -> Result<(), AppError> {
             .build_global()
             .map_err(|e| AppError::Threads(e.to_string()))?;
     }
+    log::info!(
+        "CPU neighbour search and sums on the {} path (SPH_SIMD lowers it)",
+        sph_core::simd_level().name()
+    );
     let (name, scene) = scenes::resolve(&args.scene)?;
     let pipeline = Pipeline::new(name, scene, args.iterations)?;
     if args.headless {
