@@ -4,7 +4,7 @@
 //! slots within h of the centre into a hit buffer, a chunk of candidates at a
 //! time: 16 lanes with AVX-512F, 8 with AVX2, 4 with SSE2 (part of every x86-64
 //! CPU), else one at a time ([`super::simd_level`] picks). The chunks write
-//! their hits branch-free (a compress-store with AVX-512), and the caller
+//! their hits branch-free (packed in a register and stored whole), and the caller
 //! then visits the buffer in one loop: its closure has a single call site, so the
 //! compiler inlines it and keeps the caller's sums in registers.
 //!
@@ -203,8 +203,8 @@ impl<'a> Scan<'a> {
         })
     }
 
-    /// Sixteen candidates at a time, masked loads at a row's end, hits written
-    /// with one compress-store.
+    /// Sixteen candidates at a time, masked loads at a row's end, hits packed
+    /// by a compress and written with one store.
     ///
     /// # Safety
     /// The CPU must support AVX-512F and POPCNT.

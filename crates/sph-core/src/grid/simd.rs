@@ -36,7 +36,9 @@ impl Simd {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::is_x86_feature_detected as has;
-            if has!("avx512f") && has!("popcnt") {
+            // `SPH_SIMD=avx2` takes the AVX2 path on such a CPU, so the AVX-512
+            // level needs AVX2 too (every AVX-512 CPU has it; a VM could hide it).
+            if has!("avx512f") && has!("avx2") && has!("popcnt") {
                 return Simd::Avx512;
             }
             if has!("avx2") && has!("popcnt") {
@@ -55,21 +57,22 @@ pub fn simd_level() -> Simd {
     static LEVEL: OnceLock<Simd> = OnceLock::new();
     *LEVEL.get_or_init(|| {
         let best = Simd::detect();
-        match std::env::var("SPH_SIMD") {
-            Err(_) => best,
-            Ok(v) => match [Simd::Baseline, Simd::Avx2, Simd::Avx512]
-                .into_iter()
-                .find(|l| l.name() == v.trim().to_ascii_lowercase())
-            {
-                Some(asked) => asked.min(best),
-                None => {
-                    eprintln!(
-                        "sph-core: SPH_SIMD={v:?} is not baseline, avx2 or avx512; using {}",
-                        best.name()
-                    );
-                    best
-                }
-            },
+        let Some(value) = std::env::var_os("SPH_SIMD") else {
+            return best;
+        };
+        let name = value.to_str().map(|v| v.trim().to_ascii_lowercase());
+        match [Simd::Baseline, Simd::Avx2, Simd::Avx512]
+            .into_iter()
+            .find(|l| name.as_deref() == Some(l.name()))
+        {
+            Some(asked) => asked.min(best),
+            None => {
+                eprintln!(
+                    "sph-core: SPH_SIMD={value:?} is not baseline, avx2 or avx512; using {}",
+                    best.name()
+                );
+                best
+            }
         }
     })
 }

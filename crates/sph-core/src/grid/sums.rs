@@ -1,7 +1,7 @@
 //! Weighted poly6 sums over a neighbourhood, vectorised: the colour field and
 //! the density are Σ_j w_j W(x − x_j) and its derivatives, and computing them
-//! straight from the candidate chunks (AVX-512, 16 lanes, masked) skips the hit
-//! buffer and the per-neighbour scalar loop of [`Neighbourhood::for_each`].
+//! straight from the candidate chunks (16 lanes with AVX-512, 8 with AVX2,
+//! masked at a row's end) skips the hit buffer and the per-neighbour scalar loop of [`Neighbourhood::for_each`].
 //!
 //! Neighbours are exactly [`Neighbourhood::for_each`]'s: the distance test is
 //! the scan's (same operations, no fused multiply-add). Each sum is kept in 16
@@ -41,7 +41,7 @@ pub struct Poly6Sums {
 /// d_j = x − x_j, as [xx, xy, xz, yy, yz, zz].
 pub type SecondMoment = [f32; 6];
 
-/// Lanes per chunk, on both paths.
+/// Lanes of every sum, on every path (AVX2 keeps them as two 8-lane halves).
 const LANES: usize = 16;
 
 /// Raw sums before the kernel's constants: with t = h² − r²,
@@ -210,7 +210,9 @@ impl Neighbourhood<'_> {
             let mut half = 0;
             while k < end {
                 // SAFETY: full chunks lie inside the arrays; a row's last chunk
-                // loads only the lanes before `end` (the others read as 0).
+                // loads only the lanes before `end`. Its other lanes take the
+                // centre (weight 0), as on the AVX-512 path: d = 0 there, so
+                // they add exact zeros even where |c|² would overflow.
                 let (x, y, z, w) = unsafe {
                     if end - k >= 8 {
                         (
@@ -221,16 +223,23 @@ impl Neighbourhood<'_> {
                         )
                     } else {
                         let m = _mm256_cmpgt_epi32(_mm256_set1_epi32((end - k) as i32), lane);
+                        let at = |c, a: &[f32]| {
+                            _mm256_blendv_ps(
+                                c,
+                                _mm256_maskload_ps(a.as_ptr().add(k), m),
+                                _mm256_castsi256_ps(m),
+                            )
+                        };
                         (
-                            _mm256_maskload_ps(xs.as_ptr().add(k), m),
-                            _mm256_maskload_ps(ys.as_ptr().add(k), m),
-                            _mm256_maskload_ps(zs.as_ptr().add(k), m),
+                            at(cs[0], xs),
+                            at(cs[1], ys),
+                            at(cs[2], zs),
                             _mm256_maskload_ps(weights.as_ptr().add(k), m),
                         )
                     }
                 };
                 // The scan's distance test, operation for operation. Lanes past
-                // `end` have x = 0 and are masked out.
+                // `end` hold the centre and are masked out.
                 let ([dx, dy, dz], r2) = offsets_avx2(cs, [x, y, z]);
                 let in_row = _mm256_castsi256_ps(_mm256_cmpgt_epi32(
                     _mm256_set1_epi32(end.saturating_sub(k).min(8) as i32),
@@ -317,11 +326,13 @@ impl Neighbourhood<'_> {
                 // SAFETY: the masked loads touch only lanes k..end, and every
                 // row lies inside the coordinate arrays and, as the grid has
                 // `weights.len()` or fewer slots (asserted), inside `weights`.
+                // Lanes past `end` take the centre (weight 0): d = 0 there, so
+                // they add exact zeros even where |c|² would overflow.
                 let (x, y, z, w) = unsafe {
                     (
-                        _mm512_maskz_loadu_ps(valid, xs.as_ptr().add(k)),
-                        _mm512_maskz_loadu_ps(valid, ys.as_ptr().add(k)),
-                        _mm512_maskz_loadu_ps(valid, zs.as_ptr().add(k)),
+                        _mm512_mask_loadu_ps(cx, valid, xs.as_ptr().add(k)),
+                        _mm512_mask_loadu_ps(cy, valid, ys.as_ptr().add(k)),
+                        _mm512_mask_loadu_ps(cz, valid, zs.as_ptr().add(k)),
                         _mm512_maskz_loadu_ps(valid, weights.as_ptr().add(k)),
                     )
                 };
