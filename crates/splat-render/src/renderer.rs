@@ -56,9 +56,9 @@ pub struct SplatRenderer {
     splats: wgpu::Buffer,
     splat_capacity: usize,
     splat_count: u32,
-    /// The indirect draw arguments of splats produced on the GPU
+    /// The splats produced on the GPU and their indirect draw arguments
     /// ([`use_gpu_splats`](Self::use_gpu_splats)); `None` draws the uploaded ones.
-    gpu_source: Option<wgpu::Buffer>,
+    gpu_source: Option<GpuSource>,
     staging: Vec<GpuSplat>,
     buffer_allocations: u32,
     splat_layout: wgpu::BindGroupLayout,
@@ -472,8 +472,15 @@ impl SplatRenderer {
                 "draw_args must be an indirect buffer of at least 16 bytes",
             ));
         }
-        self.splat_group = splat_bind_group(&ctx.device, &self.splat_layout, &self.frame, splats);
-        self.gpu_source = Some(draw_args.clone());
+        // Called every frame with the same buffers: bind them only when they change.
+        if self.gpu_source.as_ref().is_none_or(|g| g.splats != *splats) {
+            self.splat_group =
+                splat_bind_group(&ctx.device, &self.splat_layout, &self.frame, splats);
+        }
+        self.gpu_source = Some(GpuSource {
+            splats: splats.clone(),
+            draw_args: draw_args.clone(),
+        });
         self.splat_count = 0;
         Ok(())
     }
@@ -481,7 +488,7 @@ impl SplatRenderer {
     /// Records the splat draw of a pass: uploaded or GPU-resident splats.
     fn draw_splats(&self, pass: &mut wgpu::RenderPass<'_>) {
         match &self.gpu_source {
-            Some(args) => pass.draw_indirect(args, 0),
+            Some(g) => pass.draw_indirect(&g.draw_args, 0),
             None => pass.draw(0..4, 0..self.splat_count),
         }
     }
@@ -729,6 +736,13 @@ fn depth_attachment(
         }),
         stencil_ops: None,
     }
+}
+
+/// Splats that live on the GPU, drawn without going through the CPU.
+#[derive(Debug)]
+struct GpuSource {
+    splats: wgpu::Buffer,
+    draw_args: wgpu::Buffer,
 }
 
 fn create_splat_buffer(device: &wgpu::Device, capacity: usize) -> wgpu::Buffer {

@@ -209,6 +209,8 @@ impl Neighbourhood<'_> {
             let (mut k, end) = (start as usize, end as usize);
             let mut half = 0;
             while k < end {
+                // The lanes before the row's end, as a mask.
+                let valid = _mm256_cmpgt_epi32(_mm256_set1_epi32((end - k).min(8) as i32), lane);
                 // SAFETY: full chunks lie inside the arrays; a row's last chunk
                 // loads only the lanes before `end`. Its other lanes take the
                 // centre (weight 0), as on the AVX-512 path: d = 0 there, so
@@ -222,30 +224,28 @@ impl Neighbourhood<'_> {
                             _mm256_loadu_ps(weights.as_ptr().add(k)),
                         )
                     } else {
-                        let m = _mm256_cmpgt_epi32(_mm256_set1_epi32((end - k) as i32), lane);
                         let at = |c, a: &[f32]| {
                             _mm256_blendv_ps(
                                 c,
-                                _mm256_maskload_ps(a.as_ptr().add(k), m),
-                                _mm256_castsi256_ps(m),
+                                _mm256_maskload_ps(a.as_ptr().add(k), valid),
+                                _mm256_castsi256_ps(valid),
                             )
                         };
                         (
                             at(cs[0], xs),
                             at(cs[1], ys),
                             at(cs[2], zs),
-                            _mm256_maskload_ps(weights.as_ptr().add(k), m),
+                            _mm256_maskload_ps(weights.as_ptr().add(k), valid),
                         )
                     }
                 };
                 // The scan's distance test, operation for operation. Lanes past
                 // `end` hold the centre and are masked out.
                 let ([dx, dy, dz], r2) = offsets_avx2(cs, [x, y, z]);
-                let in_row = _mm256_castsi256_ps(_mm256_cmpgt_epi32(
-                    _mm256_set1_epi32(end.saturating_sub(k).min(8) as i32),
-                    lane,
-                ));
-                let hit = _mm256_and_ps(in_row, _mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim));
+                let hit = _mm256_and_ps(
+                    _mm256_castsi256_ps(valid),
+                    _mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim),
+                );
                 count += (_mm256_movemask_ps(hit) as u32).count_ones();
                 let t = _mm256_sub_ps(lim, r2);
                 // As the AVX-512 path: zero outside the hits, no fused multiply-add.
