@@ -8,7 +8,9 @@
 //!   solver's buffers, thesis mode, waiting for the device);
 //! - `frame`: one whole frame at 1920×1080 — step, extraction, splat rendering
 //!   (the CPU path uploads its surfels; the GPU path draws them indirectly and
-//!   nothing leaves the GPU).
+//!   nothing leaves the GPU);
+//! - `advance_batch`: one adaptive GPU frame of a small dam break (8,000
+//!   particles) recorded in batches of its substeps + 1 and of 4 × them.
 //!
 //! Without a GPU this runs on lavapipe: software figures, the "GPU" path on the
 //! same CPU cores.
@@ -180,5 +182,44 @@ fn gpu_vs_cpu(c: &mut Criterion) {
     }
 }
 
-criterion_group!(benches, gpu_vs_cpu);
+/// `advance_batch`: one adaptive frame of 1/60 s (`GpuSolver::advance`) of a
+/// small dam break, its steps recorded in batches of the frame's substeps + 1
+/// and of 4 × its substeps: the steps past the frame's end dispatch no work,
+/// so the two should cost about the same.
+fn advance_batch(c: &mut Criterion) {
+    let Ok(ctx) = GpuContext::headless() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.1, 0.01);
+    let world = scene.build_world().expect("scene");
+    let frame_dt = 1.0 / 60.0;
+    let mut group = c.benchmark_group("advance_batch");
+    group.sample_size(10);
+    for (label, factor) in [("substeps+1", None), ("4x_substeps", Some(4))] {
+        let (device, queue) = (&ctx.device, &ctx.queue);
+        let mut gpu = GpuSolver::new(
+            device,
+            queue,
+            &world.particles,
+            world.params(),
+            &scene.boundary(),
+        )
+        .expect("GPU solver");
+        gpu.set_time_stepping(world.time_stepping())
+            .expect("time stepping");
+        let first = gpu.advance(device, queue, frame_dt, 1000).expect("frame");
+        let batch = factor.map_or(first.substeps + 1, |f| f * first.substeps);
+        println!(
+            "advance_batch/{label}: {} particles, {} substeps in the first frame, batch {batch}",
+            gpu.len(),
+            first.substeps
+        );
+        group.bench_function(label, |b| {
+            b.iter(|| gpu.advance(device, queue, frame_dt, batch).expect("frame"))
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, gpu_vs_cpu, advance_batch);
 criterion_main!(benches);

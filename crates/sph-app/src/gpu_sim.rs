@@ -22,7 +22,9 @@ pub struct GpuSim {
     queue: splat_render::wgpu::Queue,
     /// Simulated time on the GPU (s).
     pub time: f64,
-    /// Substeps of the last frame: how many the next frame records per batch.
+    /// Steps the next frame records per batch: the last frame's substeps and
+    /// a quarter more, so a frame usually takes one batch and one readback
+    /// (steps past the frame's end dispatch no work).
     batch: u32,
 }
 
@@ -78,22 +80,23 @@ impl GpuSim {
     }
 
     /// Advances `frame_dt` seconds on the GPU (the first frame sizes its batches
-    /// from `world`'s stable step) and returns the substeps taken. The world's
+    /// from `world`'s stable step, later ones from the frame before) and
+    /// returns the substeps taken. The world's
     /// particles are left as they were: see [`GpuSim::read_into`].
     ///
     /// # Errors
     /// [`AppError::Gpu`] on a readback failure or a blow-up (a non-finite
     /// velocity or acceleration makes the GPU's stable step vanish).
     pub fn advance(&mut self, world: &World, frame_dt: f64) -> Result<u32, AppError> {
+        let with_margin = |substeps: u32| substeps.saturating_add(substeps / 4 + 1);
         if self.batch == 0 {
-            self.batch = (frame_dt / f64::from(world.stable_dt()))
-                .ceil()
-                .clamp(1.0, 1e4) as u32;
+            let substeps = (frame_dt / f64::from(world.stable_dt())).ceil();
+            self.batch = with_margin(substeps.clamp(1.0, 1e4) as u32);
         }
         let frame = self
             .solver
             .advance(&self.device, &self.queue, frame_dt as f32, self.batch)?;
-        self.batch = frame.substeps.max(1);
+        self.batch = with_margin(frame.substeps);
         self.time += frame_dt;
         Ok(frame.substeps)
     }

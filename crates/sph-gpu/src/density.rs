@@ -6,7 +6,7 @@ use sph_core::{Boundary, FluidParams, Obstacle};
 use wgpu::util::DeviceExt;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{compute_pass, read};
+use crate::passes::{Groups, check_fits, compute_pass, read};
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -41,7 +41,8 @@ impl GpuDensity {
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for parameters sph-core rejects, an `h` different
-    /// from the grid's, or a non-finite obstacle.
+    /// from the grid's, or a non-finite obstacle; [`GpuError::DeviceLimit`]
+    /// for a capacity beyond one dispatch or storage binding of this device.
     pub fn new(
         device: &wgpu::Device,
         grid: &GpuGrid,
@@ -57,6 +58,7 @@ impl GpuDensity {
                 "the density's h must be the grid's cell size",
             ));
         }
+        check_fits(device, "particles", capacity, 64, 4)?;
         let obstacles = obstacles_buffer(device, boundary)?;
         let h = params.h;
         let fluid = Fluid {
@@ -125,6 +127,18 @@ impl GpuDensity {
         encoder: &mut wgpu::CommandEncoder,
         grid: &GpuGrid,
     ) {
+        let groups = grid.len().div_ceil(64).max(1) as u32;
+        self.encode_with(queue, encoder, grid, Groups::Direct(groups));
+    }
+
+    /// The same pass with its workgroups given (one thread per particle).
+    pub(crate) fn encode_with(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        grid: &GpuGrid,
+        groups: Groups<'_>,
+    ) {
         // Written only when the count changes: a batch of steps records this
         // pass many times with the same uniform.
         let n = grid.len() as u32;
@@ -138,7 +152,7 @@ impl GpuDensity {
         });
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.dispatch_workgroups((self.fluid.n).div_ceil(64).max(1), 1, 1);
+        groups.dispatch(&mut pass);
     }
 
     /// Densities (storage buffer of `f32`, one per particle).

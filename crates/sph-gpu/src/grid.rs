@@ -4,7 +4,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use thiserror::Error;
 
-use crate::passes::{bind_buffers, read};
+use crate::passes::{Groups, bind_buffers, check_fits, read};
 
 /// What can go wrong on the GPU path.
 #[derive(Debug, Error)]
@@ -23,6 +23,10 @@ pub enum GpuError {
     /// The adaptive step fell below its minimum or became NaN (a blow-up).
     #[error("the GPU simulation became unstable: {0}")]
     Unstable(String),
+    /// More particles or surfels than this device's dispatch or buffer limits
+    /// allow.
+    #[error("{0}")]
+    DeviceLimit(String),
     /// Reading results back failed.
     #[error("GPU readback failed: {0}")]
     Readback(String),
@@ -92,7 +96,9 @@ impl GpuGrid {
     /// [`neighbour_lists`](Self::neighbour_lists) keeps up to `max_neighbours` per particle.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for a non-finite or non-positive `h` or a zero capacity.
+    /// [`GpuError::Invalid`] for a non-finite or non-positive `h` or a zero
+    /// capacity; [`GpuError::DeviceLimit`] for more particles than one
+    /// dispatch or storage binding of this device covers.
     pub fn new(
         device: &wgpu::Device,
         capacity: usize,
@@ -105,7 +111,11 @@ impl GpuGrid {
         if capacity == 0 || max_neighbours == 0 {
             return Err(GpuError::Invalid("capacity and max_neighbours must be > 0"));
         }
-        let table = (2 * capacity).next_power_of_two().max(256) as u32;
+        let per_particle = (4 * u64::from(max_neighbours)).max(16);
+        check_fits(device, "particles", capacity, 64, per_particle)?;
+        let table = (2 * capacity).next_power_of_two().max(256);
+        check_fits(device, "hash buckets", table, 256, 4)?;
+        let table = table as u32;
         let n_bytes = 4 * capacity as u64;
         let t_bytes = 4 * u64::from(table);
         use wgpu::BufferUsages as U;
@@ -280,20 +290,38 @@ impl GpuGrid {
 
     /// Records the build: clear, count, scan, scatter, per-bucket sort.
     pub fn encode_build(&self, encoder: &mut wgpu::CommandEncoder) {
+        self.encode_build_gated(encoder, None);
+    }
+
+    /// Workgroups of the build's three kinds of pass: over the hash buckets,
+    /// over the particles, and one.
+    pub(crate) fn build_groups(&self) -> [u32; 3] {
+        [self.table / 256, self.n.div_ceil(256).max(1), 1]
+    }
+
+    /// The build, its workgroup counts given here or, with `gate`, read from
+    /// its first three `[x, y, z]` triples (in [`build_groups`](Self::build_groups)'
+    /// order): a pass that writes zeros there turns the build off on the GPU.
+    pub(crate) fn encode_build_gated(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        gate: Option<&wgpu::Buffer>,
+    ) {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("grid build"),
             timestamp_writes: None,
         });
         pass.set_bind_group(0, &self.bind_group, &[]);
-        let particles = self.n.div_ceil(256).max(1);
-        let buckets = self.table / 256;
-        for (pipeline, groups) in self
-            .pipelines
-            .iter()
-            .zip([buckets, particles, buckets, 1, buckets, particles, buckets])
-        {
+        let counts = self.build_groups();
+        // Which kind each of `PASSES` is.
+        const KINDS: [usize; 7] = [0, 1, 0, 2, 0, 1, 0];
+        for (pipeline, kind) in self.pipelines.iter().zip(KINDS) {
             pass.set_pipeline(pipeline);
-            pass.dispatch_workgroups(groups, 1, 1);
+            match gate {
+                None => Groups::Direct(counts[kind]),
+                Some(buffer) => Groups::Indirect(buffer, 12 * kind as u64),
+            }
+            .dispatch(&mut pass);
         }
     }
 

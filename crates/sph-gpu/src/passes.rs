@@ -1,7 +1,61 @@
 //! What every pass of this crate shares: bind groups of whole buffers, a
-//! compute pipeline with its bind group, readback.
+//! compute pipeline with its bind group, workgroup counts, readback.
 
 use crate::grid::GpuError;
+
+/// Where a dispatch's workgroup count comes from.
+#[derive(Clone, Copy)]
+pub(crate) enum Groups<'a> {
+    /// This many workgroups along x.
+    Direct(u32),
+    /// The `[x, y, z]` at this byte offset of an indirect-arguments buffer,
+    /// written by an earlier pass.
+    Indirect(&'a wgpu::Buffer, u64),
+}
+
+impl Groups<'_> {
+    /// Records the dispatch of the pass's current pipeline.
+    pub(crate) fn dispatch(self, pass: &mut wgpu::ComputePass<'_>) {
+        match self {
+            Groups::Direct(x) => pass.dispatch_workgroups(x, 1, 1),
+            Groups::Indirect(buffer, offset) => pass.dispatch_workgroups_indirect(buffer, offset),
+        }
+    }
+}
+
+/// Checks that `items` fit this device: one thread each in a one-dimensional
+/// dispatch of workgroups of `group_size`, and `bytes_each` bytes each in one
+/// storage binding.
+///
+/// # Errors
+/// [`GpuError::DeviceLimit`] naming the limit and the most items it allows.
+pub(crate) fn check_fits(
+    device: &wgpu::Device,
+    what: &str,
+    items: usize,
+    group_size: u32,
+    bytes_each: u64,
+) -> Result<(), GpuError> {
+    let limits = device.limits();
+    let max_groups = u64::from(limits.max_compute_workgroups_per_dimension);
+    let max_bytes = limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size);
+    let by_groups = max_groups * u64::from(group_size);
+    let by_bytes = max_bytes / bytes_each.max(1);
+    let max = by_groups.min(by_bytes);
+    if items as u64 > max {
+        let limit = if by_groups <= by_bytes {
+            format!("{max_groups} workgroups of {group_size} per dispatch")
+        } else {
+            format!("{max_bytes}-byte storage bindings")
+        };
+        return Err(GpuError::DeviceLimit(format!(
+            "{items} {what} exceed this device's {limit}: at most {max}"
+        )));
+    }
+    Ok(())
+}
 
 /// A bind group binding `buffers[i]` whole at binding `i`.
 pub(crate) fn bind_buffers(

@@ -4,10 +4,11 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use sph_core::{Boundary, FluidParams, Particles, PressureKernel, TimeStepping};
+use wgpu::util::DeviceExt;
 
 use crate::density::GpuDensity;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{compute_pass, compute_pass_with, read};
+use crate::passes::{Groups, compute_pass, compute_pass_with, read};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
@@ -90,6 +91,15 @@ pub struct GpuSolver {
     uniform: wgpu::Buffer,
     velocities: wgpu::Buffer,
     state: wgpu::Buffer,
+    /// Indirect workgroup counts of a step's passes, `[x, y, z]` each: the
+    /// grid build's three kinds ([`GpuGrid::build_groups`]) then the
+    /// per-particle passes' groups of 64. The first four triples are live,
+    /// the last four hold the full counts; `choose_dt` copies them to the
+    /// live ones while there is a step to take and zeros after, so steps
+    /// recorded past a frame's end dispatch nothing.
+    gate: wgpu::Buffer,
+    /// The full counts, written to the live triples when a frame starts.
+    gate_full: [u32; 12],
     reduce: (wgpu::ComputePipeline, wgpu::BindGroup),
     choose: (wgpu::ComputePipeline, wgpu::BindGroup),
     forces: (wgpu::ComputePipeline, wgpu::BindGroup),
@@ -204,8 +214,28 @@ impl GpuSolver {
             timestep.clone(),
             &[&uniform, &velocities, &accelerations, &state],
         );
-        let choose =
-            compute_pass_with(device, "choose_dt", timestep, &[(0, &uniform), (3, &state)]);
+        let gate_full: [u32; 12] = {
+            let [buckets, particles, one] = grid.build_groups();
+            let per_particle = n.div_ceil(64).max(1) as u32;
+            [buckets, particles, one, per_particle]
+                .map(|x| [x, 1, 1])
+                .concat()
+                .try_into()
+                .expect("12")
+        };
+        let gate = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("step gate"),
+            contents: bytemuck::cast_slice(&[gate_full, gate_full]),
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::INDIRECT
+                | wgpu::BufferUsages::COPY_DST,
+        });
+        let choose = compute_pass_with(
+            device,
+            "choose_dt",
+            timestep,
+            &[(0, &uniform), (3, &state), (4, &gate)],
+        );
         let integrate = compute_pass(
             device,
             "integrate",
@@ -226,6 +256,8 @@ impl GpuSolver {
             uniform,
             velocities,
             state,
+            gate,
+            gate_full,
             reduce,
             choose,
             forces,
@@ -312,34 +344,39 @@ impl GpuSolver {
 
     /// Records one step: its length (fixed, or chosen on the GPU from the
     /// largest speed and last acceleration), grid, density, forces, integrate.
+    /// Every pass but `choose_dt` takes its workgroups from the gate, so a step
+    /// whose length is 0 (past the frame's end, or unstable) does no work.
     fn encode_step(&mut self, encoder: &mut wgpu::CommandEncoder, queue: &wgpu::Queue) {
-        let groups = self.params.n.div_ceil(64).max(1);
+        let per_particle = Groups::Indirect(&self.gate, 36);
         {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             if self.params.dt <= 0.0 {
                 pass.set_pipeline(&self.reduce.0);
                 pass.set_bind_group(0, &self.reduce.1, &[]);
-                pass.dispatch_workgroups(groups, 1, 1);
+                per_particle.dispatch(&mut pass);
             }
             pass.set_pipeline(&self.choose.0);
             pass.set_bind_group(0, &self.choose.1, &[]);
             pass.dispatch_workgroups(1, 1, 1);
         }
-        self.grid.encode_build(encoder);
-        self.density.encode(queue, encoder, &self.grid);
+        self.grid.encode_build_gated(encoder, Some(&self.gate));
+        self.density
+            .encode_with(queue, encoder, &self.grid, per_particle);
         for (pipeline, bind_group) in [&self.forces, &self.integrate] {
             let mut pass = encoder.begin_compute_pass(&Default::default());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind_group, &[]);
-            pass.dispatch_workgroups(groups, 1, 1);
+            per_particle.dispatch(&mut pass);
         }
     }
 
     /// Advances `frame_dt` seconds in adaptive steps whose length the GPU
     /// chooses as `World::advance` does (acoustic CFL and force condition, the
     /// last steps landing on the frame time). Steps are recorded `batch` at a
-    /// time (steps past the frame's end do nothing); only a 32-byte state is
-    /// read back after each batch, to know whether the frame is done.
+    /// time; steps past the frame's end dispatch no work (their workgroup
+    /// counts, chosen on the GPU, are zero), so a batch somewhat larger than
+    /// the frame needs costs little. Only a 32-byte state is read back after
+    /// each batch, to know whether the frame is done.
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and positive
@@ -361,6 +398,8 @@ impl GpuSolver {
         self.params.frame_dt = frame_dt;
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.params));
         queue.write_buffer(&self.state, 0, bytemuck::bytes_of(&StepState::default()));
+        // The first step's speed reduction runs before any `choose_dt`.
+        queue.write_buffer(&self.gate, 0, bytemuck::cast_slice(&self.gate_full));
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
             for _ in 0..batch {

@@ -88,6 +88,18 @@ fn bad_input_is_an_error() {
         return;
     };
     assert!(GpuGrid::new(&ctx.device, 10, 0.0, 8).is_err());
+    // More particles than one dispatch of this device covers: an error that
+    // names the limit, before anything is allocated.
+    let groups = ctx.device.limits().max_compute_workgroups_per_dimension as usize;
+    for capacity in [64 * groups + 1, 1 << 40] {
+        match GpuGrid::new(&ctx.device, capacity, 0.1, 1) {
+            Err(sph_gpu::GpuError::DeviceLimit(msg)) => {
+                assert!(msg.contains(&capacity.to_string()), "{msg}")
+            }
+            Err(e) => panic!("{capacity}: wrong error {e}"),
+            Ok(_) => panic!("{capacity} particles accepted"),
+        }
+    }
     let mut grid = GpuGrid::new(&ctx.device, 2, 0.1, 8).unwrap();
     assert!(grid.upload(&ctx.queue, &[Vec3::ZERO; 3]).is_err());
     assert!(grid.upload(&ctx.queue, &[Vec3::NAN]).is_err());
@@ -250,9 +262,11 @@ fn adaptive_gpu_frames_match_world_advance() {
     gpu.set_time_stepping(world.time_stepping()).unwrap();
     let h = world.params().h;
     let frame_dt = 1.0 / 60.0;
-    for frame in 0..3 {
+    // Batches of one step, of fewer steps than a frame takes, and of far more
+    // (the steps past the frame's end must change nothing).
+    for (frame, batch) in [8, 1, 64].into_iter().enumerate() {
         let cpu = world.advance(frame_dt).unwrap();
-        let g = gpu.advance(device, queue, frame_dt, 8).unwrap();
+        let g = gpu.advance(device, queue, frame_dt, batch).unwrap();
         let state = gpu.read_state(device, queue).unwrap();
         // The world reorders its particles; ids are the original indices.
         let p = &world.particles;
@@ -263,7 +277,7 @@ fn adaptive_gpu_frames_match_world_advance() {
             .map(|(&id, x)| (state.positions[id as usize] - *x).length())
             .fold(0f32, f32::max);
         println!(
-            "frame {frame}: {} CPU substeps, {} GPU substeps, GPU elapsed {:.6} s of {frame_dt:.6}, max |Δx| = {:.2e} h",
+            "frame {frame}, batch {batch}: {} CPU substeps, {} GPU substeps, GPU elapsed {:.6} s of {frame_dt:.6}, max |Δx| = {:.2e} h",
             cpu.substeps,
             g.substeps,
             g.elapsed,

@@ -16,6 +16,9 @@ struct StepState {
 @group(0) @binding(1) var<storage, read> velocities: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> accelerations: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> state: StepState;
+// The step's indirect workgroup counts (solver.rs, `GpuSolver::gate`): 4 live
+// [x, y, z] triples, then the same 4 with the full counts.
+@group(0) @binding(4) var<storage, read_write> gate: array<u32, 24>;
 
 // The bits of |v| for an atomic max: non-negative floats order as u32. A
 // non-finite length (NaN of either sign, inf) becomes +inf, so a blown-up
@@ -64,6 +67,10 @@ fn choose_dt() {
     atomicStore(&state.v_max, 0u);
     atomicStore(&state.a_max, 0u);
     state.dt = dt;
+    // No step (the frame is done or unstable): the step's passes dispatch nothing.
+    for (var i = 0u; i < 12u; i += 1u) {
+        gate[i] = select(0u, gate[12u + i], dt > 0.0);
+    }
     if dt > 0.0 {
         state.elapsed += dt;
         state.steps += 1u;
