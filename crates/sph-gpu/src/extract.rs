@@ -9,7 +9,7 @@ use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Surfel};
 use wgpu::util::DeviceExt;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{bind_pairs, pipeline, read, shader};
+use crate::passes::{Staging, bind_pairs, pipeline, read, shader};
 use crate::solver::GpuSolver;
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
@@ -105,6 +105,8 @@ pub struct GpuExtractor {
     grid: GpuGrid,
     volumes: wgpu::Buffer,
     counters: wgpu::Buffer,
+    /// Where `read_stats` reads the counters back (every frame in the demo).
+    counters_readback: Staging,
     result: wgpu::Buffer,
     dispatch: wgpu::Buffer,
     draw: wgpu::Buffer,
@@ -299,6 +301,7 @@ impl GpuExtractor {
             grid,
             volumes,
             counters,
+            counters_readback: Staging::new(device, 4 * COUNTERS),
             result,
             dispatch,
             draw,
@@ -486,7 +489,8 @@ impl GpuExtractor {
         queue: &wgpu::Queue,
     ) -> Result<GpuExtractStats, GpuError> {
         let encoder = device.create_command_encoder(&Default::default());
-        let bytes = read(device, queue, encoder, &self.counters, 4 * COUNTERS)?;
+        let bytes =
+            (self.counters_readback).read(device, queue, encoder, &self.counters, 4 * COUNTERS)?;
         let c: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes);
         let n = self.uniform.n as usize;
         Ok(GpuExtractStats {

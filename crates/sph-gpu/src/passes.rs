@@ -151,35 +151,74 @@ pub(crate) fn bind_pairs(
     })
 }
 
-/// Submits `encoder` plus a copy of `bytes` of `buffer` and reads them back.
+/// Submits `encoder` plus a copy of `bytes` of `buffer` and reads them back
+/// through a staging buffer made for the purpose (see [`Staging`] for reads
+/// repeated every frame).
 pub(crate) fn read(
     device: &wgpu::Device,
     queue: &wgpu::Queue,
-    mut encoder: wgpu::CommandEncoder,
+    encoder: wgpu::CommandEncoder,
     buffer: &wgpu::Buffer,
     bytes: u64,
 ) -> Result<Vec<u8>, GpuError> {
-    let size = bytes.max(4).next_multiple_of(4);
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("readback"),
-        size,
-        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-        mapped_at_creation: false,
-    });
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, Some(size.min(buffer.size())));
-    queue.submit([encoder.finish()]);
-    let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
-        let _ = tx.send(r);
-    });
-    device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
-    rx.recv()
-        .map_err(|e| GpuError::Readback(e.to_string()))?
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
-    let view = staging
-        .get_mapped_range(..)
-        .map_err(|e| GpuError::Readback(e.to_string()))?;
-    Ok(view[..bytes as usize].to_vec())
+    Staging::new(device, bytes).read(device, queue, encoder, buffer, bytes)
+}
+
+/// A mappable buffer for reading back at most its size, kept and reused, so a
+/// readback every frame (a step state, the extractor's counters) allocates no
+/// GPU buffer.
+pub(crate) struct Staging {
+    buffer: wgpu::Buffer,
+}
+
+impl Staging {
+    /// Room for `bytes` (rounded up to 4).
+    pub(crate) fn new(device: &wgpu::Device, bytes: u64) -> Self {
+        Self {
+            buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("readback"),
+                size: bytes.max(4).next_multiple_of(4),
+                usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+
+    /// Submits `encoder` plus a copy of the first `bytes` of `source` (at
+    /// most this buffer's size) and reads them back.
+    pub(crate) fn read(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        mut encoder: wgpu::CommandEncoder,
+        source: &wgpu::Buffer,
+        bytes: u64,
+    ) -> Result<Vec<u8>, GpuError> {
+        let staging = &self.buffer;
+        let size = bytes.max(4).next_multiple_of(4);
+        if size > staging.size() {
+            return Err(GpuError::Readback(format!(
+                "{bytes} bytes do not fit a {}-byte staging buffer",
+                staging.size()
+            )));
+        }
+        encoder.copy_buffer_to_buffer(source, 0, staging, 0, Some(size.min(source.size())));
+        queue.submit([encoder.finish()]);
+        let (tx, rx) = std::sync::mpsc::channel();
+        staging.map_async(wgpu::MapMode::Read, ..size, move |r| {
+            let _ = tx.send(r);
+        });
+        device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| GpuError::Readback(e.to_string()))?
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let out = staging
+            .get_mapped_range(..size)
+            .map_err(|e| GpuError::Readback(e.to_string()))?[..bytes as usize]
+            .to_vec();
+        staging.unmap();
+        Ok(out)
+    }
 }

@@ -8,7 +8,7 @@ use wgpu::util::DeviceExt;
 
 use crate::density::GpuDensity;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, compute_pass, compute_pass_with, read};
+use crate::passes::{Groups, Staging, compute_pass, compute_pass_with, read};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
@@ -100,6 +100,8 @@ pub struct GpuSolver {
     gate: wgpu::Buffer,
     /// The full counts, written to the live triples when a frame starts.
     gate_full: [u32; 12],
+    /// Where `advance` reads the step state back after each batch.
+    state_readback: Staging,
     reduce: (wgpu::ComputePipeline, wgpu::BindGroup),
     choose: (wgpu::ComputePipeline, wgpu::BindGroup),
     forces: (wgpu::ComputePipeline, wgpu::BindGroup),
@@ -258,6 +260,7 @@ impl GpuSolver {
             state,
             gate,
             gate_full,
+            state_readback: Staging::new(device, size_of::<StepState>() as u64),
             reduce,
             choose,
             forces,
@@ -405,7 +408,7 @@ impl GpuSolver {
             for _ in 0..batch {
                 self.encode_step(&mut encoder, queue);
             }
-            let bytes = read(
+            let bytes = self.state_readback.read(
                 device,
                 queue,
                 encoder,
