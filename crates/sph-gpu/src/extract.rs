@@ -5,7 +5,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Surfel};
+use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Split, Surfel};
 use wgpu::util::DeviceExt;
 
 use crate::grid::{GpuError, GpuGrid};
@@ -145,9 +145,9 @@ impl GpuExtractor {
         params
             .validate()
             .map_err(|_| GpuError::Invalid("extraction parameters rejected by surfel-extract"))?;
-        if params.mode != Mode::Thesis {
+        if params.mode != Mode::Thesis || params.first_split != Split::TwoByTwo {
             return Err(GpuError::Invalid(
-                "the GPU extractor runs the thesis mode (hole closing is CPU-only): use ExtractParams::thesis()",
+                "the GPU extractor runs the thesis mode (hole closing and 3×3 splits are CPU-only): use ExtractParams::thesis()",
             ));
         }
         if max_surfels == 0 {

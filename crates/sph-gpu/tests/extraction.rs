@@ -11,7 +11,7 @@ use sph_gpu::{GpuExtractStats, GpuExtractor, GpuSolver};
 use splat_render::GpuContext;
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
 use surfel_extract::samples::jittered_lattice;
-use surfel_extract::{ColourField, ExtractParams, Surfel, extract_field};
+use surfel_extract::{ColourField, ExtractParams, Split, Surfel, extract_field};
 
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
@@ -158,6 +158,11 @@ fn overflow_is_reported_and_bad_input_rejected() {
 
     let device = &ctx.device;
     assert!(GpuExtractor::new(device, 10, 100, &ExtractParams::new(H)).is_err());
+    let three_by_three = ExtractParams {
+        first_split: Split::ThreeByThree,
+        ..params
+    };
+    assert!(GpuExtractor::new(device, 10, 100, &three_by_three).is_err());
     assert!(GpuExtractor::new(device, 10, 0, &params).is_err());
     assert!(GpuExtractor::new(device, 10, usize::MAX / 64, &params).is_err());
     let bad = ExtractParams {

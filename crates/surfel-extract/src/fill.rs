@@ -210,17 +210,17 @@ fn probe(
         return None;
     }
     let max_step = p.discard_step * p.h;
-    let (q, _) = newton_step(field, p.iso, q, max_step)?;
+    let q = newton_step(field, p.iso, q, max_step)?.position;
     if parts.covered(q) {
         return None;
     }
-    let (x, normal) = newton_step(field, p.iso, q, max_step)?;
+    let step = newton_step(field, p.iso, q, max_step)?;
     let new = Surfel {
-        position: x,
-        normal,
+        position: step.position,
+        normal: step.normal,
         radius: s.radius,
     };
-    (front_facing(p, &new) && !parts.covered(x)).then_some(new)
+    (front_facing(p, &new) && !parts.covered(new.position)).then_some(new)
 }
 
 /// Closes holes in `surfels` (see the module docs), probing first around all of

@@ -9,7 +9,7 @@ use rayon::prelude::*;
 use sph_core::Result;
 
 use crate::field::{ColourField, ParticleSample};
-use crate::{AllAround, ExtractParams, Mode, Stats, Surfel, Surfels, fill, tangent_basis};
+use crate::{AllAround, ExtractParams, Mode, Split, Stats, Surfel, Surfels, fill, tangent_basis};
 
 /// What one particle contributes to the initial guess.
 #[derive(Debug, Clone, Copy)]
@@ -88,27 +88,51 @@ pub(crate) fn front_facing(p: &ExtractParams, s: &Surfel) -> bool {
         .is_none_or(|eye| (eye - s.position).dot(s.normal) > 0.0)
 }
 
-/// Four surfels covering `s` in its tangent plane (figure 6).
-fn split(s: &Surfel) -> [Surfel; 4] {
+/// The surfels covering `s` in its tangent plane (figure 6): the disc's
+/// bounding square cut into `grid`'s cells, one surfel per cell, each wide
+/// enough to cover its cell's corners (5 % over).
+fn split(s: &Surfel, grid: Split) -> impl Iterator<Item = Surfel> + use<> {
     let (t1, t2) = tangent_basis(s.normal);
-    let a = 0.5 * s.radius;
-    [(1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0)].map(|(u, v)| Surfel {
-        position: s.position + a * (u * t1 + v * t2),
-        normal: s.normal,
-        // Covers the parent disc: its farthest points are r/√2 from a child.
-        radius: s.radius * std::f32::consts::FRAC_1_SQRT_2 * 1.05,
+    let (n, half_diagonal) = match grid {
+        Split::TwoByTwo => (2, std::f32::consts::FRAC_1_SQRT_2),
+        Split::ThreeByThree => (3, std::f32::consts::SQRT_2 / 3.0),
+    };
+    let (centre, normal, r) = (s.position, s.normal, s.radius);
+    // Cell centres at (n − 1 − 2k)/n of the radius: ±1/2 for 2×2, 0 and
+    // ±2/3 for 3×3.
+    let offset = move |k: u32| (n as f32 - 1.0 - 2.0 * k as f32) / n as f32;
+    (0..n * n).map(move |k| Surfel {
+        position: centre + r * (offset(k % n) * t1 + offset(k / n) * t2),
+        normal,
+        radius: r * half_diagonal * 1.05,
     })
 }
 
-/// One Newton-Raphson step (eq. 33) from `x`: the new position and the outward
-/// normal −∇c/|∇c| there, or `None` when the step is longer than `max_step` or
-/// the gradient vanishes.
-pub(crate) fn newton_step(
-    field: &ColourField,
-    iso: f32,
-    x: Vec3,
-    max_step: f32,
-) -> Option<(Vec3, Vec3)> {
+/// Where one Newton-Raphson step (eq. 33) went.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Step {
+    /// The point the step reaches.
+    pub position: Vec3,
+    /// The outward normal −∇c/|∇c| where the step started.
+    pub normal: Vec3,
+    /// |∇²c|/|∇c| where the step started (1/m). On the iso-surface, where the
+    /// colour field's second derivative along the normal vanishes (the middle
+    /// of its smooth step from 1 to 0), ∇²c = −(κ₁ + κ₂)|∇c|: the summed
+    /// principal curvatures.
+    pub bend: f32,
+}
+
+impl Step {
+    /// How far the surface curves away from the tangent plane at distance `d`
+    /// from the step's end, bend·d²/2: exact for a cylinder, twice a sphere's.
+    pub fn sag(&self, d: f32) -> f32 {
+        0.5 * self.bend * d * d
+    }
+}
+
+/// One Newton-Raphson step (eq. 33) from `x`, or `None` when the step is
+/// longer than `max_step` or the gradient vanishes.
+pub(crate) fn newton_step(field: &ColourField, iso: f32, x: Vec3, max_step: f32) -> Option<Step> {
     let s = field.sample(x);
     let g2 = s.gradient.length_squared();
     if g2.is_nan() || g2 <= 1e-12 / (field.h() * field.h()) {
@@ -118,7 +142,12 @@ pub(crate) fn newton_step(
     if step.is_nan() || step.length() > max_step {
         return None;
     }
-    Some((x + step, -s.gradient / g2.sqrt()))
+    let g = g2.sqrt();
+    Some(Step {
+        position: x + step,
+        normal: -s.gradient / g,
+        bend: s.laplacian.abs() / g,
+    })
 }
 
 /// Classifies particle `i` from its field sample and neighbourhood shape.
@@ -161,7 +190,7 @@ fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> Few {
             surfel,
             split: true,
         } => {
-            for s in split(&surfel) {
+            for s in split(&surfel, Split::TwoByTwo) {
                 out.push_front_facing(p, s);
             }
         }
@@ -240,26 +269,42 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     // Each iteration is one parallel pass over `work`: the Newton-Raphson
     // step, the discard test, culling and (but in the last) the split.
     let discarded = AtomicUsize::new(0);
-    let step = |s: &Surfel| match newton_step(field, p.iso, s.position, max_step) {
+    let step = |s: &Surfel, grid: Split| match newton_step(field, p.iso, s.position, max_step) {
         None => {
             discarded.fetch_add(1, Ordering::Relaxed);
             None
         }
-        Some((position, normal)) => Some(Surfel {
-            position,
-            normal,
-            radius: s.radius,
-        })
-        .filter(|s| front_facing(p, s)),
+        Some(step) => {
+            let new = Surfel {
+                position: step.position,
+                normal: step.normal,
+                radius: s.radius,
+            };
+            // A 3×3 split's corner children start 0.94 r out in the tangent
+            // plane: where the surface curves away from it there by more
+            // than a step the refinement accepts, they would start too far
+            // off it, and the split is 2×2.
+            let grid = match grid {
+                Split::ThreeByThree if step.sag(0.943 * s.radius) > max_step => Split::TwoByTwo,
+                grid => grid,
+            };
+            front_facing(p, &new).then_some((new, grid))
+        }
     };
     for it in 0..p.iterations {
         let last = it + 1 == p.iterations;
+        let grid = if it == 0 {
+            p.first_split
+        } else {
+            Split::TwoByTwo
+        };
         if covered && it == 0 {
             // Holes are closed once, on the first iteration's surfels: fill
-            // surfels are split and refined like the others, and children
-            // inherit the closed surface. With one iteration that is the
-            // result, lone spheres included.
-            let mut kept: Vec<Surfel> = work.par_iter().filter_map(step).collect();
+            // surfels (after the end of `grids`) are split 2×2 and refined
+            // like the others, and children inherit the closed surface. With
+            // one iteration that is the result, lone spheres included.
+            let (mut kept, grids): (Vec<Surfel>, Vec<Split>) =
+                work.par_iter().filter_map(|s| step(s, grid)).unzip();
             if last {
                 done.append(&mut kept);
             }
@@ -268,14 +313,20 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
             stats.filled += fill::close_holes(field, p, first)?;
             fill_time += t.elapsed();
             if !last {
-                work = kept.par_iter().flat_map_iter(split).collect();
+                work = (kept.par_iter().enumerate())
+                    .flat_map_iter(|(k, s)| split(s, grids.get(k).copied().unwrap_or_default()))
+                    .collect();
             }
         } else if last {
-            done.par_extend(work.par_iter().filter_map(step));
+            done.par_extend(
+                work.par_iter()
+                    .filter_map(|s| step(s, grid))
+                    .map(|(s, _)| s),
+            );
         } else {
             work = (work.par_iter())
-                .filter_map(step)
-                .flat_map_iter(|s| split(&s))
+                .filter_map(|s| step(s, grid))
+                .flat_map_iter(|(s, grid)| split(&s, grid))
                 .collect();
         }
     }
@@ -288,4 +339,46 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
         surfels: done,
         stats,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every point of a split surfel's disc lies on a child's disc, and the
+    /// children lie in its plane: a split loses no surface and tilts nothing.
+    #[test]
+    fn split_children_cover_the_parent_disc() {
+        let parent = Surfel {
+            position: Vec3::new(0.3, -0.2, 0.5),
+            normal: Vec3::new(1.0, 2.0, -0.5).normalize(),
+            radius: 0.01,
+        };
+        let (t1, t2) = tangent_basis(parent.normal);
+        for (grid, n, ratio) in [(Split::TwoByTwo, 4, 0.742), (Split::ThreeByThree, 9, 0.495)] {
+            let children: Vec<Surfel> = split(&parent, grid).collect();
+            assert_eq!(children.len(), n);
+            for c in &children {
+                assert_eq!(c.normal, parent.normal);
+                assert!((c.position - parent.position).dot(parent.normal).abs() < 1e-6);
+                assert!(
+                    (c.radius / parent.radius - ratio).abs() < 1e-3,
+                    "{grid:?}: {}",
+                    c.radius
+                );
+            }
+            // Polar samples out to the rim.
+            for i in 0..=40 {
+                for j in 0..64 {
+                    let rho = parent.radius * i as f32 / 40.0;
+                    let phi = std::f32::consts::TAU * j as f32 / 64.0;
+                    let q = parent.position + rho * (phi.cos() * t1 + phi.sin() * t2);
+                    let nearest = (children.iter())
+                        .map(|c| (q - c.position).length() / c.radius)
+                        .fold(f32::INFINITY, f32::min);
+                    assert!(nearest <= 1.0, "{grid:?}: point {q} uncovered ({nearest})");
+                }
+            }
+        }
+    }
 }
