@@ -5,7 +5,9 @@
 //! Throughput is in surfels. Before timing, one untimed run per configuration
 //! prints surfels, evaluations, efficiency (surfels per surfel evaluation) and
 //! coverage of independently found iso-surface points, for the default and the
-//! thesis-faithful mode.
+//! thesis-faithful mode. With 2 and 3 iterations the default mode also runs
+//! with the thesis's 2×2 first split (`iterations-2x2`), the default before
+//! the 3×3 one.
 //! In the same run, splashsurf's `reconstruct_surface` (marching cubes) on the
 //! same particles is the peer.
 
@@ -16,7 +18,7 @@ use sph_core::{Particles, Scene};
 use splashsurf_lib::nalgebra::Vector3;
 use surfel_extract::coverage::{covered_fraction, iso_points};
 use surfel_extract::ldc::extract_ldc;
-use surfel_extract::{ColourField, ExtractParams, Surfel, extract};
+use surfel_extract::{ColourField, ExtractParams, Split, Surfel, extract};
 
 /// The dam break `Scene::dam_break(a, depth, 0.01)` after `t` seconds.
 fn frame(a: f32, depth: f32, t: f32) -> Particles {
@@ -68,6 +70,26 @@ fn extraction(c: &mut Criterion) {
                 BenchmarkId::new(format!("{label}/iterations"), iterations),
                 |b| b.iter(|| black_box(extract(&particles, &params).expect("extraction"))),
             );
+            if iterations > 1 {
+                let params = ExtractParams {
+                    first_split: Split::TwoByTwo,
+                    ..params
+                };
+                let out = extract(&particles, &params).expect("extraction");
+                let s = out.stats;
+                println!(
+                    "{label}, {iterations} iterations, 2×2 first split: {} surfels, {} surfel evaluations, efficiency {:.2}, coverage {:.2} %",
+                    s.surfels,
+                    s.evaluations,
+                    s.efficiency(),
+                    coverage(&out.surfels),
+                );
+                group.throughput(Throughput::Elements(s.surfels as u64));
+                group.bench_function(
+                    BenchmarkId::new(format!("{label}/iterations-2x2"), iterations),
+                    |b| b.iter(|| black_box(extract(&particles, &params).expect("extraction"))),
+                );
+            }
         }
         let params = ExtractParams::new(h);
         let ldc = |p: &Particles| {
