@@ -71,9 +71,10 @@ pub enum AllAround {
 ///
 /// A split replaces one surfel by n² and costs n² evaluations when the
 /// children are refined, so it adds surfels at the rate (n² − 1)/n² per
-/// evaluation: 3/4 for 2×2, 8/9 for 3×3. Refinement with 2×2 splits alone
-/// therefore drives the efficiency (surfels per evaluation) towards 0.75 from
-/// whichever side the first iteration left it, and never across.
+/// evaluation at most (fewer when children are discarded): 3/4 for 2×2, 8/9
+/// for 3×3. Refinement with 2×2 splits alone therefore never lifts the
+/// efficiency (surfels per evaluation) above 0.75 when the first iteration
+/// left it below.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Split {
     /// Four surfels of 0.74 r (the thesis).
