@@ -10,6 +10,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use sph_core::solver::ExternalAcceleration;
 use splat_render::{GpuContext, Shading, SplatRenderer, View, wgpu};
+use surfel_extract::Split;
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
@@ -463,6 +464,10 @@ impl App {
                     ui.add(egui::Slider::new(&mut extract.radius, 0.2..=1.0).text("initial radius (h)"));
                     ui.add(egui::Slider::new(&mut extract.interior_step, 0.3..=1.5).text("interior step (h)"));
                     ui.add(egui::Slider::new(&mut extract.discard_step, 0.05..=0.5).text("discard step (h)"));
+                    let mut nine = extract.first_split == Split::ThreeByThree;
+                    if ui.checkbox(&mut nine, "3×3 first split (the thesis: 2×2)").changed() {
+                        extract.first_split = if nine { Split::ThreeByThree } else { Split::TwoByTwo };
+                    }
                 });
                 ui.collapsing("shading", |ui| {
                     ui.add(egui::Slider::new(&mut settings.shading.reflectivity, 0.0..=2.0).text("reflectivity (Fresnel ×)"));
