@@ -75,10 +75,9 @@ pub enum AllAround {
 /// for 3×3. Refinement with 2×2 splits alone therefore never lifts the
 /// efficiency (surfels per evaluation) above 0.75 when the first iteration
 /// left it below.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Split {
     /// Four surfels of 0.74 r (the thesis).
-    #[default]
     TwoByTwo,
     /// Nine surfels of 0.49 r where the surface is flat enough for them: where
     /// it curves away from the surfel's plane by less than `discard_step` at

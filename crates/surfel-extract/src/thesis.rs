@@ -93,10 +93,7 @@ pub(crate) fn front_facing(p: &ExtractParams, s: &Surfel) -> bool {
 /// enough to cover its cell's corners (5 % over).
 fn split(s: &Surfel, grid: Split) -> impl Iterator<Item = Surfel> + use<> {
     let (t1, t2) = tangent_basis(s.normal);
-    let (n, half_diagonal) = match grid {
-        Split::TwoByTwo => (2, std::f32::consts::FRAC_1_SQRT_2),
-        Split::ThreeByThree => (3, std::f32::consts::SQRT_2 / 3.0),
-    };
+    let n = cells(grid);
     let (centre, normal, r) = (s.position, s.normal, s.radius);
     // Cell centres at (n − 1 − 2k)/n of the radius: ±1/2 for 2×2, 0 and
     // ±2/3 for 3×3.
@@ -104,8 +101,24 @@ fn split(s: &Surfel, grid: Split) -> impl Iterator<Item = Surfel> + use<> {
     (0..n * n).map(move |k| Surfel {
         position: centre + r * (offset(k % n) * t1 + offset(k / n) * t2),
         normal,
-        radius: r * half_diagonal * 1.05,
+        // Half a cell's diagonal, √2 r/n.
+        radius: r * (std::f32::consts::SQRT_2 / n as f32) * 1.05,
     })
+}
+
+/// Cells along each side of a split.
+fn cells(grid: Split) -> u32 {
+    match grid {
+        Split::TwoByTwo => 2,
+        Split::ThreeByThree => 3,
+    }
+}
+
+/// How far the corner children of a split of a surfel of `radius` lie from
+/// its centre: √2 (n − 1)/n of the radius.
+fn corner_distance(grid: Split, radius: f32) -> f32 {
+    let n = cells(grid) as f32;
+    std::f32::consts::SQRT_2 * (n - 1.0) / n * radius
 }
 
 /// Where one Newton-Raphson step (eq. 33) went.
@@ -285,7 +298,9 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
             // than a step the refinement accepts, they would start too far
             // off it, and the split is 2×2.
             let grid = match grid {
-                Split::ThreeByThree if step.sag(0.943 * s.radius) > max_step => Split::TwoByTwo,
+                Split::ThreeByThree if step.sag(corner_distance(grid, s.radius)) > max_step => {
+                    Split::TwoByTwo
+                }
                 grid => grid,
             };
             front_facing(p, &new).then_some((new, grid))
@@ -314,7 +329,9 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
             fill_time += t.elapsed();
             if !last {
                 work = (kept.par_iter().enumerate())
-                    .flat_map_iter(|(k, s)| split(s, grids.get(k).copied().unwrap_or_default()))
+                    .flat_map_iter(|(k, s)| {
+                        split(s, grids.get(k).copied().unwrap_or(Split::TwoByTwo))
+                    })
                     .collect();
             }
         } else if last {
