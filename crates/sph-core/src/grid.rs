@@ -43,9 +43,11 @@ use rayon::prelude::*;
 use crate::error::{Error, Result, check_h};
 
 mod layout;
+mod pairs;
 mod scan;
 mod simd;
 mod sums;
+pub(crate) use pairs::{ForceKernels, ForceSums, SlotFluid};
 use scan::Scan;
 pub use simd::{Simd, simd_level};
 pub use sums::{Poly6Sums, SecondMoment};
@@ -251,6 +253,12 @@ impl NeighbourGrid {
     #[inline]
     pub fn for_each_neighbour(&self, i: usize, f: impl FnMut(usize, Vec3, f32)) {
         self.neighbourhood(i).for_each(f);
+    }
+
+    /// The slot of particle `i`.
+    #[inline]
+    pub(crate) fn slot_of(&self, i: usize) -> usize {
+        self.layout.rank[i] as usize
     }
 
     /// The neighbourhood of particle `i`, to scan one or more times.

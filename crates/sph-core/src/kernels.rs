@@ -118,6 +118,12 @@ pub struct Spiky {
 }
 
 impl Spiky {
+    /// The gradient's coefficient c: ∇W = −c (h − r)² r/|r|.
+    #[inline]
+    pub fn coefficient(&self) -> f32 {
+        self.grad
+    }
+
     /// The kernel for smoothing length `h` (finite, > 0).
     pub fn new(h: f32) -> Result<Self> {
         check_h(h)?;
@@ -179,6 +185,12 @@ pub struct Viscosity {
 }
 
 impl Viscosity {
+    /// The laplacian's coefficient c: ∇²W = c (h − r).
+    #[inline]
+    pub fn coefficient(&self) -> f32 {
+        self.lap
+    }
+
     /// The kernel for smoothing length `h` (finite, > 0).
     pub fn new(h: f32) -> Result<Self> {
         check_h(h)?;

@@ -6,11 +6,12 @@
 //! (pressure eq. 15, viscosity eq. 17, surface tension eq. 18–20, gravity) →
 //! [`Integrate`] (semi-implicit Euler) → [`Boundaries`].
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result, non_negative, positive};
+use crate::grid::{ForceKernels, ForceSums, SlotFluid};
 use crate::kernels::{Kernel, Kernels};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
@@ -328,33 +329,39 @@ impl Processor for Forces {
         let (vol, pr): (Vec<f32>, Vec<f32>) = (m.par_iter().zip(rho).zip(p))
             .map(|((&m, &rho), &p)| (m / rho, p / (rho * rho)))
             .unzip();
+        // The pair sums read their neighbours' data in slot order (cell by
+        // cell), like the grid's coordinates.
+        let velocity: [Vec<f32>; 3] = std::array::from_fn(|a| {
+            let order = grid.order().par_iter();
+            order.map(|&i| v[i as usize][a]).collect()
+        });
+        let (volume, mass, pressure) = (
+            grid.to_slot_order(&vol),
+            grid.to_slot_order(m),
+            grid.to_slot_order(&pr),
+        );
+        let fluid = SlotFluid {
+            v: [&velocity[0], &velocity[1], &velocity[2]],
+            volume: &volume,
+            mass: &mass,
+            pressure: &pressure,
+        };
+        let kernels = ForceKernels {
+            poly6_grad: poly6.coefficients().1,
+            visc_lap: viscosity.coefficient(),
+            spiky_grad: match prm.pressure_kernel {
+                PressureKernel::Poly6 => None,
+                PressureKernel::Spiky => Some(spiky.coefficient()),
+            },
+        };
         let out = grid.par_map(|i, nb| {
             let pi = pr[i];
-            let vi = Vec3A::from(v[i]);
-            // Vec3A: one SSE instruction per vector operation, lane-wise the same
-            // IEEE arithmetic as Vec3, so results are bitwise those of Vec3.
-            let mut a_p = Vec3A::ZERO;
-            let mut a_v = Vec3A::ZERO;
-            let mut n = Vec3A::ZERO;
-            let mut lap_c = 0.0f32;
-            nb.for_each(|j, r, r2| {
-                let grad_c = Vec3A::from(poly6.gradient_r2(r, r2));
-                n += vol[j] * grad_c;
-                lap_c += vol[j] * poly6.laplacian_r2(r2);
-                if j == i {
-                    return;
-                }
-                let len = r2.sqrt();
-                // eq. 15 divided by m_i.
-                let grad = match prm.pressure_kernel {
-                    PressureKernel::Poly6 => grad_c,
-                    PressureKernel::Spiky => spiky.gradient_len(r, len).into(),
-                };
-                a_p -= m[j] * (pi + pr[j]) * grad;
-                // eq. 17 divided by m_i, without its 1/ρ_i (applied below).
-                a_v += vol[j] * viscosity.laplacian_len(len) * (Vec3A::from(v[j]) - vi);
-            });
-            let (mut a_p, a_v, n) = (Vec3::from(a_p), Vec3::from(a_v), Vec3::from(n));
+            let ForceSums {
+                pressure: mut a_p,
+                viscosity: a_v,
+                normal: n,
+                laplacian: lap_c,
+            } = nb.force_sums(grid.slot_of(i), &kernels, &fluid, pi, v[i]);
             b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
                 // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
                 a_p += pi * prm.rest_density * wall.plane_density(d) * normal;

@@ -37,8 +37,15 @@ fn gpu_extract(
 }
 
 /// GPU and CPU thesis-mode extraction of `field`: the CPU tests' bounds on the
-/// GPU surfels, and counts within 1 % of the CPU's.
-fn compare(ctx: &GpuContext, name: &str, field: &ColourField, spacing: f32, thickness: f32) {
+/// GPU surfels (coverage at least `min_coverage`, and within 0.2 points of
+/// the CPU's), and counts within 1 % of the CPU's.
+fn compare(
+    ctx: &GpuContext,
+    name: &str,
+    field: &ColourField,
+    [spacing, thickness]: [f32; 2],
+    min_coverage: f64,
+) {
     let params = ExtractParams::new(field.h()).thesis();
     let cpu = extract_field(field, &params).unwrap();
     let (surfels, stats) = gpu_extract(ctx, field, &params, 1 << 20);
@@ -64,7 +71,11 @@ fn compare(ctx: &GpuContext, name: &str, field: &ColourField, spacing: f32, thic
     assert!(r.median < 0.01, "{name}: median residual {}", r.median);
     assert!(r.p95 < 0.05, "{name}: p95 residual {}", r.p95);
     assert!(r.median_angle_deg < 5.0, "{name}: {}°", r.median_angle_deg);
-    assert!(coverage >= 0.99, "{name}: coverage {coverage}");
+    assert!(coverage >= min_coverage, "{name}: coverage {coverage}");
+    assert!(
+        coverage >= cpu_coverage - 0.002,
+        "{name}: coverage {coverage}, CPU {cpu_coverage}"
+    );
     let diff = |a: usize, b: usize| (a as f64 - b as f64).abs() / b.max(1) as f64;
     assert!(
         diff(surfels.len(), cpu.surfels.len()) <= 0.01,
@@ -101,7 +112,7 @@ fn sphere_and_block_match_the_cpu_extractor() {
     let block = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
     for (name, points) in [("sphere", sphere), ("block", block)] {
         let field = ColourField::from_positions(&points, H).unwrap();
-        compare(&ctx, name, &field, 0.25 * H, 0.1 * H);
+        compare(&ctx, name, &field, [0.25 * H, 0.1 * H], 0.99);
     }
 }
 
@@ -113,7 +124,10 @@ fn dam_break_frame_matches_the_cpu_extractor() {
     let mut world = Scene::dam_break(0.2, 0.06, 0.02).build_world().unwrap();
     world.advance(0.4).unwrap();
     let field = ColourField::from_particles(&world.particles, 0.04).unwrap();
-    compare(&ctx, "dam break", &field, 0.01, 0.004);
+    // The thesis mode leaves holes on a moving frame (closing them is the
+    // covered mode's job, tested on the CPU): 98.3 % here on both paths, so
+    // the floor is lower than on the sphere and block.
+    compare(&ctx, "dam break", &field, [0.01, 0.004], 0.98);
 }
 
 #[test]

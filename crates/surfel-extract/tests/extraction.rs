@@ -133,13 +133,45 @@ fn dam_break_frame_is_covered() {
             r.median < 0.01 && r.p95 < 0.05 && r.median_angle_deg < 5.0,
             "{r:?}"
         );
-        figures.push((coverage, out.stats.efficiency()));
+        figures.push(coverage);
     }
-    let (coverage, efficiency) = figures[0];
-    assert!(coverage >= 0.99, "covered mode: coverage {coverage}");
-    // Issue 4's target; the 3×3 first split lifts it (the thesis's 2×2
-    // splits alone cannot cross 0.75, see `Split`).
-    assert!(efficiency >= 0.75, "covered mode: efficiency {efficiency}");
+    assert!(figures[0] >= 0.99, "covered mode: coverage {}", figures[0]);
+}
+
+/// Issue 4's efficiency target, at least 0.75 surfels per surfel evaluation in
+/// the default mode, on the `extraction` bench's 2,250-particle dam break at
+/// several frames and at 2 and 3 iterations. The 3×3 first split lifts it (the
+/// thesis's 2×2 splits alone cannot cross 0.75, see `Split`).
+///
+/// Not on the 600-particle slab above: two to three particles thick, most
+/// of it is surface, and its efficiency at 2 iterations ranges 0.72–0.81
+/// from frame to frame (`cargo run --release -p surfel-extract --example
+/// efficiency_over_frames`).
+#[test]
+fn efficiency_target_holds_on_the_bench_scene() {
+    let mut world = Scene::dam_break(0.15, 0.05, 0.01).build_world().unwrap();
+    for t in [0.2, 0.3, 0.4, 0.5] {
+        world.advance(t - world.time() as f32).unwrap();
+        let field = ColourField::from_particles(&world.particles, 0.02).unwrap();
+        for iterations in [2, 3] {
+            let params = ExtractParams {
+                iterations,
+                ..ExtractParams::new(0.02)
+            };
+            let stats = extract_field(&field, &params).unwrap().stats;
+            println!(
+                "t = {t} s, {iterations} iterations: {} surfels from {} evaluations, efficiency {:.3}",
+                stats.surfels,
+                stats.evaluations,
+                stats.efficiency()
+            );
+            assert!(
+                stats.efficiency() >= 0.75,
+                "t = {t} s, {iterations} iterations: efficiency {}",
+                stats.efficiency()
+            );
+        }
+    }
 }
 
 #[test]

@@ -42,7 +42,7 @@ pub struct Poly6Sums {
 pub type SecondMoment = [f32; 6];
 
 /// Lanes of every sum, on every path (AVX2 keeps them as two 8-lane halves).
-const LANES: usize = 16;
+pub(super) const LANES: usize = 16;
 
 /// Raw sums before the kernel's constants: with t = h² − r²,
 /// Σ w t³, Σ w t² d, Σ w t (7r² − 3h²) and Σ d dᵀ.
@@ -66,7 +66,7 @@ struct Lanes {
 /// Sums 16 lanes by the tree the AVX-512 path uses: lane i + lane i+8, then
 /// i + i+4, i + i+2, and the last two.
 #[inline]
-fn reduce(l: &[f32; LANES]) -> f32 {
+pub(super) fn reduce(l: &[f32; LANES]) -> f32 {
     let a: [f32; 8] = std::array::from_fn(|i| l[i] + l[i + 8]);
     let b: [f32; 4] = std::array::from_fn(|i| a[i] + a[i + 4]);
     let c: [f32; 2] = std::array::from_fn(|i| b[i] + b[i + 2]);
@@ -419,12 +419,12 @@ fn reduce_avx2(lo: std::arch::x86_64::__m256, hi: std::arch::x86_64::__m256) -> 
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::NeighbourGrid;
 
     /// A jittered cloud with a dense core and a few strays, deterministic.
-    fn cloud() -> Vec<Vec3> {
+    pub(in crate::grid) fn cloud() -> Vec<Vec3> {
         let mut state = 0x2545_F491u32;
         let mut next = move || {
             state ^= state << 13;
