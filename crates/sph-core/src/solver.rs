@@ -51,9 +51,9 @@ pub struct FluidParams {
 /// the *same* kernel's gradient; Müller et al. (and the thesis) use the spiky
 /// gradient instead, which is not a gradient of anything the solver conserves.
 /// Measured in a closed tank at rest (`cargo run --release -p sph-core --example
-/// energy_drift`), spiky pumps energy in: the total energy rises by ~85 % in
+/// energy_drift`), spiky pumps energy in: the total energy rises by ~90 % in
 /// 1.5 s and the column never settles, while poly6 loses energy monotonically to
-/// viscosity and settles to 0.35 % density error.
+/// viscosity and settles to 0.37 % density error.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum PressureKernel {
