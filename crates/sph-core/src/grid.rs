@@ -47,7 +47,7 @@ mod pairs;
 mod scan;
 mod simd;
 mod sums;
-pub(crate) use pairs::{ForceKernels, ForceSums, SlotFluid};
+pub(crate) use pairs::{Centre, ForceKernels, ForceSums, SlotFluid};
 use scan::Scan;
 pub use simd::{Simd, simd_level};
 pub use sums::{Poly6Sums, SecondMoment};

@@ -11,7 +11,7 @@ use rayon::prelude::*;
 
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result, non_negative, positive};
-use crate::grid::{ForceKernels, ForceSums, SlotFluid};
+use crate::grid::{Centre, ForceKernels, ForceSums, SlotFluid};
 use crate::kernels::{Kernel, Kernels};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
@@ -356,12 +356,17 @@ impl Processor for Forces {
         };
         let out = grid.par_map(|i, nb| {
             let pi = pr[i];
+            let centre = Centre {
+                slot: grid.slot_of(i),
+                pressure: pi,
+                velocity: v[i],
+            };
             let ForceSums {
                 pressure: mut a_p,
                 viscosity: a_v,
                 normal: n,
                 laplacian: lap_c,
-            } = nb.force_sums(grid.slot_of(i), &kernels, &fluid, pi, v[i]);
+            } = nb.force_sums(centre, &kernels, &fluid);
             b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
                 // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
                 a_p += pi * prm.rest_density * wall.plane_density(d) * normal;

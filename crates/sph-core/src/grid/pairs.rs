@@ -38,6 +38,17 @@ pub(crate) struct ForceKernels {
     pub spiky_grad: Option<f32>,
 }
 
+/// The particle whose force sums are taken: particle i of the sums.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Centre {
+    /// Its slot in the grid.
+    pub slot: usize,
+    /// Its pressure term p/ρ².
+    pub pressure: f32,
+    /// Its velocity.
+    pub velocity: Vec3,
+}
+
 /// Sums over the neighbours j of particle i (the centre).
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub(crate) struct ForceSums {
@@ -59,25 +70,41 @@ struct Lanes {
     laplacian: [f32; LANES],
 }
 
+/// Defines `$name`: [`Neighbourhood::force_sums_lanes`] compiled with the
+/// target features `$features` (the same code, vectorised for them).
+macro_rules! force_sums_with {
+    ($name:ident, $features:literal) => {
+        /// # Safety
+        /// The CPU must support the target features this function enables.
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name(
+            &self,
+            centre: Centre,
+            kernels: &ForceKernels,
+            fluid: &SlotFluid<'_>,
+        ) -> ForceSums {
+            self.force_sums_lanes(centre, kernels, fluid)
+        }
+    };
+}
+
 impl Neighbourhood<'_> {
-    /// The force sums of the particle in slot `centre_slot` (this
-    /// neighbourhood's centre) with pressure term `p_i` (p/ρ²) and velocity
-    /// `v_i`. The centre itself adds to `normal` and `laplacian` only (its
-    /// pressure and viscosity terms are exact zeros).
+    /// The force sums of this neighbourhood's `centre`. The centre itself
+    /// adds to `normal` and `laplacian` only (its pressure and viscosity
+    /// terms are exact zeros).
     ///
     /// Panics if a slice of `fluid` is shorter than the grid.
     #[inline]
     pub(crate) fn force_sums(
         &self,
-        centre_slot: usize,
+        centre: Centre,
         kernels: &ForceKernels,
         fluid: &SlotFluid<'_>,
-        p_i: f32,
-        v_i: Vec3,
     ) -> ForceSums {
         let n = self.grid.len();
         assert!(
-            centre_slot < n
+            centre.slot < n
                 && [fluid.volume, fluid.mass, fluid.pressure]
                     .iter()
                     .chain(&fluid.v)
@@ -88,55 +115,26 @@ impl Neighbourhood<'_> {
         match simd_level() {
             // SAFETY: `simd_level` never exceeds what the CPU supports.
             Simd::Avx512 => unsafe {
-                return self.force_sums_avx512(centre_slot, kernels, fluid, p_i, v_i);
+                return self.force_sums_avx512(centre, kernels, fluid);
             },
             // SAFETY: as above.
             Simd::Avx2 => unsafe {
-                return self.force_sums_avx2(centre_slot, kernels, fluid, p_i, v_i);
+                return self.force_sums_avx2(centre, kernels, fluid);
             },
             Simd::Baseline => {}
         }
-        self.force_sums_lanes(centre_slot, kernels, fluid, p_i, v_i)
+        self.force_sums_lanes(centre, kernels, fluid)
     }
 
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn force_sums_avx2(
-        &self,
-        centre_slot: usize,
-        kernels: &ForceKernels,
-        fluid: &SlotFluid<'_>,
-        p_i: f32,
-        v_i: Vec3,
-    ) -> ForceSums {
-        self.force_sums_lanes(centre_slot, kernels, fluid, p_i, v_i)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX-512F and AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,avx2")]
-    unsafe fn force_sums_avx512(
-        &self,
-        centre_slot: usize,
-        kernels: &ForceKernels,
-        fluid: &SlotFluid<'_>,
-        p_i: f32,
-        v_i: Vec3,
-    ) -> ForceSums {
-        self.force_sums_lanes(centre_slot, kernels, fluid, p_i, v_i)
-    }
+    force_sums_with!(force_sums_avx2, "avx2");
+    force_sums_with!(force_sums_avx512, "avx512f,avx2");
 
     #[inline(always)]
     fn force_sums_lanes(
         &self,
-        centre_slot: usize,
+        centre: Centre,
         kernels: &ForceKernels,
         fluid: &SlotFluid<'_>,
-        p_i: f32,
-        v_i: Vec3,
     ) -> ForceSums {
         let [xs, ys, zs] = &self.grid.layout.coords;
         let (c, h2, h) = (self.centre, self.grid.h2, self.grid.h);
@@ -154,7 +152,7 @@ impl Neighbourhood<'_> {
             for chunk in hits[..n].chunks(LANES) {
                 // Lanes past the hits take the centre with weight 0: finite
                 // values times 0 add exact zeros.
-                let mut slot = [centre_slot as u32; LANES];
+                let mut slot = [centre.slot as u32; LANES];
                 let mut weight = [0.0f32; LANES];
                 slot[..chunk.len()].copy_from_slice(chunk);
                 weight[..chunk.len()].fill(1.0);
@@ -164,7 +162,7 @@ impl Neighbourhood<'_> {
                 let mut g = [[0.0f32; LANES]; 9];
                 for k in 0..LANES {
                     let s = slot[k] as usize;
-                    // SAFETY: hits are slots of the grid and `centre_slot` was
+                    // SAFETY: hits are slots of the grid and `centre.slot` was
                     // checked; coords have a value per slot (and padding), and
                     // `force_sums` checked the fluid's slices.
                     unsafe {
@@ -195,8 +193,9 @@ impl Neighbourhood<'_> {
                             if len > 0.0 { q } else { 0.0 }
                         }
                     };
-                    let fp = m * (p_i + pr) * gp;
+                    let fp = m * (centre.pressure + pr) * gp;
                     let fv = vol * (kernels.visc_lap * (h - len));
+                    let v_i = centre.velocity;
                     let dv = [g[6][k] - v_i.x, g[7][k] - v_i.y, g[8][k] - v_i.z];
                     for a in 0..3 {
                         l.normal[a][k] += vol * (g6 * d[a]);
@@ -306,7 +305,12 @@ mod tests {
             for i in (0..n).step_by(23) {
                 let nb = grid.neighbourhood(i);
                 let (want, scale) = brute(&x, &v, &vol, &m, &pr, i, spiky, h);
-                let got = nb.force_sums(grid.slot_of(i), &kernels, &fluid, pr[i], v[i]);
+                let centre = Centre {
+                    slot: grid.slot_of(i),
+                    pressure: pr[i],
+                    velocity: v[i],
+                };
+                let got = nb.force_sums(centre, &kernels, &fluid);
                 let tol = |s: f32| 1e-5 * s + 1e-30;
                 let close = |a: Vec3, b: Vec3, s: f32| (a - b).abs().max_element() <= tol(s);
                 assert!(
@@ -326,21 +330,18 @@ mod tests {
                     "{got:?} vs {want:?}"
                 );
                 found += nb.count();
-                let plain = nb.force_sums_lanes(grid.slot_of(i), &kernels, &fluid, pr[i], v[i]);
+                let plain = nb.force_sums_lanes(centre, &kernels, &fluid);
                 assert_eq!(got, plain, "the path this CPU runs");
                 #[cfg(target_arch = "x86_64")]
                 {
-                    let args = (grid.slot_of(i), &kernels, &fluid, pr[i], v[i]);
                     if Simd::detect() >= Simd::Avx2 {
                         // SAFETY: AVX2 was detected.
-                        let avx2 =
-                            unsafe { nb.force_sums_avx2(args.0, args.1, args.2, args.3, args.4) };
+                        let avx2 = unsafe { nb.force_sums_avx2(centre, &kernels, &fluid) };
                         assert_eq!(avx2, plain, "AVX2");
                     }
                     if Simd::detect() >= Simd::Avx512 {
                         // SAFETY: AVX-512F and AVX2 were detected.
-                        let avx512 =
-                            unsafe { nb.force_sums_avx512(args.0, args.1, args.2, args.3, args.4) };
+                        let avx512 = unsafe { nb.force_sums_avx512(centre, &kernels, &fluid) };
                         assert_eq!(avx512, plain, "AVX-512");
                     }
                 }
