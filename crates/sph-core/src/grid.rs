@@ -255,12 +255,6 @@ impl NeighbourGrid {
         self.neighbourhood(i).for_each(f);
     }
 
-    /// The slot of particle `i`.
-    #[inline]
-    pub(crate) fn slot_of(&self, i: usize) -> usize {
-        self.layout.rank[i] as usize
-    }
-
     /// The neighbourhood of particle `i`, to scan one or more times.
     ///
     /// Panics if `i >= self.len()`, like slice indexing.

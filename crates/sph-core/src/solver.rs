@@ -357,7 +357,6 @@ impl Processor for Forces {
         let out = grid.par_map(|i, nb| {
             let pi = pr[i];
             let centre = Centre {
-                slot: grid.slot_of(i),
                 pressure: pi,
                 velocity: v[i],
             };

@@ -43,7 +43,8 @@ fn compare(
     ctx: &GpuContext,
     name: &str,
     field: &ColourField,
-    [spacing, thickness]: [f32; 2],
+    spacing: f32,
+    thickness: f32,
     min_coverage: f64,
 ) {
     let params = ExtractParams::new(field.h()).thesis();
@@ -112,7 +113,7 @@ fn sphere_and_block_match_the_cpu_extractor() {
     let block = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
     for (name, points) in [("sphere", sphere), ("block", block)] {
         let field = ColourField::from_positions(&points, H).unwrap();
-        compare(&ctx, name, &field, [0.25 * H, 0.1 * H], 0.99);
+        compare(&ctx, name, &field, 0.25 * H, 0.1 * H, 0.99);
     }
 }
 
@@ -127,7 +128,7 @@ fn dam_break_frame_matches_the_cpu_extractor() {
     // The thesis mode leaves holes on a moving frame (closing them is the
     // covered mode's job, tested on the CPU): 98.3 % here on both paths, so
     // the floor is lower than on the sphere and block.
-    compare(&ctx, "dam break", &field, [0.01, 0.004], 0.98);
+    compare(&ctx, "dam break", &field, 0.01, 0.004, 0.98);
 }
 
 #[test]

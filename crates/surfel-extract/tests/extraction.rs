@@ -110,7 +110,6 @@ fn dam_break_frame_is_covered() {
     let field = ColourField::from_particles(&p, 0.04).unwrap();
     let params = ExtractParams::new(0.04);
     let points = iso_points(&field, 0.5, 0.01);
-    let mut figures = Vec::new();
     for mode in [Mode::Covered, Mode::Thesis] {
         let params = match mode {
             Mode::Covered => params,
@@ -133,9 +132,11 @@ fn dam_break_frame_is_covered() {
             r.median < 0.01 && r.p95 < 0.05 && r.median_angle_deg < 5.0,
             "{r:?}"
         );
-        figures.push(coverage);
+        // The thesis mode leaves holes; closing them is the covered mode's job.
+        if mode == Mode::Covered {
+            assert!(coverage >= 0.99, "covered mode: coverage {coverage}");
+        }
     }
-    assert!(figures[0] >= 0.99, "covered mode: coverage {}", figures[0]);
 }
 
 /// Issue 4's efficiency target, at least 0.75 surfels per surfel evaluation in

@@ -38,11 +38,10 @@ pub(crate) struct ForceKernels {
     pub spiky_grad: Option<f32>,
 }
 
-/// The particle whose force sums are taken: particle i of the sums.
+/// The particle whose force sums are taken (particle i of the sums), beyond
+/// its position, which the neighbourhood has.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Centre {
-    /// Its slot in the grid.
-    pub slot: usize,
     /// Its pressure term p/ρ².
     pub pressure: f32,
     /// Its velocity.
@@ -104,11 +103,10 @@ impl Neighbourhood<'_> {
     ) -> ForceSums {
         let n = self.grid.len();
         assert!(
-            centre.slot < n
-                && [fluid.volume, fluid.mass, fluid.pressure]
-                    .iter()
-                    .chain(&fluid.v)
-                    .all(|s| s.len() >= n),
+            [fluid.volume, fluid.mass, fluid.pressure]
+                .iter()
+                .chain(&fluid.v)
+                .all(|s| s.len() >= n),
             "one value per slot"
         );
         #[cfg(target_arch = "x86_64")]
@@ -150,9 +148,10 @@ impl Neighbourhood<'_> {
         while !scan.done() {
             let n = scan.fill(&mut hits);
             for chunk in hits[..n].chunks(LANES) {
-                // Lanes past the hits take the centre with weight 0: finite
-                // values times 0 add exact zeros.
-                let mut slot = [centre.slot as u32; LANES];
+                // Lanes past the hits repeat the chunk's first hit with
+                // weight 0: its values are finite (it lies within h), and
+                // finite values times 0 add exact zeros.
+                let mut slot = [chunk[0]; LANES];
                 let mut weight = [0.0f32; LANES];
                 slot[..chunk.len()].copy_from_slice(chunk);
                 weight[..chunk.len()].fill(1.0);
@@ -162,9 +161,9 @@ impl Neighbourhood<'_> {
                 let mut g = [[0.0f32; LANES]; 9];
                 for k in 0..LANES {
                     let s = slot[k] as usize;
-                    // SAFETY: hits are slots of the grid and `centre.slot` was
-                    // checked; coords have a value per slot (and padding), and
-                    // `force_sums` checked the fluid's slices.
+                    // SAFETY: hits are slots of the grid; coords have a value
+                    // per slot (and padding), and `force_sums` checked the
+                    // fluid's slices.
                     unsafe {
                         g[0][k] = *xs.get_unchecked(s);
                         g[1][k] = *ys.get_unchecked(s);
@@ -306,7 +305,6 @@ mod tests {
                 let nb = grid.neighbourhood(i);
                 let (want, scale) = brute(&x, &v, &vol, &m, &pr, i, spiky, h);
                 let centre = Centre {
-                    slot: grid.slot_of(i),
                     pressure: pr[i],
                     velocity: v[i],
                 };
