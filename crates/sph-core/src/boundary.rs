@@ -82,10 +82,14 @@ impl Obstacle {
             Obstacle::Sphere { centre, radius } => {
                 let d = x - centre;
                 let n = d.try_normalize().unwrap_or(Vec3::Y);
-                // A hair outside, so rounding cannot leave the point inside.
+                // A hair outside, so rounding cannot leave the point inside:
+                // growing steps, so it gets out even where a step of a few
+                // ulps of the radius is below an ulp of the position.
                 let mut p = centre + n * radius;
+                let mut step = radius * 4.0 * f32::EPSILON;
                 while self.contains(p) {
-                    p += n * (radius * 4.0 * f32::EPSILON);
+                    p += n * step;
+                    step *= 2.0;
                 }
                 Some((p, n))
             }
@@ -263,6 +267,22 @@ impl WallKernel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Far from the origin, a few ulps of a small radius are below an ulp of
+    /// the position: the projection still gets out of the sphere.
+    #[test]
+    fn sphere_projection_terminates_far_from_the_origin() {
+        let centre = Vec3::new(1e5, 0.0, 0.0);
+        let mut b = Boundary::new(Aabb::new(Vec3::splat(-2e5), Vec3::splat(2e5)));
+        b.obstacles.push(Obstacle::Sphere {
+            centre,
+            radius: 0.1,
+        });
+        let (mut x, mut v) = (centre + Vec3::new(0.05, 0.0, 0.0), Vec3::X);
+        b.resolve(&mut x, &mut v);
+        assert!(b.admits(x), "{x}");
+        assert!((x - centre).length() < 0.12, "{x}");
+    }
 
     #[test]
     fn wall_kernel_integrals() {

@@ -128,6 +128,27 @@ pub(crate) fn check_h(h: f32) -> Result<()> {
     }
 }
 
+/// The smallest and largest smoothing lengths the kernels accept (m): their
+/// coefficients, up to 945/(32π h⁹), and powers up to h⁹ stay finite,
+/// normal f32 values in between.
+pub const KERNEL_H_RANGE: (f32, f32) = (1e-4, 1e4);
+
+/// Checks that `h` is a smoothing length the kernels can represent: within
+/// [`KERNEL_H_RANGE`].
+pub(crate) fn check_kernel_h(h: f32) -> Result<()> {
+    check_h(h)?;
+    let (lo, hi) = KERNEL_H_RANGE;
+    if (lo..=hi).contains(&h) {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name: "h",
+            value: h.to_string(),
+            reason: "the kernels' smoothing length must lie in [1e-4, 1e4] m (their coefficients overflow f32 outside); rescale the units",
+        })
+    }
+}
+
 /// `Ok` if `v` is finite and > 0, else [`Error::InvalidParameter`] naming `name`.
 pub fn positive(name: &'static str, v: f32) -> Result<()> {
     if v.is_finite() && v > 0.0 {

@@ -186,6 +186,16 @@ const VTK_VERTEX: i32 = 1;
 pub fn write_vtk(w: impl Write, cloud: &PointCloud, time: f64) -> Result<()> {
     cloud.check()?;
     let n = cloud.len();
+    // Legacy VTK numbers the points of a cell list with 32-bit integers.
+    if n > i32::MAX as usize / 2 {
+        return Err(bad(
+            "VTK output",
+            format!(
+                "{n} points: legacy VTK's 32-bit cell list holds at most {}",
+                i32::MAX / 2
+            ),
+        ));
+    }
     let mut w = BufWriter::new(w);
     let mut write = || -> std::io::Result<()> {
         let be3 = |w: &mut BufWriter<_>, v: Vec3| -> std::io::Result<()> {
@@ -277,10 +287,33 @@ fn header_line(r: &mut impl BufRead, what: &str) -> Result<String> {
     next_line(r, what)?.ok_or_else(|| bad(what, "unexpected end of header"))
 }
 
+/// Exactly `bytes` bytes of `r`, an error if the input ends first. Memory
+/// grows with what is read, not with the count a header claims.
+fn read_bytes(r: &mut impl Read, bytes: usize, what: &str) -> Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let got = r
+        .take(bytes as u64)
+        .read_to_end(&mut out)
+        .map_err(|e| io_err(what, e))?;
+    if got != bytes {
+        return Err(bad(
+            what,
+            format!("truncated data: the header promises {bytes} bytes, the input holds {got}"),
+        ));
+    }
+    Ok(out)
+}
+
+/// `count` values of `size` bytes, as a byte count: an error where a header's
+/// count overflows.
+fn byte_count(count: usize, size: usize, what: &str) -> Result<usize> {
+    count
+        .checked_mul(size)
+        .ok_or_else(|| bad(what, format!("count {count} is too large")))
+}
+
 fn floats(r: &mut impl Read, n: usize, big_endian: bool, what: &str) -> Result<Vec<f32>> {
-    let mut bytes = vec![0u8; n * 4];
-    r.read_exact(&mut bytes)
-        .map_err(|e| bad(what, format!("truncated data: {e}")))?;
+    let bytes = read_bytes(r, byte_count(n, 4, what)?, what)?;
     let conv = if big_endian {
         f32::from_be_bytes
     } else {
@@ -332,7 +365,7 @@ pub fn read_ply(r: impl Read) -> Result<LoadedCloud> {
         return Err(bad(what, "the first properties must be x y z"));
     }
     let stride = props.len();
-    let data = floats(&mut r, n * stride, false, what)?;
+    let data = floats(&mut r, byte_count(n, stride, what)?, false, what)?;
     let column = |k: usize| -> Vec<f32> { (0..n).map(|i| data[i * stride + k]).collect() };
     let vec_at = |k: usize| -> Vec<Vec3> {
         (0..n)
@@ -378,7 +411,11 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
         return Err(bad(what, "only BINARY files are supported"));
     }
     let mut cloud = LoadedCloud::default();
-    let mut n = 0usize;
+    // The point count, once POINTS has been read: the attributes need it.
+    let mut points = None;
+    let need_points = |points: Option<usize>, line: &str| {
+        points.ok_or_else(|| bad(what, format!("`{line}` before POINTS")))
+    };
     while let Some(line) = next_line(&mut r, what)? {
         let words: Vec<&str> = line.split_whitespace().collect();
         let count = |s: &str| {
@@ -396,20 +433,30 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
                 cloud.time = f64::from_be_bytes(b);
             }
             ["POINTS", c, "float"] => {
-                n = count(c)?;
-                cloud.positions = to_vec3(&floats(&mut r, 3 * n, true, what)?);
+                if points.is_some() {
+                    return Err(bad(what, "a second POINTS section"));
+                }
+                let n = count(c)?;
+                let values = byte_count(n, 3, what)?;
+                cloud.positions = to_vec3(&floats(&mut r, values, true, what)?);
+                points = Some(n);
             }
             ["CELLS", c, _] | ["CELL_TYPES", c] => {
                 let bytes = if words[0] == "CELLS" { 8 } else { 4 };
-                let mut skip = vec![0u8; count(c)? * bytes];
-                r.read_exact(&mut skip).map_err(|e| io_err(what, e))?;
+                let skip = byte_count(count(c)?, bytes, what)?;
+                let skipped = std::io::copy(&mut (&mut r).take(skip as u64), &mut std::io::sink())
+                    .map_err(|e| io_err(what, e))?;
+                if skipped != skip as u64 {
+                    return Err(bad(what, format!("truncated data in `{line}`")));
+                }
             }
             ["POINT_DATA", c] => {
-                if count(c)? != n {
+                if count(c)? != need_points(points, &line)? {
                     return Err(bad(what, "POINT_DATA count differs from POINTS"));
                 }
             }
             ["VECTORS", name, "float"] => {
+                let n = need_points(points, &line)?;
                 let v = to_vec3(&floats(&mut r, 3 * n, true, what)?);
                 cloud.vectors.push((name.to_string(), v));
             }
@@ -418,6 +465,7 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
                 if !table.starts_with("LOOKUP_TABLE") {
                     return Err(bad(what, "SCALARS without LOOKUP_TABLE"));
                 }
+                let n = need_points(points, &line)?;
                 cloud
                     .scalars
                     .push((name.to_string(), floats(&mut r, n, true, what)?));
@@ -572,6 +620,53 @@ mod tests {
         assert!("obj".parse::<Format>().is_err());
         assert!(read_ply(&b"ply\nformat ascii 1.0\n"[..]).is_err());
         assert!(read_ply(&b"ply\nformat binary_little_endian 1.0\nelement vertex 9\nproperty float x\nproperty float y\nproperty float z\nend_header\n\0\0"[..]).is_err());
+    }
+
+    /// Header counts that overflow, promise more data than there is, or come
+    /// in the wrong order are errors, without allocating what they claim.
+    #[test]
+    fn malformed_headers_are_errors_not_panics() {
+        let ply = |count: &str| {
+            let mut b = format!("ply\nformat binary_little_endian 1.0\nelement vertex {count}\nproperty float x\nproperty float y\nproperty float z\nend_header\n").into_bytes();
+            b.extend_from_slice(&[0u8; 24]);
+            read_ply(b.as_slice()).map(|c| c.positions.len())
+        };
+        assert_eq!(ply("2").unwrap(), 2);
+        for count in ["4611686018427387904", "100000000000", "3", "-1"] {
+            let e = ply(count).unwrap_err().to_string();
+            assert!(
+                ["too large", "truncated", "bad vertex count"]
+                    .iter()
+                    .any(|w| e.contains(w)),
+                "{count}: {e}"
+            );
+        }
+        let vtk = |body: &[u8]| {
+            let mut b = b"# vtk DataFile Version 3.0\ntitle\nBINARY\n".to_vec();
+            b.extend_from_slice(body);
+            read_vtk(b.as_slice())
+        };
+        for (body, words) in [
+            (&b"VECTORS v float\n"[..], "before POINTS"),
+            (b"POINT_DATA 0\n", "before POINTS"),
+            (b"POINTS 6148914691236517206 float\n", "too large"),
+            (b"POINTS 1000000000 float\n\0\0\0\0", "truncated"),
+            (
+                b"POINTS 0 float\nCELLS 9223372036854775807 0\n",
+                "too large",
+            ),
+            (b"POINTS 0 float\nCELL_TYPES 5\n\0\0", "truncated"),
+            (b"POINTS 0 float\nPOINTS 0 float\n", "second POINTS"),
+        ] {
+            let e = vtk(body).unwrap_err().to_string();
+            assert!(e.contains(words), "{}: {e}", String::from_utf8_lossy(body));
+        }
+        assert!(
+            vtk(b"POINTS 0 float\nPOINT_DATA 0\n")
+                .unwrap()
+                .positions
+                .is_empty()
+        );
     }
 
     #[test]

@@ -14,7 +14,7 @@
 
 use glam::Vec3;
 
-use crate::error::{Result, check_h};
+use crate::error::{Result, check_kernel_h};
 
 /// A radially symmetric smoothing kernel with compact support h.
 ///
@@ -43,7 +43,7 @@ pub struct Poly6 {
 impl Poly6 {
     /// The kernel for smoothing length `h` (finite, > 0).
     pub fn new(h: f32) -> Result<Self> {
-        check_h(h)?;
+        check_kernel_h(h)?;
         let h9 = (h as f64).powi(9);
         Ok(Self {
             h,
@@ -126,7 +126,7 @@ impl Spiky {
 
     /// The kernel for smoothing length `h` (finite, > 0).
     pub fn new(h: f32) -> Result<Self> {
-        check_h(h)?;
+        check_kernel_h(h)?;
         let h6 = (h as f64).powi(6);
         Ok(Self {
             h,
@@ -193,7 +193,7 @@ impl Viscosity {
 
     /// The kernel for smoothing length `h` (finite, > 0).
     pub fn new(h: f32) -> Result<Self> {
-        check_h(h)?;
+        check_kernel_h(h)?;
         let h = h as f64;
         Ok(Self {
             h: h as f32,
@@ -276,6 +276,22 @@ impl Kernels {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Outside [1e-4, 1e4] m the coefficients are not finite, normal f32
+    /// values: such an h is an error, not a run that blows up at step 1.
+    #[test]
+    fn h_outside_the_representable_range_is_an_error() {
+        for h in [1e-4, 0.02, 1e4] {
+            let k = Kernels::new(h).unwrap();
+            let (w, grad) = k.poly6.coefficients();
+            for c in [w, grad, k.spiky.coefficient(), k.viscosity.coefficient()] {
+                assert!(c.is_normal(), "h = {h}: coefficient {c}");
+            }
+        }
+        for h in [6.5e-5, 2e4, 0.0, f32::NAN] {
+            assert!(Kernels::new(h).is_err(), "h = {h}");
+        }
+    }
 
     /// ∫ W dV by composite Simpson on the radial integral 4π ∫₀ʰ r² W(r) dr, in f64
     /// over the f32 kernel.
@@ -461,12 +477,26 @@ mod tests {
     }
 
     #[test]
-    fn poly6_depends_on_r_squared_only() {
-        // value_r2 is the whole kernel: the trait's value() is value_r2(|r|²), bitwise.
-        let k = Poly6::new(0.7).unwrap();
-        for r in sample_offsets(0.7) {
-            assert_eq!(k.value(r), k.value_r2(r.length_squared()));
-            assert_eq!(k.gradient(r), k.gradient_r2(r, r.length_squared()));
+    fn poly6_r_squared_forms_match_the_closed_form() {
+        // The |r|²-only entry points the neighbour sums use, against
+        // W = 315/(64π h⁹)(h² − r²)³ and ∇W = −945/(32π h⁹)(h² − r²)² r in f64.
+        let h = 0.7f64;
+        let k = Poly6::new(h as f32).unwrap();
+        for r in sample_offsets(h as f32) {
+            let r2 = r.as_dvec3().length_squared();
+            let t = (h * h - r2).max(0.0);
+            let w = 315.0 / (64.0 * std::f64::consts::PI * h.powi(9)) * t.powi(3);
+            let g = -945.0 / (32.0 * std::f64::consts::PI * h.powi(9)) * t * t * r.as_dvec3();
+            let got = k.value_r2(r.length_squared()) as f64;
+            assert!(
+                (got - w).abs() <= 1e-5 * w.abs().max(1e-3),
+                "{r}: {got} vs {w}"
+            );
+            let got = k.gradient_r2(r, r.length_squared()).as_dvec3();
+            assert!(
+                (got - g).length() <= 1e-5 * g.length().max(1e-3),
+                "{r}: {got} vs {g}"
+            );
         }
     }
 

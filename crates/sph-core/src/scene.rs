@@ -9,9 +9,11 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::boundary::{Aabb, Boundary, Obstacle};
-use crate::error::{Error, Result};
+use crate::error::{Error, KERNEL_H_RANGE, Result};
 use crate::particles::Particles;
-use crate::solver::{Emitter, FluidParams, TimeStepping, World};
+use crate::solver::{
+    Emitter, FluidParams, MAX_H_OVER_SPACING, TimeStepping, World, nozzle_corners,
+};
 
 /// A complete scene description.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -174,6 +176,35 @@ impl Default for RenderSpec {
     }
 }
 
+impl RenderSpec {
+    /// Checks the camera: finite, distinct points, a view direction that is
+    /// not vertical (+y is up), a field of view in (0°, 180°).
+    pub fn validate(&self) -> Result<()> {
+        let camera = finite3("render.camera", self.camera)?;
+        let look_at = finite3("render.look_at", self.look_at)?;
+        let dir = look_at - camera;
+        if dir.length_squared() <= 0.0 {
+            return Err(invalid("render.look_at", "must differ from render.camera"));
+        }
+        if dir.normalize().cross(Vec3::Y).length_squared() < 1e-12 {
+            return Err(invalid(
+                "render.look_at",
+                "the view direction is vertical: +y is up, so the camera cannot look straight up or down",
+            ));
+        }
+        if !(self.fov_y > 0.0 && self.fov_y < 180.0) {
+            return Err(invalid(
+                "render.fov_y",
+                format!("{} must lie in (0, 180) degrees", self.fov_y),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The longest simulated time per frame a scene accepts (s).
+pub const MAX_FRAME_DT: f32 = 1.0;
+
 fn invalid(field: impl Into<String>, reason: impl Into<String>) -> Error {
     Error::Scene {
         field: field.into(),
@@ -238,6 +269,16 @@ impl Scene {
     pub fn validate(&self) -> Result<()> {
         let f = &self.fluid;
         positive("fluid.h", f.h)?;
+        let (lo, hi) = KERNEL_H_RANGE;
+        if !(lo..=hi).contains(&f.h) {
+            return Err(invalid(
+                "fluid.h",
+                format!(
+                    "{} m is outside [1e-4, 1e4] m, where the kernels' coefficients fit f32; rescale the units",
+                    f.h
+                ),
+            ));
+        }
         positive("fluid.rest_density", f.rest_density)?;
         positive("fluid.stiffness", f.stiffness)?;
         non_negative("fluid.viscosity", f.viscosity)?;
@@ -255,6 +296,15 @@ impl Scene {
             return Err(invalid(
                 "spacing",
                 format!("{} must be smaller than fluid.h = {}", self.spacing, f.h),
+            ));
+        }
+        if f.h / self.spacing > MAX_H_OVER_SPACING {
+            return Err(invalid(
+                "spacing",
+                format!(
+                    "fluid.h / spacing = {} exceeds {MAX_H_OVER_SPACING}: each particle would have thousands of neighbours",
+                    f.h / self.spacing
+                ),
             ));
         }
         let dmin = finite3("domain.min", self.domain.min)?;
@@ -317,12 +367,46 @@ impl Scene {
             if e.width == 0 {
                 return Err(invalid(format!("{field}.width"), "must be at least 1"));
             }
+            // The whole nozzle, not only its centre, must lie in free space:
+            // particles emitted into a wall or an obstacle would be projected
+            // onto each other.
+            let free = self.boundary();
+            let corners = nozzle_corners(c, v, e.width, self.spacing);
+            if !corners.iter().all(|&x| free.admits(x)) {
+                return Err(invalid(
+                    &field,
+                    format!(
+                        "the nozzle ({} particles wide at spacing {}) reaches outside the domain or into an obstacle",
+                        e.width, self.spacing
+                    ),
+                ));
+            }
         }
         let t = &self.time_step;
         positive("time_step.max_dt", t.max_dt)?;
         positive("time_step.cfl", t.cfl)?;
         positive("time_step.force_factor", t.force_factor)?;
         positive("time_step.frame_dt", t.frame_dt)?;
+        if t.frame_dt > MAX_FRAME_DT {
+            return Err(invalid(
+                "time_step.frame_dt",
+                format!(
+                    "{} s is longer than {MAX_FRAME_DT} s of simulation per frame",
+                    t.frame_dt
+                ),
+            ));
+        }
+        let min_dt = TimeStepping::default().min_dt;
+        if t.max_dt < min_dt {
+            return Err(invalid(
+                "time_step.max_dt",
+                format!(
+                    "{} s is below min_dt = {min_dt:e} s, the step that counts as a blow-up",
+                    t.max_dt
+                ),
+            ));
+        }
+        self.render.validate()?;
         if count > self.max_particles {
             return Err(invalid(
                 "max_particles",
@@ -395,6 +479,12 @@ impl Scene {
                     }
                 }
             }
+        }
+        if p.is_empty() && self.emitters.is_empty() {
+            return Err(invalid(
+                "blocks",
+                "every block particle lies inside an obstacle: the scene has no fluid",
+            ));
         }
         Ok(p)
     }

@@ -124,6 +124,13 @@ impl FluidParams {
                 reason: "must be smaller than h (at least one neighbour per axis)",
             });
         }
+        if self.h / spacing > MAX_H_OVER_SPACING {
+            return Err(Error::InvalidParameter {
+                name: "spacing",
+                value: spacing.to_string(),
+                reason: "h / spacing must be at most 10: beyond, each particle would have thousands of neighbours",
+            });
+        }
         let poly6 = crate::kernels::Poly6::new(self.h)?;
         let n = (self.h / spacing).ceil() as i32;
         let mut sum = 0.0f64;
@@ -138,6 +145,10 @@ impl FluidParams {
         Ok((self.rest_density as f64 / sum) as f32)
     }
 }
+
+/// The largest h / spacing [`FluidParams::particle_mass`] (and a scene)
+/// accepts: about 4,200 neighbours per particle. Usual values are 2 to 3.
+pub const MAX_H_OVER_SPACING: f32 = 10.0;
 
 /// Adaptive time stepping: dt = min(max_dt, cfl·h/(c + v_max), force·√(h/a_max)).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -169,7 +180,15 @@ impl TimeStepping {
         positive("max_dt", self.max_dt)?;
         positive("cfl", self.cfl)?;
         positive("force_factor", self.force_factor)?;
-        positive("min_dt", self.min_dt)
+        positive("min_dt", self.min_dt)?;
+        if self.max_dt < self.min_dt {
+            return Err(Error::InvalidParameter {
+                name: "max_dt",
+                value: self.max_dt.to_string(),
+                reason: "must be at least min_dt, the step below which a run counts as blown up",
+            });
+        }
+        Ok(())
     }
 }
 
@@ -211,11 +230,22 @@ impl Processor for BuildGrid {
     }
 }
 
-fn grid<'a>(ctx: &'a Context, who: &'static str) -> Result<&'a crate::NeighbourGrid> {
-    ctx.grid.as_ref().ok_or(Error::Pipeline {
+fn grid<'a>(
+    ctx: &'a Context,
+    particles: &Particles,
+    who: &'static str,
+) -> Result<&'a crate::NeighbourGrid> {
+    let grid = ctx.grid.as_ref().ok_or(Error::Pipeline {
         processor: who,
         reason: "needs the neighbour grid: put a `grid` processor before it",
-    })
+    })?;
+    if grid.len() != particles.len() {
+        return Err(Error::Pipeline {
+            processor: who,
+            reason: "the neighbour grid is out of date: a processor added or removed particles after `grid` without calling `Context::invalidate_grid`",
+        });
+    }
+    Ok(grid)
 }
 
 /// Density by poly6 summation (eq. 4) and pressure by the equation of state
@@ -258,7 +288,7 @@ impl Processor for DensityPressure {
         "density"
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let grid = grid(ctx, "density")?;
+        let grid = grid(ctx, particles, "density")?;
         let masses = particles.masses();
         let FluidModel {
             params,
@@ -311,7 +341,7 @@ impl Processor for Forces {
         "forces"
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let grid = grid(ctx, "forces")?;
+        let grid = grid(ctx, particles, "forces")?;
         let v = particles.velocities();
         let (m, rho, p) = (
             particles.masses(),
@@ -518,19 +548,22 @@ impl Processor for Emitter {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         self.travelled += self.velocity.length() * ctx.dt;
         let dir = self.velocity.normalize();
-        let (u, w) = dir.any_orthonormal_pair();
         while self.travelled >= self.spacing {
             self.travelled -= self.spacing;
             let offset = dir * self.travelled; // where this layer is now
-            let half = (self.n as f32 - 1.0) / 2.0;
             for b in 0..self.n {
                 for a in 0..self.n {
                     if particles.len() >= self.max_particles {
                         return Ok(());
                     }
-                    let x = self.centre
-                        + offset
-                        + (u * (a as f32 - half) + w * (b as f32 - half)) * self.spacing;
+                    let x = nozzle_point(
+                        self.centre + offset,
+                        self.velocity,
+                        self.n,
+                        self.spacing,
+                        a,
+                        b,
+                    );
                     particles.push(x, self.velocity, self.mass);
                 }
             }
@@ -538,6 +571,21 @@ impl Processor for Emitter {
         }
         Ok(())
     }
+}
+
+/// Lattice point (a, b) of a square nozzle `n` particles wide at `spacing`,
+/// centred on `centre`, in the plane across `velocity`.
+fn nozzle_point(centre: Vec3, velocity: Vec3, n: u32, spacing: f32, a: u32, b: u32) -> Vec3 {
+    let (u, w) = velocity.normalize().any_orthonormal_pair();
+    let half = (n as f32 - 1.0) / 2.0;
+    centre + (u * (a as f32 - half) + w * (b as f32 - half)) * spacing
+}
+
+/// The four corner particles of an [`Emitter`]'s nozzle (see [`Emitter::new`]).
+pub fn nozzle_corners(centre: Vec3, velocity: Vec3, n: u32, spacing: f32) -> [Vec3; 4] {
+    let last = n.saturating_sub(1);
+    [(0, 0), (last, 0), (0, last), (last, last)]
+        .map(|(a, b)| nozzle_point(centre, velocity, n, spacing, a, b))
 }
 
 /// Removes the particles inside a box.

@@ -58,7 +58,7 @@ fn message(text: &str) -> String {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 9] = [
+    let cases: [(&str, &str, &[&str]); 19] = [
         ("h = 0.04", "h = 0.04 +", &["scene file", "line"]),
         (
             "h = 0.04",
@@ -88,6 +88,47 @@ fn malformed_scenes_name_the_field_and_reason() {
             "max_particles = 100",
             &["max_particles", "more than"],
         ),
+        // Would take (2·⌈h/spacing⌉ + 1)³ kernel sums to find the mass.
+        (
+            "spacing = 0.02",
+            "spacing = 0.00002",
+            &["spacing", "exceeds 10"],
+        ),
+        // The kernels' coefficients overflow f32 below h = 1e-4 m.
+        ("h = 0.04", "h = 0.00005", &["h", "[1e-4, 1e4]"]),
+        (
+            "frame_dt = 0.016666668",
+            "frame_dt = 10000.0",
+            &["time_step.frame_dt", "longer than 1 s"],
+        ),
+        (
+            "max_dt = 0.002",
+            "max_dt = 1e-9",
+            &["time_step.max_dt", "below min_dt"],
+        ),
+        ("fov_y = 45.0", "fov_y = 0.0", &["render.fov_y", "degrees"]),
+        ("fov_y = 45.0", "fov_y = nan", &["render.fov_y", "degrees"]),
+        (
+            "look_at = [0.5, 0.125, 0.04]",
+            "look_at = [0.5, 0.5, 1.6800001]",
+            &["render.look_at", "differ"],
+        ),
+        (
+            "look_at = [0.5, 0.125, 0.04]",
+            "look_at = [0.5, 0.125, 1.6800001]",
+            &["render.look_at", "vertical"],
+        ),
+        // A nozzle 100 particles wide is 2 m across in a 1 m domain.
+        (
+            "[time_step]",
+            "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 100\n\n[time_step]",
+            &["emitters[0]", "nozzle", "outside the domain"],
+        ),
+        (
+            "[time_step]",
+            "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 4294967295\n\n[time_step]",
+            &["emitters[0]", "nozzle"],
+        ),
     ];
     for (find, replace, words) in cases {
         let msg = message(&with(find, replace));
@@ -98,6 +139,19 @@ fn malformed_scenes_name_the_field_and_reason() {
             );
         }
     }
+    // A nozzle that fits and is inside no obstacle is accepted.
+    let fits = "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 3\n\n[time_step]";
+    Scene::from_toml(&with("[time_step]", fits)).unwrap();
+    // Obstacles over the whole block leave no fluid: an error, not an empty run.
+    let buried = with(
+        "[time_step]",
+        "[[obstacles]]\nshape = \"box\"\nmin = [-0.1, -0.1, -0.1]\nmax = [0.3, 0.6, 0.1]\n\n[time_step]",
+    );
+    let e = Scene::from_toml(&buried)
+        .unwrap()
+        .build_world()
+        .unwrap_err();
+    assert!(e.to_string().contains("no fluid"), "{e}");
     let e = Scene::load("/nonexistent/scene.toml").unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
 }

@@ -2,7 +2,9 @@
 //! containment and the dam-break front speed, and determinism across threads.
 
 use glam::Vec3;
-use sph_core::{Aabb, Boundary, FluidParams, Particles, Scene, TimeStepping, World};
+use sph_core::{
+    Aabb, Boundary, Context, Error, FluidParams, Particles, Processor, Scene, TimeStepping, World,
+};
 
 fn momentum(p: &Particles) -> [f64; 3] {
     let mut m = [0.0f64; 3];
@@ -269,6 +271,62 @@ fn frames_end_without_sliver_steps() {
             report.time
         );
     }
-    // The shortest substep is at least half a typical one, never a sliver.
-    assert!(smallest > 1e-5, "shortest substep {smallest:e} s");
+    // The shortest substep is at least half a typical one, never a sliver
+    // (the stable step itself changes a little within a frame).
+    let mut world = Scene::dam_break(0.25, 0.08, 0.02).build_world().unwrap();
+    for _ in 0..18 {
+        let (shortest, longest) = world.advance(1.0 / 30.0).unwrap().dt_range;
+        assert!(
+            shortest >= 0.45 * longest,
+            "substeps {shortest:e}..{longest:e} s"
+        );
+    }
+}
+
+/// A processor that adds particles after the grid was built, without
+/// `Context::invalidate_grid`, gets an error from the next gather, not a panic.
+#[test]
+fn a_stale_grid_is_an_error() {
+    struct Sneak;
+    impl Processor for Sneak {
+        fn name(&self) -> &str {
+            "sneak"
+        }
+        fn process(&mut self, particles: &mut Particles, _: &mut Context) -> sph_core::Result<()> {
+            particles.push(Vec3::splat(0.1), Vec3::ZERO, 1.0);
+            Ok(())
+        }
+    }
+    let mut world = Scene::dam_break(0.1, 0.04, 0.02).build_world().unwrap();
+    assert!(world.program_mut().insert_after("grid", Sneak));
+    let e = world.step().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Pipeline {
+                processor: "density",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("invalidate_grid"), "{e}");
+}
+
+/// Parameters that pass one by one but cannot run together are errors up
+/// front: a largest step below the blow-up threshold, and a lattice so fine
+/// for h that finding the particle mass alone would take minutes.
+#[test]
+fn inconsistent_parameters_are_errors() {
+    let stepping = TimeStepping {
+        max_dt: 1e-9,
+        ..TimeStepping::default()
+    };
+    let e = stepping.validate().unwrap_err().to_string();
+    assert!(e.contains("max_dt") && e.contains("min_dt"), "{e}");
+    let fluid = FluidParams::water(0.04);
+    assert!(fluid.particle_mass(0.02).is_ok());
+    assert!(fluid.particle_mass(0.004).is_ok());
+    let e = fluid.particle_mass(0.0039).unwrap_err().to_string();
+    assert!(e.contains("at most 10"), "{e}");
 }
