@@ -40,7 +40,7 @@ fn extraction(c: &mut Criterion) {
         // Untimed: coverage of iso-surface points found by bisection (spacing
         // h/4, disc thickness h/10), and the thesis-faithful mode beside.
         let field = ColourField::from_particles(&particles, h).expect("field");
-        let points = iso_points(&field, 0.5, 0.25 * h);
+        let points = iso_points(&field, 0.5, 0.25 * h).expect("iso points");
         for iterations in 1..=3 {
             let params = ExtractParams {
                 iterations,

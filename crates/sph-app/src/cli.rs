@@ -31,7 +31,7 @@ pub struct Args {
     #[arg(long, value_parser = parse_seconds)]
     pub seconds: Option<f64>,
 
-    /// Frames per second of simulated time (headless).
+    /// Frames per second of simulated time (headless), 1 to 1000.
     #[arg(long, default_value_t = 30.0, value_parser = parse_fps)]
     pub fps: f64,
 
@@ -69,7 +69,7 @@ pub struct Args {
     pub screenshot_after: Option<u64>,
 
     /// Run the SPH step on the GPU (wgpu compute, `sph-gpu`) instead of the CPU;
-    /// extraction stays on the CPU. Needs a GPU adapter (lavapipe will do);
+    /// extraction stays on the CPU unless --gpu-extract. Needs a GPU adapter (lavapipe will do);
     /// scenes with emitters are not supported on this path.
     #[arg(long)]
     pub gpu_sim: bool,
@@ -103,21 +103,25 @@ impl From<ExportFormat> for sph_core::export::Format {
     }
 }
 
-fn parse_positive(s: &str, what: &str, max: f64) -> Result<f64, String> {
+/// A number in (0, max], or in [min, max] where `min` is given.
+fn parse_in_range(s: &str, what: &str, min: Option<f64>, max: f64) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
-    if v.is_finite() && v > 0.0 && v <= max {
-        Ok(v)
-    } else {
-        Err(format!("{what} must be > 0 and at most {max}"))
+    let above = min.map_or(v > 0.0, |min| v >= min);
+    match (v.is_finite() && above && v <= max, min) {
+        (true, _) => Ok(v),
+        (false, Some(min)) => Err(format!("{what} must lie in [{min}, {max}]")),
+        (false, None) => Err(format!("{what} must be > 0 and at most {max}")),
     }
 }
 
 fn parse_seconds(s: &str) -> Result<f64, String> {
-    parse_positive(s, "seconds", 3600.0)
+    parse_in_range(s, "seconds", None, 3600.0)
 }
 
+/// At least one frame per simulated second: a frame is at most the 1 s a
+/// scene's `frame_dt` may be.
 fn parse_fps(s: &str) -> Result<f64, String> {
-    parse_positive(s, "fps", 1000.0)
+    parse_in_range(s, "fps", Some(1.0), 1000.0)
 }
 
 impl Args {
@@ -142,6 +146,9 @@ mod tests {
         assert_eq!(a.frame_count(), 20);
         assert!(Args::try_parse_from(["sph-app", "--iterations", "7"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--fps", "-1"]).is_err());
+        // Frames of more than 1 s of simulation would run for hours.
+        assert!(Args::try_parse_from(["sph-app", "--fps", "0.0001"]).is_err());
+        assert!(Args::try_parse_from(["sph-app", "--fps", "1"]).is_ok());
         assert!(Args::try_parse_from(["sph-app", "--frames", "3", "--seconds", "1"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--threads", "0"]).is_err());
     }

@@ -150,7 +150,8 @@ impl Pipeline {
         !self.extracted
     }
 
-    /// Simulated time per frame at `fps`.
+    /// Advances the simulation by `frame_dt` seconds (on the GPU solver when
+    /// it runs) and marks the surfels for re-extraction.
     pub fn advance(&mut self, frame_dt: f64) -> Result<(), AppError> {
         let start = Instant::now();
         let (substeps, time) = match self.gpu.as_mut() {

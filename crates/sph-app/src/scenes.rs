@@ -11,10 +11,10 @@ pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
 /// Built-in scenes, in key order (keys 1–5).
 pub const BUILT_IN: [BuiltIn; 5] = [
-    ("dam-break", "thin-slab dam break, 1,200 particles", || {
+    ("dam-break", "thin-slab dam break", || {
         Scene::dam_break(0.25, 0.08, 0.02)
     }),
-    ("dam-break-3d", "full 3D dam break, 3,900 particles", || {
+    ("dam-break-3d", "full 3D dam break", || {
         Scene::dam_break(0.25, 0.25, 0.02)
     }),
     (
@@ -27,7 +27,7 @@ pub const BUILT_IN: [BuiltIn; 5] = [
     }),
     (
         "dam-break-fine",
-        "thin-slab dam break at 1 cm spacing, 10,000 particles",
+        "thin-slab dam break at 1 cm spacing",
         || Scene::dam_break(0.25, 0.08, 0.01),
     ),
 ];
@@ -48,11 +48,15 @@ pub fn resolve(scene: &str) -> Result<(String, Scene), AppError> {
     Err(AppError::UnknownScene(scene.to_string()))
 }
 
-/// The `--list-scenes` text.
+/// The `--list-scenes` text, with each scene's particle count at the start.
 pub fn listing() -> String {
     let mut out = String::from("built-in scenes (--scene NAME, keys 1-5 in the window):\n");
-    for (i, (name, what, _)) in BUILT_IN.iter().enumerate() {
-        out.push_str(&format!("  {}  {name:<18} {what}\n", i + 1));
+    for (i, (name, what, make)) in BUILT_IN.iter().enumerate() {
+        let count = match make().particles() {
+            Ok(p) => format!("{} particles", p.len()),
+            Err(e) => format!("invalid: {e}"),
+        };
+        out.push_str(&format!("  {}  {name:<18} {what}, {count}\n", i + 1));
     }
     out.push_str("or a scene file: --scene assets/scenes/dam_break_3d.toml\n");
     out

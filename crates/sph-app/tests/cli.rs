@@ -134,6 +134,15 @@ fn list_scenes_names_the_built_ins() {
     for name in ["dam-break", "dam-break-3d", "double-dam-break", "drop"] {
         assert!(text.contains(name), "{text}");
     }
+    // The counts are the scenes' own, not written by hand.
+    let slab = sph_core::Scene::dam_break(0.25, 0.08, 0.02)
+        .particles()
+        .unwrap();
+    assert!(
+        text.contains(&format!("slab dam break, {} particles", slab.len())),
+        "{text}"
+    );
+    assert_eq!(text.matches(" particles\n").count(), 5, "{text}");
 }
 
 /// Runs a failing command: non-zero exit, a message containing `expected`, no panic.
@@ -154,7 +163,8 @@ fn bad_input_is_a_clear_error_and_a_failure() {
         "unknown scene `atlantis`",
     );
     fails_with(&["--iterations", "7"], "--iterations");
-    fails_with(&["--fps", "0"], "fps must be > 0");
+    fails_with(&["--fps", "0"], "fps must lie in [1, 1000]");
+    fails_with(&["--fps", "0.0001"], "fps must lie in [1, 1000]");
 
     let syntax = dir.join("broken.toml");
     std::fs::write(&syntax, "name = \"x\"\nspacing = = 0.02\n").unwrap();
@@ -271,7 +281,8 @@ fn gpu_sim_follows_the_cpu_solver() {
     assert!(o.status.success(), "{}", stderr(&o));
     // 0.1 s of collapse, the same adaptive substeps on both paths (the GPU
     // chooses its step as World::advance does): the bulk motion agrees.
-    // Measured: mean positions within 1e-6 m, mean speeds within 5e-5.
+    // Measured on lavapipe (2026-11-22): mean positions within 9.3e-7 m,
+    // mean speeds within 1.3e-4 of each other (relative); bounds 10× and 8×.
     for i in 0..3 {
         let file = format!("particles_{i:05}.ply");
         let ((xg, vg), (xc, vc)) = (bulk(&gpu.join(&file)), bulk(&cpu.join(&file)));
@@ -279,7 +290,7 @@ fn gpu_sim_follows_the_cpu_solver() {
             "frame {i}: |Δ mean x| = {:.3e} m, mean speed {vg:.5} vs {vc:.5} m/s",
             (xg - xc).length()
         );
-        assert!((xg - xc).length() < 1e-4, "frame {i}: mean {xg} vs {xc}");
+        assert!((xg - xc).length() < 1e-5, "frame {i}: mean {xg} vs {xc}");
         assert!(
             (vg - vc).abs() < 1e-3 * vc.max(1e-3),
             "frame {i}: speed {vg} vs {vc}"
@@ -338,6 +349,11 @@ fn gpu_extract_draws_and_exports_the_gpu_surfels() {
         let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(stdout.contains("surfels extracted on the GPU"), "{stdout}");
         let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        assert_eq!(
+            csv.lines().count(),
+            3,
+            "{name}: a header and 2 frames\n{csv}"
+        );
         for (i, line) in csv.lines().skip(1).enumerate() {
             let surfels: usize = line.split(',').nth(3).unwrap().parse().unwrap();
             let file = out.join(format!("surfels_{i:05}.ply"));

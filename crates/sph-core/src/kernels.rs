@@ -256,7 +256,8 @@ impl Kernel for Viscosity {
 pub struct Kernels {
     /// Density, colour field and its derivatives.
     pub poly6: Poly6,
-    /// Pressure gradient.
+    /// Pressure gradient with [`crate::PressureKernel::Spiky`] (the thesis's
+    /// choice; poly6 is the default).
     pub spiky: Spiky,
     /// Viscosity laplacian.
     pub viscosity: Viscosity,

@@ -85,7 +85,10 @@ impl Context {
 
 /// One station of the conveyor belt: modifies the particle container for one step.
 pub trait Processor: Send {
-    /// A short name, unique within its program (used to find and report it).
+    /// A short name, used to find and report it. Names may repeat (every
+    /// [`crate::solver::Emitter`] is `emitter`): [`Program::insert_after`] and
+    /// [`Program::insert_before`] find the first of a name, [`Program::remove`]
+    /// removes all of it.
     fn name(&self) -> &str;
     /// Processes the particles for the step described by `ctx`.
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()>;
@@ -136,7 +139,7 @@ impl Program {
         }
     }
 
-    /// Removes the processor named `name`; returns whether there was one.
+    /// Removes every processor named `name`; returns whether there was one.
     pub fn remove(&mut self, name: &str) -> bool {
         let before = self.processors.len();
         self.processors.retain(|p| p.name() != name);

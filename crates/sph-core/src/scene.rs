@@ -489,7 +489,8 @@ impl Scene {
         Ok(p)
     }
 
-    /// A ready-to-run world: particles, default program, emitters appended.
+    /// A ready-to-run world: particles, default program, emitters inserted
+    /// before the grid build (so new particles are in the step's grid).
     pub fn build_world(&self) -> Result<World> {
         self.world_with(self.particles()?)
     }

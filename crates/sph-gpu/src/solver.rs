@@ -384,7 +384,9 @@ impl GpuSolver {
     /// # Errors
     /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and positive
     /// or a zero `batch`; [`GpuError::Unstable`] when the stable step falls
-    /// below `min_dt` (a blow-up); [`GpuError::Readback`].
+    /// below `min_dt` (a blow-up) or below the f32 resolution of the time
+    /// elapsed in the frame (a frame far too long for its steps);
+    /// [`GpuError::Readback`].
     pub fn advance(
         &mut self,
         device: &wgpu::Device,
@@ -403,6 +405,7 @@ impl GpuSolver {
         queue.write_buffer(&self.state, 0, bytemuck::bytes_of(&StepState::default()));
         // The first step's speed reduction runs before any `choose_dt`.
         queue.write_buffer(&self.gate, 0, bytemuck::cast_slice(&self.gate_full));
+        let mut before = StepState::default();
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
             for _ in 0..batch {
@@ -429,6 +432,15 @@ impl GpuSolver {
                     elapsed: state.elapsed,
                 });
             }
+            // The frame's time is summed in f32 on the GPU: steps below half
+            // an ulp of it would leave it where it is, batch after batch.
+            if state.steps > before.steps && state.elapsed <= before.elapsed {
+                return Err(GpuError::Unstable(format!(
+                    "the frame's time stopped at {} s of {frame_dt} s: steps of {:e} s are below its f32 resolution; use shorter frames",
+                    state.elapsed, state.dt
+                )));
+            }
+            before = state;
         }
     }
 

@@ -51,7 +51,7 @@ fn compare(
     let cpu = extract_field(field, &params).unwrap();
     let (surfels, stats) = gpu_extract(ctx, field, &params, 1 << 20);
     let r = residuals(field, params.iso, &surfels);
-    let points = iso_points(field, params.iso, spacing);
+    let points = iso_points(field, params.iso, spacing).expect("iso points");
     let coverage = covered_fraction(&surfels, &points, thickness).unwrap();
     let cpu_coverage = covered_fraction(&cpu.surfels, &points, thickness).unwrap();
     println!(

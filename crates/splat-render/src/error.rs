@@ -69,7 +69,8 @@ pub enum RenderError {
     /// A camera that cannot be projected (non-finite, eye on target, bad clip planes).
     #[error("invalid camera: {0}")]
     InvalidCamera(&'static str),
-    /// An environment or background image that is empty.
+    /// An environment or background image that is empty or larger than the
+    /// device's textures.
     #[error("invalid texture {name}: {reason}")]
     InvalidTexture {
         /// Which texture.

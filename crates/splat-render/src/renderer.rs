@@ -83,10 +83,11 @@ impl SplatRenderer {
     ///
     /// # Errors
     /// [`RenderError::InvalidSize`] for a zero or oversized side,
-    /// [`RenderError::InvalidTexture`] for an empty image.
+    /// [`RenderError::InvalidTexture`] for an empty image or one larger than
+    /// the device's textures can be.
     pub fn new(ctx: &GpuContext, width: u32, height: u32, env: &Environment) -> Result<Self> {
         check_size(ctx, width, height)?;
-        env.validate()?;
+        env.validate(ctx.device.limits().max_texture_dimension_2d)?;
         let device = &ctx.device;
         let accum_format = if device
             .features()
@@ -370,9 +371,10 @@ impl SplatRenderer {
     /// Replaces the environment map and background.
     ///
     /// # Errors
-    /// [`RenderError::InvalidTexture`] for an empty image.
+    /// [`RenderError::InvalidTexture`] for an empty image or one larger than
+    /// the device's textures can be.
     pub fn set_environment(&mut self, ctx: &GpuContext, env: &Environment) -> Result<()> {
-        env.validate()?;
+        env.validate(ctx.device.limits().max_texture_dimension_2d)?;
         (self.env_view, self.back_view) = upload_environment(ctx, env);
         self.rebind_targets(ctx);
         Ok(())

@@ -48,11 +48,13 @@ impl Environment {
             environment: load("environment.png")?,
             background: load("background.png")?,
         };
-        env.validate()?;
+        env.validate(u32::MAX)?;
         Ok(env)
     }
 
-    pub(crate) fn validate(&self) -> Result<()> {
+    /// Checks that both images have pixels and no side above `max_side` (the
+    /// device's `max_texture_dimension_2d`).
+    pub(crate) fn validate(&self, max_side: u32) -> Result<()> {
         for (name, img) in [
             ("environment", &self.environment),
             ("background", &self.background),
@@ -61,6 +63,16 @@ impl Environment {
                 return Err(RenderError::InvalidTexture {
                     name,
                     reason: "it has no pixels".into(),
+                });
+            }
+            if img.width().max(img.height()) > max_side {
+                return Err(RenderError::InvalidTexture {
+                    name,
+                    reason: format!(
+                        "{}×{} exceeds the device's largest texture side, {max_side}",
+                        img.width(),
+                        img.height()
+                    ),
                 });
             }
         }
@@ -129,9 +141,13 @@ pub fn procedural_background(width: u32, height: u32) -> RgbaImage {
 
 /// Bilinear lookup at `uv` as a wgpu `Linear` sampler does (texel centres at
 /// half-integers), with the u coordinate repeating when `repeat_u` and both
-/// clamped to the edge otherwise. Returns linear 0..1 RGB.
+/// clamped to the edge otherwise. Returns linear 0..1 RGB; an image without
+/// pixels reads as black.
 pub fn sample_bilinear(img: &RgbaImage, uv: Vec2, repeat_u: bool) -> Vec3 {
     let (w, h) = (img.width() as i64, img.height() as i64);
+    if w == 0 || h == 0 {
+        return Vec3::ZERO;
+    }
     let x = uv.x * w as f32 - 0.5;
     let y = uv.y * h as f32 - 0.5;
     let (x0, y0) = (x.floor(), y.floor());
@@ -176,6 +192,24 @@ mod tests {
                 .max_element()
                 < 1e-3
         );
+    }
+
+    #[test]
+    fn empty_or_oversized_images_are_errors() {
+        assert_eq!(
+            sample_bilinear(&RgbaImage::new(0, 0), Vec2::splat(0.5), true),
+            Vec3::ZERO
+        );
+        let env = Environment::procedural();
+        let side = env.environment.width().max(env.environment.height());
+        assert!(env.validate(side).is_ok());
+        let e = env.validate(side - 1).unwrap_err().to_string();
+        assert!(e.contains("largest texture side"), "{e}");
+        let empty = Environment {
+            background: RgbaImage::new(0, 4),
+            ..env
+        };
+        assert!(empty.validate(u32::MAX).is_err());
     }
 
     #[test]

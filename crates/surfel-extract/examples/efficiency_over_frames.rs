@@ -28,7 +28,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         for t in [0.1f32, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8] {
             world.advance(t - world.time() as f32)?;
             let field = ColourField::from_particles(&world.particles, h)?;
-            let points = iso_points(&field, 0.5, 0.25 * h);
+            let points = iso_points(&field, 0.5, 0.25 * h).expect("iso points");
             let mut line = format!("  t = {t:.1} s:");
             for iterations in [2, 3] {
                 let params = ExtractParams {

@@ -30,7 +30,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let h = 0.02;
     let field = ColourField::from_particles(&particles, h)?;
-    let points = iso_points(&field, 0.5, 0.25 * h);
+    let points = iso_points(&field, 0.5, 0.25 * h).expect("iso points");
     println!(
         "{label} frame: {} particles, {} iso points",
         particles.len(),

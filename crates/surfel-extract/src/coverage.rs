@@ -3,26 +3,34 @@
 //! rays), the fraction of them that some surfel covers, and the residual
 //! |c(x_s) − k_iso| and normal error at the surfels.
 
+use glam::UVec3;
 use glam::Vec3;
 use rayon::prelude::*;
-use sph_core::Result;
+use sph_core::{Error, Result};
 
 use crate::Surfel;
 use crate::field::ColourField;
 use crate::fill::SurfelIndex;
+use crate::ldc::lattice_size;
 
 /// Points on c = `iso`: along rays parallel to x, y and z through a square
 /// lattice of `spacing` over the particles' bounding box (grown by h), every sign
 /// change of c − iso found by marching in steps of `spacing` and located by 40
-/// bisections.
-pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Vec<Vec3> {
-    let Some((lo, hi)) = field.support_bounds() else {
-        return Vec::new();
-    };
+/// bisections. Errors for a `spacing` that is not finite and positive or
+/// that gives more than [`crate::ldc::MAX_GRID_POINTS`] lattice points.
+pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Result<Vec<Vec3>> {
     if !(spacing.is_finite() && spacing > 0.0) {
-        return Vec::new();
+        return Err(Error::InvalidParameter {
+            name: "spacing",
+            value: spacing.to_string(),
+            reason: "must be finite and > 0",
+        });
     }
-    let n = ((hi - lo) / spacing).ceil().as_uvec3() + 1;
+    let Some((lo, hi)) = field.support_bounds() else {
+        return Ok(Vec::new());
+    };
+    let n = lattice_size(lo, hi, spacing)?;
+    let n = UVec3::new(n[0] as u32, n[1] as u32, n[2] as u32);
     let f = |x: Vec3| field.sample(x).c - iso;
     let mut rays = Vec::new();
     for axis in 0..3 {
@@ -36,7 +44,8 @@ pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Vec<Vec3> {
             }
         }
     }
-    rays.par_iter()
+    let points = rays
+        .par_iter()
         .flat_map_iter(|&(axis, o)| {
             let mut dir = Vec3::ZERO;
             dir[axis] = spacing;
@@ -62,7 +71,8 @@ pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Vec<Vec3> {
             }
             out
         })
-        .collect()
+        .collect();
+    Ok(points)
 }
 
 /// The fraction of `points` lying on some surfel's disc (within `thickness` of
@@ -113,5 +123,19 @@ pub fn residuals(field: &ColourField, iso: f32, surfels: &[Surfel]) -> Residuals
         median: percentile(res.clone(), 0.5),
         p95: percentile(res, 0.95),
         median_angle_deg: percentile(angle, 0.5),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bad_or_huge_lattices_are_errors() {
+        let field = ColourField::from_positions(&[Vec3::ZERO, Vec3::X * 0.01], 0.04).unwrap();
+        assert!(!iso_points(&field, 0.5, 0.01).unwrap().is_empty());
+        for spacing in [0.0, -1.0, f32::NAN, f32::INFINITY, 1e-9] {
+            assert!(iso_points(&field, 0.5, spacing).is_err(), "{spacing}");
+        }
     }
 }

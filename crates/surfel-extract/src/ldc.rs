@@ -13,8 +13,23 @@ use sph_core::{Error, Result};
 use crate::field::{ColourField, Sample};
 use crate::{ExtractParams, Stats, Surfel, Surfels};
 
-/// Grids larger than this many points are refused (memory).
+/// LDC grids and coverage lattices ([`crate::coverage::iso_points`]) of more
+/// points than this are refused (memory and time).
 pub const MAX_GRID_POINTS: u64 = 1 << 27;
+
+/// Points per axis of a lattice of `spacing` from `lo` to past `hi`; an error
+/// beyond [`MAX_GRID_POINTS`] in all (the product saturates, never wraps).
+pub(crate) fn lattice_size(lo: Vec3, hi: Vec3, spacing: f32) -> Result<[usize; 3]> {
+    let n = (((hi - lo) / spacing).ceil().as_dvec3() + 1.0).as_u64vec3();
+    if n.x.saturating_mul(n.y).saturating_mul(n.z) > MAX_GRID_POINTS {
+        return Err(Error::InvalidParameter {
+            name: "spacing",
+            value: spacing.to_string(),
+            reason: "gives more than 2^27 lattice points: use a coarser spacing",
+        });
+    }
+    Ok([n.x as usize, n.y as usize, n.z as usize])
+}
 
 /// LDC surfels at grid `spacing` (m); radius 0.75 × spacing so neighbouring
 /// intersections overlap. `params` gives the iso value and the camera (culling).
@@ -31,15 +46,7 @@ pub fn extract_ldc(field: &ColourField, params: &ExtractParams, spacing: f32) ->
         });
     };
     let start = Instant::now();
-    let n = (((hi - lo) / spacing).ceil().as_dvec3() + 1.0).as_u64vec3();
-    if n.x * n.y * n.z > MAX_GRID_POINTS {
-        return Err(Error::InvalidParameter {
-            name: "spacing",
-            value: spacing.to_string(),
-            reason: "gives more than 2^27 LDC grid points: use a coarser spacing",
-        });
-    }
-    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
+    let [nx, ny, nz] = lattice_size(lo, hi, spacing)?;
     let at = |i: usize, j: usize, k: usize| lo + Vec3::new(i as f32, j as f32, k as f32) * spacing;
     let e0 = field.evaluations();
     let samples: Vec<Sample> = (0..nx * ny * nz)

@@ -205,7 +205,8 @@ impl ExtractParams {
 pub struct Stats {
     /// Particles in the input.
     pub particles: usize,
-    /// Particles that seeded the initial guess with one surfel.
+    /// Particles that seeded the initial guess with their own surfel (four
+    /// where the laplacian splits it).
     pub surface_particles: usize,
     /// Particles surrounded by six or eight surfels (eq. 36).
     pub all_around: usize,

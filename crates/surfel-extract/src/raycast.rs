@@ -66,13 +66,16 @@ impl<'a> Raycaster<'a> {
             return None;
         }
         let f = |t: f32| self.field.sample(origin + t * dir).c - self.iso;
-        let mut a = enter;
         if f(enter) >= 0.0 {
             // The origin is inside the fluid: report the entry point itself.
             return Some(self.hit(origin, dir, enter));
         }
-        while a < exit {
-            let b = (a + self.step).min(exit);
+        // Step k spans enter + [k, k + 1]·step: counted, so the march ends
+        // even where a step is below the f32 resolution of t.
+        let steps = ((exit - enter) / self.step).ceil() as u64;
+        for k in 0..steps {
+            let a = enter + k as f32 * self.step;
+            let b = (enter + (k + 1) as f32 * self.step).min(exit);
             let fb = f(b);
             if fb >= 0.0 {
                 let (mut lo_t, mut hi_t) = (a, b);
@@ -86,7 +89,6 @@ impl<'a> Raycaster<'a> {
                 }
                 return Some(self.hit(origin, dir, 0.5 * (lo_t + hi_t)));
             }
-            a = b;
         }
         None
     }
@@ -127,5 +129,25 @@ mod tests {
             caster.cast(Vec3::new(1.0, 0.0, 1.0), -Vec3::Z).is_none(),
             "passing beside"
         );
+    }
+
+    /// Far from the origin a step of h/1000 is below the f32 resolution of
+    /// the ray parameter: the march still ends, and finds the sphere.
+    #[test]
+    fn marching_ends_where_steps_are_below_f32_resolution() {
+        let h = 0.04;
+        let centre = Vec3::new(0.0, 0.0, -2e3);
+        let field = ColourField::with_volumes(&[centre], &[0.5 * h * h * h], h).unwrap();
+        let caster = Raycaster::new(&field, 0.5, 0.0);
+        let coarse = Raycaster::new(&field, 0.5, h / 8.0);
+        // t ≈ 2 km: an f32 ulp of t is 1.2e-4 m, above h/1000 = 4e-5 m.
+        let fine = Raycaster {
+            step: h * 1e-3,
+            ..coarse
+        };
+        assert!(caster.cast(Vec3::ZERO, -Vec3::Z).is_some());
+        let hit = fine.cast(Vec3::ZERO, -Vec3::Z).expect("hits");
+        assert!((hit.position - centre).length() < h, "{hit:?}");
+        assert!(fine.cast(Vec3::new(1.0, 0.0, 0.0), -Vec3::Z).is_none());
     }
 }

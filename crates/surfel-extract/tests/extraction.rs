@@ -41,7 +41,7 @@ struct Quality {
 fn check(name: &str, field: &ColourField, params: &ExtractParams) -> Quality {
     let out = extract_field(field, params).unwrap();
     let r = residuals(field, params.iso, &out.surfels);
-    let points = iso_points(field, params.iso, 0.25 * H);
+    let points = iso_points(field, params.iso, 0.25 * H).expect("iso points");
     let coverage = covered_fraction(&out.surfels, &points, 0.1 * H).unwrap();
     println!(
         "{name} {:?}: {} surfels from {} particles, residual median {:.2e} p95 {:.2e}, normal median {:.2}°, coverage {:.2} % of {} iso points, efficiency {:.2}, stats {:?}",
@@ -109,7 +109,7 @@ fn dam_break_frame_is_covered() {
     let p = dam_break_frame();
     let field = ColourField::from_particles(&p, 0.04).unwrap();
     let params = ExtractParams::new(0.04);
-    let points = iso_points(&field, 0.5, 0.01);
+    let points = iso_points(&field, 0.5, 0.01).expect("iso points");
     for mode in [Mode::Covered, Mode::Thesis] {
         let params = match mode {
             Mode::Covered => params,
@@ -193,7 +193,7 @@ fn iterations_and_ldc_stay_on_the_surface() {
     }
     let ldc = extract_ldc(&field, &ExtractParams::new(H), 0.25 * H).unwrap();
     let r = residuals(&field, 0.5, &ldc.surfels);
-    let points = iso_points(&field, 0.5, 0.25 * H);
+    let points = iso_points(&field, 0.5, 0.25 * H).expect("iso points");
     let coverage = covered_fraction(&ldc.surfels, &points, 0.1 * H).unwrap();
     println!(
         "LDC: {} surfels, {r:?}, coverage {coverage}",
@@ -219,7 +219,8 @@ fn lone_particle_gets_its_analytic_iso_sphere() {
         &ColourField::from_positions(&[centre], H).unwrap(),
         0.5,
         0.05 * H,
-    );
+    )
+    .expect("iso points");
     assert!(covered_fraction(&out.surfels, &points, 0.1 * H).unwrap() >= 0.99);
 }
 
@@ -242,7 +243,7 @@ fn degenerate_sets_give_surfels_on_the_surface() {
         let field = ColourField::from_positions(&set, H).unwrap();
         let out = extract_field(&field, &ExtractParams::new(H)).unwrap();
         let r = residuals(&field, 0.5, &out.surfels);
-        let points = iso_points(&field, 0.5, 0.25 * H);
+        let points = iso_points(&field, 0.5, 0.25 * H).expect("iso points");
         let coverage = covered_fraction(&out.surfels, &points, 0.1 * H).unwrap();
         println!(
             "{name}: {} surfels, {r:?}, coverage {coverage:.4}",
