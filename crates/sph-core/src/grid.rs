@@ -52,6 +52,9 @@ use scan::Scan;
 pub use simd::{Simd, simd_level};
 pub use sums::{Poly6Sums, SecondMoment};
 
+/// The most particles a grid holds: slots are 32-bit, one value reserved.
+pub const MAX_PARTICLES: usize = u32::MAX as usize - 1;
+
 /// Cell edge relative to h: a little wider than h, see the module docs.
 const CELL_SCALE: f64 = 1.0 + 1e-5;
 /// Cell coordinates must satisfy |c| < 2³⁰, leaving room for ±1 neighbours and
@@ -143,10 +146,10 @@ impl NeighbourGrid {
     ) -> Result<Self> {
         check_h(h)?;
         let n = positions.len();
-        if n >= u32::MAX as usize {
+        if n > MAX_PARTICLES {
             return Err(Error::TooManyParticles {
                 count: n,
-                limit: u32::MAX as usize - 1,
+                limit: MAX_PARTICLES,
             });
         }
         let inv_cell = 1.0 / (h as f64 * CELL_SCALE);

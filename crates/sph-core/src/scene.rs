@@ -10,9 +10,10 @@ use serde::{Deserialize, Serialize};
 
 use crate::boundary::{Aabb, Boundary, Obstacle};
 use crate::error::{Error, KERNEL_H_RANGE, Result};
+use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
-    Emitter, FluidParams, MAX_H_OVER_SPACING, TimeStepping, World, nozzle_corners,
+    Emitter, FluidParams, MAX_H_OVER_SPACING, TimeStepping, World, nozzle_corners, nozzle_points,
 };
 
 /// A complete scene description.
@@ -372,7 +373,11 @@ impl Scene {
             // onto each other.
             let free = self.boundary();
             let corners = nozzle_corners(c, v, e.width, self.spacing);
-            if !corners.iter().all(|&x| free.admits(x)) {
+            // The corners first: they bound the nozzle's size, and so the
+            // cost of checking each of its points.
+            let fits = corners.iter().all(|&x| free.admits(x))
+                && nozzle_points(c, v, e.width, self.spacing).all(|x| free.admits(x));
+            if !fits {
                 return Err(invalid(
                     &field,
                     format!(
@@ -407,6 +412,15 @@ impl Scene {
             ));
         }
         self.render.validate()?;
+        if self.max_particles > MAX_PARTICLES {
+            return Err(invalid(
+                "max_particles",
+                format!(
+                    "{} exceeds the neighbour grid's limit of {MAX_PARTICLES}",
+                    self.max_particles
+                ),
+            ));
+        }
         if count > self.max_particles {
             return Err(invalid(
                 "max_particles",

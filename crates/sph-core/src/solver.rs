@@ -551,21 +551,12 @@ impl Processor for Emitter {
         while self.travelled >= self.spacing {
             self.travelled -= self.spacing;
             let offset = dir * self.travelled; // where this layer is now
-            for b in 0..self.n {
-                for a in 0..self.n {
-                    if particles.len() >= self.max_particles {
-                        return Ok(());
-                    }
-                    let x = nozzle_point(
-                        self.centre + offset,
-                        self.velocity,
-                        self.n,
-                        self.spacing,
-                        a,
-                        b,
-                    );
-                    particles.push(x, self.velocity, self.mass);
+            let layer = nozzle_points(self.centre + offset, self.velocity, self.n, self.spacing);
+            for x in layer {
+                if particles.len() >= self.max_particles {
+                    return Ok(());
                 }
+                particles.push(x, self.velocity, self.mass);
             }
             ctx.invalidate_grid();
         }
@@ -579,6 +570,16 @@ fn nozzle_point(centre: Vec3, velocity: Vec3, n: u32, spacing: f32, a: u32, b: u
     let (u, w) = velocity.normalize().any_orthonormal_pair();
     let half = (n as f32 - 1.0) / 2.0;
     centre + (u * (a as f32 - half) + w * (b as f32 - half)) * spacing
+}
+
+/// Every particle position of one layer of an [`Emitter`]'s nozzle.
+pub fn nozzle_points(
+    centre: Vec3,
+    velocity: Vec3,
+    n: u32,
+    spacing: f32,
+) -> impl Iterator<Item = Vec3> {
+    (0..n).flat_map(move |b| (0..n).map(move |a| nozzle_point(centre, velocity, n, spacing, a, b)))
 }
 
 /// The four corner particles of an [`Emitter`]'s nozzle (see [`Emitter::new`]).

@@ -58,7 +58,7 @@ fn message(text: &str) -> String {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 19] = [
+    let cases: [(&str, &str, &[&str]); 21] = [
         ("h = 0.04", "h = 0.04 +", &["scene file", "line"]),
         (
             "h = 0.04",
@@ -128,6 +128,17 @@ fn malformed_scenes_name_the_field_and_reason() {
             "[time_step]",
             "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 4294967295\n\n[time_step]",
             &["emitters[0]", "nozzle"],
+        ),
+        // A small sphere in the middle of a 3-wide nozzle, clear of its corners.
+        (
+            "[time_step]",
+            "[[obstacles]]\nshape = \"sphere\"\ncentre = [0.5, 0.3, 0.04]\nradius = 0.01\n\n[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 3\n\n[time_step]",
+            &["emitters[0]", "obstacle"],
+        ),
+        (
+            "max_particles = 2000000",
+            "max_particles = 5000000000",
+            &["max_particles", "limit"],
         ),
     ];
     for (find, replace, words) in cases {
