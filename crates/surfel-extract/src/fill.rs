@@ -12,6 +12,8 @@
 //! they split: the surfels it adds are split and refined like the others, and
 //! the children inherit the closed surface.
 
+use std::collections::HashMap;
+
 use glam::Vec3;
 use rayon::prelude::*;
 use sph_core::{NeighbourGrid, Result};
@@ -257,21 +259,16 @@ pub fn close_holes(
             })
             .flat_map_iter(|found| found.into_iter().flatten())
             .collect();
-        // Keep a candidate only if none accepted before it covers it. Which
-        // earlier candidates cover which is found in parallel, the choice is
-        // then one sequential pass, so the result does not depend on the
-        // thread count.
+        // Keep a candidate only if none accepted before it covers it (sequential,
+        // so the result does not depend on the thread count).
         let round_start = surfels.len();
-        let covers = earlier_covers(&candidates, thickness)?;
-        let mut kept = vec![false; candidates.len()];
-        let mut pairs = covers.iter().peekable();
-        for (i, c) in candidates.into_iter().enumerate() {
-            let mut covered = false;
-            while let Some(&(_, j)) = pairs.next_if(|&&(k, _)| k as usize == i) {
-                covered |= kept[j as usize];
-            }
-            if !covered {
-                kept[i] = true;
+        let mut fresh = Fresh::new(
+            candidates.iter().map(|s| s.radius).fold(0.0, f32::max),
+            thickness,
+        );
+        for c in candidates {
+            if !fresh.covered(&surfels[round_start..], c.position) {
+                fresh.insert((surfels.len() - round_start) as u32, c.position);
                 surfels.push(c);
             }
         }
@@ -280,27 +277,43 @@ pub fn close_holes(
     Ok(surfels.len() - first_new)
 }
 
-/// The pairs (i, j), j < i, where candidate j's disc covers candidate i's
-/// centre, ordered by i.
-fn earlier_covers(candidates: &[Surfel], thickness: f32) -> Result<Vec<(u32, u32)>> {
-    if candidates.len() < 2 {
-        return Ok(Vec::new());
+/// The surfels accepted in one round, hashed by cell as they arrive.
+struct Fresh {
+    inv_cell: f32,
+    cells: HashMap<[i32; 3], Vec<u32>>,
+    thickness: f32,
+}
+
+impl Fresh {
+    fn new(max_radius: f32, thickness: f32) -> Self {
+        Self {
+            inv_cell: 1.0 / (max_radius + thickness).max(f32::MIN_POSITIVE),
+            cells: HashMap::new(),
+            thickness,
+        }
     }
-    let max_radius = candidates.iter().map(|s| s.radius).fold(0.0, f32::max);
-    // A covering disc's centre lies within √(r² + thickness²) ≤ r + thickness.
-    let centres: Vec<Vec3> = candidates.iter().map(|s| s.position).collect();
-    let grid = NeighbourGrid::build(&centres, max_radius + thickness)?;
-    Ok((0..candidates.len())
-        .into_par_iter()
-        .flat_map_iter(|i| {
-            let q = candidates[i].position;
-            let mut by = Vec::new();
-            grid.for_each_neighbour_of_point(q, |j, _, _| {
-                if j < i && disc_covers(&candidates[j], q, thickness) {
-                    by.push((i as u32, j as u32));
-                }
-            });
-            by
+
+    fn cell(&self, x: Vec3) -> [i32; 3] {
+        (x * self.inv_cell).floor().as_ivec3().to_array()
+    }
+
+    fn insert(&mut self, k: u32, x: Vec3) {
+        self.cells.entry(self.cell(x)).or_default().push(k);
+    }
+
+    fn covered(&self, surfels: &[Surfel], q: Vec3) -> bool {
+        let c = self.cell(q);
+        (-1..=1).any(|dz| {
+            (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    self.cells
+                        .get(&[c[0] + dx, c[1] + dy, c[2] + dz])
+                        .is_some_and(|list| {
+                            list.iter()
+                                .any(|&k| disc_covers(&surfels[k as usize], q, self.thickness))
+                        })
+                })
+            })
         })
-        .collect())
+    }
 }

@@ -1,0 +1,79 @@
+//! Where an extraction's time goes, on the `extraction` bench's frames: the
+//! medians of `Stats`' stage times (field, initial guess, refinement, hole
+//! closing) over repeated runs, and a fingerprint of the surfels, so a change
+//! meant to leave the result as it is can be checked bitwise.
+//!
+//! ```sh
+//! cargo run --release -p surfel-extract --example stage_times [-- 100k] [ITERATIONS] [RUNS]
+//! ```
+//!
+//! Defaults: the 2,250-particle frame, 2 iterations, 21 runs.
+
+use sph_core::{Particles, Scene};
+use surfel_extract::{ExtractParams, extract};
+
+/// The dam break `Scene::dam_break(a, depth, 0.01)` after `t` seconds.
+fn frame(a: f32, depth: f32, t: f32) -> Result<Particles, Box<dyn std::error::Error>> {
+    let mut world = Scene::dam_break(a, depth, 0.01).build_world()?;
+    world.advance(t)?;
+    Ok(world.particles)
+}
+
+fn main() -> Result<(), Box<dyn std::error::Error>> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let (label, particles) = if args.iter().any(|a| a == "100k") {
+        ("100k", frame(0.37, 0.37, 0.1)?)
+    } else {
+        ("2k", frame(0.15, 0.05, 0.3)?)
+    };
+    let mut numbers = args.iter().filter_map(|a| a.parse::<u32>().ok());
+    let iterations = numbers.next().unwrap_or(2);
+    let runs = numbers.next().unwrap_or(21).max(1) as usize;
+    let params = ExtractParams {
+        iterations,
+        ..ExtractParams::new(0.02)
+    };
+    let out = extract(&particles, &params)?;
+    // FNV-1a over every surfel's bits.
+    let mut fingerprint = 0xcbf2_9ce4_8422_2325u64;
+    for s in &out.surfels {
+        for v in [s.position.to_array(), s.normal.to_array()]
+            .concat()
+            .into_iter()
+            .chain([s.radius])
+        {
+            for byte in v.to_bits().to_le_bytes() {
+                fingerprint = (fingerprint ^ byte as u64).wrapping_mul(0x100_0000_01b3);
+            }
+        }
+    }
+    println!(
+        "{label} ({} particles), {iterations} iterations: {} surfels ({} from hole closing), fingerprint {fingerprint:016x}",
+        particles.len(),
+        out.stats.surfels,
+        out.stats.filled,
+    );
+    let mut times: Vec<[f64; 5]> = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let s = extract(&particles, &params)?.stats;
+        times.push(
+            [
+                s.field_time,
+                s.initial_time,
+                s.refine_time,
+                s.fill_time,
+                s.total_time(),
+            ]
+            .map(|d| d.as_secs_f64() * 1e3),
+        );
+    }
+    let names = ["field", "initial guess", "refinement", "hole closing", "total"];
+    print!("medians of {runs} runs (ms):");
+    for (k, name) in names.iter().enumerate() {
+        let mut column: Vec<f64> = times.iter().map(|t| t[k]).collect();
+        column.sort_by(f64::total_cmp);
+        print!(" {name} {:.2}", column[runs / 2]);
+    }
+    println!();
+    Ok(())
+}
