@@ -67,7 +67,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|d| d.as_secs_f64() * 1e3),
         );
     }
-    let names = ["field", "initial guess", "refinement", "hole closing", "total"];
+    let names = [
+        "field",
+        "initial guess",
+        "refinement",
+        "hole closing",
+        "total",
+    ];
     print!("medians of {runs} runs (ms):");
     for (k, name) in names.iter().enumerate() {
         let mut column: Vec<f64> = times.iter().map(|t| t[k]).collect();
