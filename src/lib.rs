@@ -12,3 +12,8 @@ pub use sph_core;
 pub use sph_gpu;
 pub use splat_render;
 pub use surfel_extract;
+
+/// The README's Rust examples, compiled and run as doctests so they stay true.
+#[cfg(doctest)]
+#[doc = include_str!("../README.md")]
+pub struct ReadmeDoctests;
