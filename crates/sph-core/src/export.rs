@@ -304,16 +304,16 @@ fn read_bytes(r: &mut impl Read, bytes: usize, what: &str) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// `count` values of `size` bytes, as a byte count: an error where a header's
+/// `count` × `size` (bytes, or values per record): an error where a header's
 /// count overflows.
-fn byte_count(count: usize, size: usize, what: &str) -> Result<usize> {
+fn times(count: usize, size: usize, what: &str) -> Result<usize> {
     count
         .checked_mul(size)
         .ok_or_else(|| bad(what, format!("count {count} is too large")))
 }
 
 fn floats(r: &mut impl Read, n: usize, big_endian: bool, what: &str) -> Result<Vec<f32>> {
-    let bytes = read_bytes(r, byte_count(n, 4, what)?, what)?;
+    let bytes = read_bytes(r, times(n, 4, what)?, what)?;
     let conv = if big_endian {
         f32::from_be_bytes
     } else {
@@ -365,7 +365,7 @@ pub fn read_ply(r: impl Read) -> Result<LoadedCloud> {
         return Err(bad(what, "the first properties must be x y z"));
     }
     let stride = props.len();
-    let data = floats(&mut r, byte_count(n, stride, what)?, false, what)?;
+    let data = floats(&mut r, times(n, stride, what)?, false, what)?;
     let column = |k: usize| -> Vec<f32> { (0..n).map(|i| data[i * stride + k]).collect() };
     let vec_at = |k: usize| -> Vec<Vec3> {
         (0..n)
@@ -437,13 +437,13 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
                     return Err(bad(what, "a second POINTS section"));
                 }
                 let n = count(c)?;
-                let values = byte_count(n, 3, what)?;
+                let values = times(n, 3, what)?;
                 cloud.positions = to_vec3(&floats(&mut r, values, true, what)?);
                 points = Some(n);
             }
             ["CELLS", c, _] | ["CELL_TYPES", c] => {
                 let bytes = if words[0] == "CELLS" { 8 } else { 4 };
-                let skip = byte_count(count(c)?, bytes, what)?;
+                let skip = times(count(c)?, bytes, what)?;
                 let skipped = std::io::copy(&mut (&mut r).take(skip as u64), &mut std::io::sink())
                     .map_err(|e| io_err(what, e))?;
                 if skipped != skip as u64 {
