@@ -9,7 +9,7 @@ use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
 use crate::boundary::{Aabb, Boundary, Obstacle};
-use crate::error::{Error, KERNEL_H_RANGE, Result};
+use crate::error::{Error, Result, check_kernel_h};
 use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
@@ -270,16 +270,8 @@ impl Scene {
     pub fn validate(&self) -> Result<()> {
         let f = &self.fluid;
         positive("fluid.h", f.h)?;
-        let (lo, hi) = KERNEL_H_RANGE;
-        if !(lo..=hi).contains(&f.h) {
-            return Err(invalid(
-                "fluid.h",
-                format!(
-                    "{} m is outside [1e-4, 1e4] m, where the kernels' coefficients fit f32; rescale the units",
-                    f.h
-                ),
-            ));
-        }
+        // The kernels' own check: h must keep their coefficients finite f32.
+        check_kernel_h(f.h).map_err(|e| invalid("fluid.h", e.to_string()))?;
         positive("fluid.rest_density", f.rest_density)?;
         positive("fluid.stiffness", f.stiffness)?;
         non_negative("fluid.viscosity", f.viscosity)?;
@@ -352,6 +344,7 @@ impl Scene {
                 }
             }
         }
+        let free = self.boundary();
         for (k, e) in self.emitters.iter().enumerate() {
             let field = format!("emitters[{k}]");
             let c = finite3(&format!("{field}.centre"), e.centre)?;
@@ -371,7 +364,6 @@ impl Scene {
             // The whole nozzle, not only its centre, must lie in free space:
             // particles emitted into a wall or an obstacle would be projected
             // onto each other.
-            let free = self.boundary();
             let corners = nozzle_corners(c, v, e.width, self.spacing);
             // The corners first: they bound the nozzle's size, and so the
             // cost of checking each of its points.

@@ -564,12 +564,17 @@ impl Processor for Emitter {
     }
 }
 
-/// Lattice point (a, b) of a square nozzle `n` particles wide at `spacing`,
-/// centred on `centre`, in the plane across `velocity`.
-fn nozzle_point(centre: Vec3, velocity: Vec3, n: u32, spacing: f32, a: u32, b: u32) -> Vec3 {
+/// The lattice of a square nozzle `n` particles wide at `spacing`, centred
+/// on `centre`, in the plane across `velocity`: point (a, b), 0 ≤ a, b < n.
+fn nozzle_lattice(
+    centre: Vec3,
+    velocity: Vec3,
+    n: u32,
+    spacing: f32,
+) -> impl Fn(u32, u32) -> Vec3 + Copy {
     let (u, w) = velocity.normalize().any_orthonormal_pair();
     let half = (n as f32 - 1.0) / 2.0;
-    centre + (u * (a as f32 - half) + w * (b as f32 - half)) * spacing
+    move |a, b| centre + (u * (a as f32 - half) + w * (b as f32 - half)) * spacing
 }
 
 /// Every particle position of one layer of an [`Emitter`]'s nozzle.
@@ -579,14 +584,15 @@ pub fn nozzle_points(
     n: u32,
     spacing: f32,
 ) -> impl Iterator<Item = Vec3> {
-    (0..n).flat_map(move |b| (0..n).map(move |a| nozzle_point(centre, velocity, n, spacing, a, b)))
+    let at = nozzle_lattice(centre, velocity, n, spacing);
+    (0..n).flat_map(move |b| (0..n).map(move |a| at(a, b)))
 }
 
 /// The four corner particles of an [`Emitter`]'s nozzle (see [`Emitter::new`]).
 pub fn nozzle_corners(centre: Vec3, velocity: Vec3, n: u32, spacing: f32) -> [Vec3; 4] {
+    let at = nozzle_lattice(centre, velocity, n, spacing);
     let last = n.saturating_sub(1);
-    [(0, 0), (last, 0), (0, last), (last, last)]
-        .map(|(a, b)| nozzle_point(centre, velocity, n, spacing, a, b))
+    [(0, 0), (last, 0), (0, last), (last, last)].map(|(a, b)| at(a, b))
 }
 
 /// Removes the particles inside a box.
