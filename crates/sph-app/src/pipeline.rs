@@ -5,7 +5,7 @@ use std::time::Instant;
 use glam::Vec3;
 use sph_core::{Scene, World};
 use splat_render::{Camera, GpuContext, Shading, Splat, SplatRenderer};
-use surfel_extract::{ExtractParams, Surfel, extract};
+use surfel_extract::{ExtractParams, Extractor, Surfel};
 
 use crate::error::AppError;
 use crate::gpu_extract::GpuExtract;
@@ -45,8 +45,9 @@ pub struct Pipeline {
     pub world: World,
     /// Extraction parameters.
     pub extract: ExtractParams,
-    /// The last surfels (empty while they are extracted on the GPU).
-    pub surfels: Vec<Surfel>,
+    /// The CPU extractor, its memory kept from frame to frame, and the last
+    /// surfels it extracted (none while they are extracted on the GPU).
+    extractor: Extractor,
     /// Whether the surfels belong to the current particles.
     extracted: bool,
     /// The last frame's stats.
@@ -77,7 +78,7 @@ impl Pipeline {
             scene,
             world,
             extract,
-            surfels: Vec::new(),
+            extractor: Extractor::new(),
             extracted: false,
             stats: FrameStats::default(),
             gpu: None,
@@ -97,7 +98,7 @@ impl Pipeline {
         if let Some(gpu) = &self.gpu {
             self.gpu = Some(gpu.restart(&self.world, &self.scene)?);
         }
-        self.surfels.clear(); // stale: the next frame extracts again
+        self.extractor.clear(); // stale: the next frame extracts again
         self.extracted = false;
         self.stats = FrameStats {
             particles: self.world.particles.len(),
@@ -185,13 +186,14 @@ impl Pipeline {
             let stats = gpu.run(&self.world, solver)?;
             self.stats.surfels = stats.surfels;
             self.stats.evaluations = stats.evaluations + stats.particle_evaluations;
-            self.surfels.clear();
+            self.extractor.clear();
         } else {
             self.sync_world()?;
-            let out = extract(&self.world.particles, &self.extract)?;
+            let out = self
+                .extractor
+                .extract(&self.world.particles, &self.extract)?;
             self.stats.surfels = out.surfels.len();
             self.stats.evaluations = out.stats.evaluations + out.stats.particle_evaluations;
-            self.surfels = out.surfels;
         }
         self.stats.extract_ms = start.elapsed().as_secs_f64() * 1e3;
         self.extracted = true;
@@ -221,14 +223,13 @@ impl Pipeline {
     pub fn surfels_on_cpu(&self) -> Result<std::borrow::Cow<'_, [Surfel]>, AppError> {
         Ok(match &self.gpu_extract {
             Some(gpu) => gpu.read_surfels()?.into(),
-            None => self.surfels.as_slice().into(),
+            None => self.extractor.surfels().surfels.as_slice().into(),
         })
     }
 
     /// The surfels as splats.
     pub fn splats(&self) -> Vec<Splat> {
-        self.surfels
-            .iter()
+        (self.extractor.surfels().surfels.iter())
             .map(|s| Splat::new(s.position, s.normal, s.radius))
             .collect()
     }
@@ -314,7 +315,7 @@ mod tests {
         p.advance(1.0 / 60.0).unwrap();
         p.extract_surfels().unwrap();
         assert_eq!(p.world.particles.positions(), &gpu_positions(&p)[..]);
-        assert_eq!(p.stats.surfels, p.surfels.len());
+        assert_eq!(p.stats.surfels, p.surfels_on_cpu().unwrap().len());
 
         // Back on the CPU, the world continues from the GPU's last state.
         p.advance(1.0 / 60.0).unwrap();

@@ -312,8 +312,21 @@ impl NeighbourGrid {
         T: Copy + Send + Sync,
         F: Fn(usize, Neighbourhood<'_>) -> T + Sync,
     {
+        let mut out = Vec::new();
+        self.par_map_into(f, &mut out);
+        out
+    }
+
+    /// [`NeighbourGrid::par_map`] into `out`, replacing its contents and reusing
+    /// its memory: what a loop over frames does to avoid allocating per frame.
+    pub fn par_map_into<T, F>(&self, f: F, out: &mut Vec<T>)
+    where
+        T: Copy + Send + Sync,
+        F: Fn(usize, Neighbourhood<'_>) -> T + Sync,
+    {
         let n = self.len();
-        let mut out: Vec<T> = Vec::with_capacity(n);
+        out.clear();
+        out.reserve(n);
         let dst = layout::Scatter(out.as_mut_ptr());
         (0..n).into_par_iter().for_each(|s| {
             let i = self.layout.order[s] as usize;
@@ -325,7 +338,6 @@ impl NeighbourGrid {
         // SAFETY: all n elements were initialised above (a panic in `f` propagates
         // before this line, leaving `out` empty).
         unsafe { out.set_len(n) };
-        out
     }
 }
 

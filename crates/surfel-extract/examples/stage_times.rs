@@ -1,6 +1,7 @@
 //! Where an extraction's time goes, on the `extraction` bench's frames: the
 //! medians of `Stats`' stage times (field, initial guess, refinement, hole
-//! closing) over repeated runs, and a fingerprint of the surfels, so a change
+//! closing) over repeated runs, for the one-shot `extract` and for an
+//! `Extractor` kept across runs (interleaved), and a fingerprint of the surfels, so a change
 //! meant to leave the result as it is can be checked bitwise.
 //!
 //! ```sh
@@ -10,7 +11,7 @@
 //! Defaults: the 2,250-particle frame, 2 iterations, 21 runs.
 
 use sph_core::{Particles, Scene};
-use surfel_extract::{ExtractParams, extract};
+use surfel_extract::{ExtractParams, Extractor, extract};
 
 /// The dam break `Scene::dam_break(a, depth, 0.01)` after `t` seconds.
 fn frame(a: f32, depth: f32, t: f32) -> Result<Particles, Box<dyn std::error::Error>> {
@@ -53,19 +54,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         out.stats.surfels,
         out.stats.filled,
     );
-    let mut times: Vec<[f64; 5]> = Vec::with_capacity(runs);
+    // Both ways interleaved, run for run: the one-shot `extract` (fresh
+    // memory every call) and an `Extractor` kept across calls.
+    let mut extractor = Extractor::new();
+    let reused = extractor.extract(&particles, &params)?;
+    assert_eq!(reused.surfels, out.surfels, "Extractor and extract differ");
+    let mut times: [Vec<[f64; 5]>; 2] = Default::default();
     for _ in 0..runs {
-        let s = extract(&particles, &params)?.stats;
-        times.push(
-            [
-                s.field_time,
-                s.initial_time,
-                s.refine_time,
-                s.fill_time,
-                s.total_time(),
-            ]
-            .map(|d| d.as_secs_f64() * 1e3),
-        );
+        let one_shot = extract(&particles, &params)?.stats;
+        let kept = extractor.extract(&particles, &params)?.stats;
+        for (t, s) in times.iter_mut().zip([one_shot, kept]) {
+            t.push(
+                [
+                    s.field_time,
+                    s.initial_time,
+                    s.refine_time,
+                    s.fill_time,
+                    s.total_time(),
+                ]
+                .map(|d| d.as_secs_f64() * 1e3),
+            );
+        }
     }
     let names = [
         "field",
@@ -74,12 +83,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "hole closing",
         "total",
     ];
-    print!("medians of {runs} runs (ms):");
-    for (k, name) in names.iter().enumerate() {
-        let mut column: Vec<f64> = times.iter().map(|t| t[k]).collect();
-        column.sort_by(f64::total_cmp);
-        print!(" {name} {:.2}", column[runs / 2]);
+    for (way, times) in ["extract", "Extractor"].iter().zip(&times) {
+        print!("{way:>9}: medians of {runs} runs (ms):");
+        for (k, name) in names.iter().enumerate() {
+            let mut column: Vec<f64> = times.iter().map(|t| t[k]).collect();
+            column.sort_by(f64::total_cmp);
+            print!(" {name} {:.2}", column[runs / 2]);
+        }
+        println!();
     }
-    println!();
     Ok(())
 }

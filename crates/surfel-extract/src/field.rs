@@ -5,6 +5,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
+use rayon::prelude::*;
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Poly6Sums, Result};
 
 /// c, ∇c and ∇²c at a point.
@@ -67,79 +68,160 @@ pub struct ColourField {
     evaluations: Counter,
 }
 
+/// Where a refilled field's particle volumes come from.
+#[derive(Debug, Clone, Copy)]
+enum Volumes<'a> {
+    /// Given, one per particle.
+    Given(&'a [f32]),
+    /// Shepard volumes 1/Σ_k W(x_j − x_k).
+    Shepard,
+    /// m/ρ with ρ = Σ m W recomputed from these masses.
+    Density(&'a [f32]),
+    /// Already in the field's `volumes`, one per particle.
+    Kept,
+}
+
 impl ColourField {
     /// The field of particles with known volumes m/ρ.
     pub fn with_volumes(positions: &[Vec3], volumes: &[f32], h: f32) -> Result<Self> {
-        if positions.len() != volumes.len() {
-            return Err(Error::LengthMismatch {
-                what: "volumes",
-                actual: volumes.len(),
-                expected: positions.len(),
-            });
-        }
-        let poly6 = Poly6::new(h)?;
-        let grid = NeighbourGrid::build(positions, h)?;
-        Self::from_parts(grid, positions, volumes.to_vec(), poly6)
-    }
-
-    /// Assembles a field, checking the volumes.
-    fn from_parts(
-        grid: NeighbourGrid,
-        positions: &[Vec3],
-        volumes: Vec<f32>,
-        poly6: Poly6,
-    ) -> Result<Self> {
-        if let Some(i) = volumes.iter().position(|v| !(v.is_finite() && *v > 0.0)) {
-            return Err(Error::InvalidParameter {
-                name: "volume",
-                value: format!("{} (particle {i})", volumes[i]),
-                reason: "particle volumes m/ρ must be finite and positive",
-            });
-        }
-        Ok(Self {
-            slot_volumes: grid.to_slot_order(&volumes).into_owned(),
-            grid,
-            positions: positions.to_vec(),
-            volumes,
-            poly6,
-            evaluations: Counter::default(),
-        })
+        Self::empty(h)?.refilled(positions, h, Volumes::Given(volumes))
     }
 
     /// The field of bare positions (any point set): each particle gets the Shepard
     /// volume 1/Σ_k W(x_j − x_k), so c ≈ 1 inside a uniform cloud and a lone point
     /// reaches c = 1 at its centre.
     pub fn from_positions(positions: &[Vec3], h: f32) -> Result<Self> {
-        let poly6 = Poly6::new(h)?;
-        let grid = NeighbourGrid::build(positions, h)?;
-        let volumes = grid.par_map(|_, nb| {
-            let mut sum = 0.0f32;
-            nb.for_each(|_, _, r2| sum += poly6.value_r2(r2));
-            1.0 / sum
-        });
-        Self::from_parts(grid, positions, volumes, poly6)
+        Self::empty(h)?.refilled(positions, h, Volumes::Shepard)
     }
 
     /// The field of simulated particles, V = m/ρ with the solver's densities, or,
     /// where a density is not positive (not computed yet), ρ = Σ m W recomputed.
     pub fn from_particles(particles: &Particles, h: f32) -> Result<Self> {
+        let mut field = Self::empty(h)?;
+        field.refill_from_particles(particles, h)?;
+        Ok(field)
+    }
+
+    /// [`ColourField::from_particles`] in place, reusing this field's memory:
+    /// what a loop over frames does. On error the field is left empty.
+    pub fn refill_from_particles(&mut self, particles: &Particles, h: f32) -> Result<()> {
         let (x, m, rho) = (
             particles.positions(),
             particles.masses(),
             particles.densities(),
         );
         if rho.iter().all(|r| r.is_finite() && *r > 0.0) {
-            let volumes: Vec<f32> = m.iter().zip(rho).map(|(m, r)| m / r).collect();
-            return Self::with_volumes(x, &volumes, h);
+            self.volumes.clear();
+            self.volumes.extend(m.iter().zip(rho).map(|(m, r)| m / r));
+            return self.refill(x, h, Volumes::Kept);
         }
-        let poly6 = Poly6::new(h)?;
-        let grid = NeighbourGrid::build(x, h)?;
-        let volumes = grid.par_map(|i, nb| {
-            let mut rho = 0.0f32;
-            nb.for_each(|j, _, r2| rho += m[j] * poly6.value_r2(r2));
-            m[i] / rho
-        });
-        Self::from_parts(grid, x, volumes, poly6)
+        self.refill(x, h, Volumes::Density(m))
+    }
+
+    /// [`ColourField::from_positions`] in place, reusing this field's memory. On
+    /// error the field is left empty.
+    pub fn refill_from_positions(&mut self, positions: &[Vec3], h: f32) -> Result<()> {
+        self.refill(positions, h, Volumes::Shepard)
+    }
+
+    /// An empty field, to refill.
+    pub(crate) fn empty(h: f32) -> Result<Self> {
+        Ok(Self {
+            grid: NeighbourGrid::build(&[], h)?,
+            positions: Vec::new(),
+            volumes: Vec::new(),
+            slot_volumes: Vec::new(),
+            poly6: Poly6::new(h)?,
+            evaluations: Counter::default(),
+        })
+    }
+
+    fn refilled(mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<Self> {
+        self.refill(positions, h, volumes)?;
+        Ok(self)
+    }
+
+    /// Rebuilds the field for new particles, reusing its memory; on error the
+    /// field is left empty.
+    fn refill(&mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<()> {
+        let result = self.try_refill(positions, h, volumes);
+        if result.is_err() {
+            self.positions.clear();
+            self.volumes.clear();
+            self.slot_volumes.clear();
+            // An empty grid of a valid h cannot fail to build.
+            if let Ok(grid) = NeighbourGrid::build(&[], self.grid.h()) {
+                self.grid = grid;
+            }
+        }
+        result
+    }
+
+    fn try_refill(&mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<()> {
+        let (what, given) = match volumes {
+            Volumes::Given(v) => ("volumes", v.len()),
+            Volumes::Density(m) => ("masses", m.len()),
+            Volumes::Kept => ("volumes", self.volumes.len()),
+            Volumes::Shepard => ("positions", positions.len()),
+        };
+        if given != positions.len() {
+            return Err(Error::LengthMismatch {
+                what,
+                actual: given,
+                expected: positions.len(),
+            });
+        }
+        self.poly6 = Poly6::new(h)?;
+        if self.grid.h() == h {
+            self.grid.rebuild(positions)?;
+        } else {
+            self.grid = NeighbourGrid::build(positions, h)?;
+        }
+        self.positions.clear();
+        self.positions.extend_from_slice(positions);
+        self.evaluations = Counter::default();
+        let poly6 = self.poly6;
+        match volumes {
+            Volumes::Given(v) => {
+                self.volumes.clear();
+                self.volumes.extend_from_slice(v);
+            }
+            Volumes::Kept => {}
+            Volumes::Shepard => self.grid.par_map_into(
+                |_, nb| {
+                    let mut sum = 0.0f32;
+                    nb.for_each(|_, _, r2| sum += poly6.value_r2(r2));
+                    1.0 / sum
+                },
+                &mut self.volumes,
+            ),
+            Volumes::Density(m) => self.grid.par_map_into(
+                |i, nb| {
+                    let mut rho = 0.0f32;
+                    nb.for_each(|j, _, r2| rho += m[j] * poly6.value_r2(r2));
+                    m[i] / rho
+                },
+                &mut self.volumes,
+            ),
+        }
+        if let Some(i) = self
+            .volumes
+            .iter()
+            .position(|v| !(v.is_finite() && *v > 0.0))
+        {
+            return Err(Error::InvalidParameter {
+                name: "volume",
+                value: format!("{} (particle {i})", self.volumes[i]),
+                reason: "particle volumes m/ρ must be finite and positive",
+            });
+        }
+        let order = self.grid.order();
+        let volumes = &self.volumes;
+        order
+            .par_iter()
+            .map(|&i| volumes[i as usize])
+            .collect_into_vec(&mut self.slot_volumes);
+        Ok(())
     }
 
     /// The smoothing length.

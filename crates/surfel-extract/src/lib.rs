@@ -30,8 +30,10 @@
 //! number of threads. The crate depends on `sph-core` (grid, kernels) only.
 
 pub mod coverage;
+mod extractor;
 pub mod field;
 pub mod fill;
+mod flatten;
 pub mod ldc;
 pub mod raycast;
 pub mod samples;
@@ -43,6 +45,7 @@ use glam::Vec3;
 use sph_core::error::positive;
 use sph_core::{Error, Particles, Result};
 
+pub use extractor::Extractor;
 pub use field::{ColourField, ParticleSample, Sample};
 
 /// A surface element: a disc on the iso-surface.
@@ -256,41 +259,27 @@ pub struct Surfels {
     pub stats: Stats,
 }
 
-/// Extracts surfels from simulated particles (volumes m/ρ).
+/// Extracts surfels from simulated particles (volumes m/ρ). For one frame
+/// after another, [`Extractor`] keeps its memory between calls.
 pub fn extract(particles: &Particles, params: &ExtractParams) -> Result<Surfels> {
-    extract_built(params, || ColourField::from_particles(particles, params.h))
+    let mut extractor = Extractor::new();
+    extractor.extract(particles, params)?;
+    Ok(extractor.take())
 }
 
 /// Extracts surfels from bare points (Shepard volumes, see
 /// [`ColourField::from_positions`]).
 pub fn extract_points(positions: &[Vec3], params: &ExtractParams) -> Result<Surfels> {
-    extract_built(params, || ColourField::from_positions(positions, params.h))
-}
-
-/// Validates `params`, builds the field (timed as `field_time`) and extracts.
-fn extract_built(
-    params: &ExtractParams,
-    build: impl FnOnce() -> Result<ColourField> + Send,
-) -> Result<Surfels> {
-    params.validate()?;
-    on_pool(|| {
-        let start = std::time::Instant::now();
-        let field = build()?;
-        let field_time = start.elapsed();
-        let mut out = extract_field(&field, params)?;
-        out.stats.field_time = field_time;
-        Ok(out)
-    })
+    let mut extractor = Extractor::new();
+    extractor.extract_points(positions, params)?;
+    Ok(extractor.take())
 }
 
 /// Extracts surfels from a prepared field (its h is used; `params.h` is ignored).
 pub fn extract_field(field: &ColourField, params: &ExtractParams) -> Result<Surfels> {
-    let params = ExtractParams {
-        h: field.h(),
-        ..*params
-    };
-    params.validate()?;
-    on_pool(|| thesis::run(field, &params))
+    let mut extractor = Extractor::new();
+    extractor.extract_field(field, params)?;
+    Ok(extractor.take())
 }
 
 /// Runs `op` on a rayon worker: `rayon::scope` runs it in place on a worker

@@ -9,7 +9,8 @@ use rayon::prelude::*;
 use sph_core::Result;
 
 use crate::field::{ColourField, ParticleSample};
-use crate::{AllAround, ExtractParams, Mode, Split, Stats, Surfel, Surfels, fill, tangent_basis};
+use crate::flatten::par_extend_flat;
+use crate::{AllAround, ExtractParams, Mode, Split, Stats, Surfel, fill, tangent_basis};
 
 /// What one particle contributes to the initial guess.
 #[derive(Debug, Clone, Copy)]
@@ -23,36 +24,6 @@ enum Guess {
     AllAround,
     /// No neighbour: its analytic iso-sphere of this radius, final as it is.
     Lone { radius: f32 },
-}
-
-/// Up to eight surfels without allocating.
-struct Few {
-    surfels: [Surfel; 8],
-    len: usize,
-}
-
-impl Few {
-    fn new() -> Self {
-        Self {
-            surfels: [Surfel::default(); 8],
-            len: 0,
-        }
-    }
-
-    fn push_front_facing(&mut self, p: &ExtractParams, s: Surfel) {
-        if front_facing(p, &s) {
-            self.surfels[self.len] = s;
-            self.len += 1;
-        }
-    }
-}
-
-impl IntoIterator for Few {
-    type Item = Surfel;
-    type IntoIter = std::iter::Take<std::array::IntoIter<Surfel, 8>>;
-    fn into_iter(self) -> Self::IntoIter {
-        self.surfels.into_iter().take(self.len)
-    }
 }
 
 /// The 6 box-face and 8 box-corner directions.
@@ -195,34 +166,30 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &Particle
     }
 }
 
-/// The front-facing surfels of a non-lone guess at particle position `x`.
-fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> Few {
-    let mut out = Few::new();
-    match guess {
+/// The front-facing surfels of a non-lone guess at particle position `x`,
+/// computed as they are read (nothing is copied around for a guess without
+/// any).
+fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> impl Iterator<Item = Surfel> {
+    let (split_up, whole, around) = match guess {
         Guess::Surface {
             surfel,
             split: true,
-        } => {
-            for s in split(&surfel, Split::TwoByTwo) {
-                out.push_front_facing(p, s);
-            }
-        }
-        Guess::Surface { surfel, .. } => out.push_front_facing(p, surfel),
-        Guess::AllAround => {
-            for &d in box_directions(p.all_around) {
-                out.push_front_facing(
-                    p,
-                    Surfel {
-                        position: x + 0.5 * p.h * d,
-                        normal: d,
-                        radius: p.radius * p.h,
-                    },
-                );
-            }
-        }
-        Guess::Interior | Guess::Lone { .. } => {}
-    }
-    out
+        } => (Some(surfel), None, None),
+        Guess::Surface { surfel, .. } => (None, Some(surfel), None),
+        Guess::AllAround => (None, None, Some(box_directions(p.all_around))),
+        Guess::Interior | Guess::Lone { .. } => (None, None, None),
+    };
+    let (h, radius) = (p.h, p.radius * p.h);
+    split_up
+        .into_iter()
+        .flat_map(|s| split(&s, Split::TwoByTwo))
+        .chain(whole)
+        .chain(around.into_iter().flatten().map(move |&d| Surfel {
+            position: x + 0.5 * h * d,
+            normal: d,
+            radius,
+        }))
+        .filter(move |s| front_facing(p, s))
 }
 
 /// A lone particle's iso-sphere: face and corner directions together leave no
@@ -239,7 +206,37 @@ fn lone_surfels(p: &ExtractParams, x: Vec3, radius: f32) -> impl Iterator<Item =
         .filter(move |s| front_facing(p, s))
 }
 
-pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
+/// The extractor's buffers, kept from one frame to the next.
+#[derive(Debug, Default)]
+pub(crate) struct Scratch {
+    /// Per particle, its guess.
+    guesses: Vec<Guess>,
+    /// The surfels an iteration refines, and those the next one will.
+    work: Vec<Surfel>,
+    next: Vec<Surfel>,
+    /// Per surfel of `work`, where its Newton-Raphson step went (`None`:
+    /// discarded or culled) and how it splits.
+    steps: Vec<Option<(Surfel, Split)>>,
+    /// [`par_extend_flat`]'s counts.
+    counts: Vec<usize>,
+}
+
+/// The surfels of the field's iso-surface into `done` (cleared first), and
+/// the extraction's statistics but the field's build time.
+pub(crate) fn run(
+    field: &ColourField,
+    p: &ExtractParams,
+    scratch: &mut Scratch,
+    done: &mut Vec<Surfel>,
+) -> Result<Stats> {
+    let Scratch {
+        guesses,
+        work,
+        next,
+        steps,
+        counts,
+    } = scratch;
+    done.clear();
     let mut stats = Stats {
         particles: field.len(),
         ..Default::default()
@@ -248,17 +245,18 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     let e0 = field.evaluations();
     // One scan per particle gives its field and its neighbourhood's shape;
     // scheduled in cell order, stored by particle.
-    let guesses: Vec<Guess> = field.grid().par_map(|i, nb| {
-        let at = field.sample_neighbourhood(nb);
-        initial_guess(field, p, i, &at)
-    });
+    field.grid().par_map_into(
+        |i, nb| {
+            let at = field.sample_neighbourhood(nb);
+            initial_guess(field, p, i, &at)
+        },
+        guesses,
+    );
     let positions = field.positions();
-    let mut work: Vec<Surfel> = guesses
-        .par_iter()
-        .zip(positions)
-        .flat_map_iter(|(&g, &x)| guess_surfels(p, x, g))
-        .collect();
-    let mut done = Vec::new();
+    work.clear();
+    par_extend_flat(work, guesses.len(), counts, |i| {
+        guess_surfels(p, positions[i], guesses[i])
+    });
     for (&g, &x) in guesses.iter().zip(positions) {
         match g {
             Guess::Interior => {}
@@ -279,8 +277,9 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     let max_step = p.discard_step * p.h;
     let covered = p.mode == Mode::Covered;
     let mut fill_time = std::time::Duration::ZERO;
-    // Each iteration is one parallel pass over `work`: the Newton-Raphson
-    // step, the discard test, culling and (but in the last) the split.
+    // Each iteration is one parallel pass over `work` (the Newton-Raphson
+    // step, the discard test, culling and the choice of split) into `steps`,
+    // then, but in the last, the split into `next`.
     let discarded = AtomicUsize::new(0);
     let step = |s: &Surfel, grid: Split| match newton_step(field, p.iso, s.position, max_step) {
         None => {
@@ -313,38 +312,38 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
         } else {
             Split::TwoByTwo
         };
+        work.par_iter()
+            .map(|s| step(s, grid))
+            .collect_into_vec(steps);
+        let kept = |k: usize| steps[k].map(|(s, _)| s).into_iter();
+        let children = |k: usize| steps[k].into_iter().flat_map(|(s, grid)| split(&s, grid));
+        next.clear();
         if covered && it == 0 {
             // Holes are closed once, on the first iteration's surfels: fill
-            // surfels (after the end of `grids`) are split 2×2 and refined
-            // like the others, and children inherit the closed surface. With
-            // one iteration that is the result, lone spheres included.
-            let (mut kept, grids): (Vec<Surfel>, Vec<Split>) =
-                work.par_iter().filter_map(|s| step(s, grid)).unzip();
-            if last {
-                done.append(&mut kept);
-            }
-            let first = if last { &mut done } else { &mut kept };
+            // surfels (after the others) are split 2×2 and refined like the
+            // others, and children inherit the closed surface. With one
+            // iteration that is the result, lone spheres included.
+            let first = if last { &mut *done } else { &mut *next };
+            par_extend_flat(first, steps.len(), counts, kept);
             let t = Instant::now();
-            stats.filled += fill::close_holes(field, p, first)?;
+            let filled = fill::close_holes(field, p, first)?;
             fill_time += t.elapsed();
+            stats.filled += filled;
             if !last {
-                work = (kept.par_iter().enumerate())
-                    .flat_map_iter(|(k, s)| {
-                        split(s, grids.get(k).copied().unwrap_or(Split::TwoByTwo))
-                    })
-                    .collect();
+                // `next` holds the kept surfels then the fill; split them.
+                let fill_start = next.len() - filled;
+                work.clear();
+                par_extend_flat(work, steps.len(), counts, children);
+                let fills = &next[fill_start..];
+                par_extend_flat(work, fills.len(), counts, |k| {
+                    split(&fills[k], Split::TwoByTwo)
+                });
             }
         } else if last {
-            done.par_extend(
-                work.par_iter()
-                    .filter_map(|s| step(s, grid))
-                    .map(|(s, _)| s),
-            );
+            par_extend_flat(done, steps.len(), counts, kept);
         } else {
-            work = (work.par_iter())
-                .filter_map(|s| step(s, grid))
-                .flat_map_iter(|(s, grid)| split(&s, grid))
-                .collect();
+            par_extend_flat(next, steps.len(), counts, children);
+            std::mem::swap(work, next);
         }
     }
     stats.discarded = discarded.into_inner();
@@ -352,10 +351,7 @@ pub(crate) fn run(field: &ColourField, p: &ExtractParams) -> Result<Surfels> {
     stats.fill_time = fill_time;
     stats.evaluations = field.evaluations() - e1;
     stats.surfels = done.len();
-    Ok(Surfels {
-        surfels: done,
-        stats,
-    })
+    Ok(stats)
 }
 
 #[cfg(test)]

@@ -7,7 +7,7 @@ use sph_core::Scene;
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
 use surfel_extract::ldc::extract_ldc;
 use surfel_extract::samples::jittered_lattice;
-use surfel_extract::{ColourField, ExtractParams, Mode, extract_field, extract_points};
+use surfel_extract::{ColourField, ExtractParams, Extractor, Mode, extract_field, extract_points};
 
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
@@ -296,4 +296,66 @@ fn identical_for_any_thread_count() {
     let (a, b) = (run(1), run(3));
     assert_eq!(a.surfels, b.surfels);
     assert_eq!(a.stats.evaluations, b.stats.evaluations);
+}
+
+/// An `Extractor` kept across frames of different sizes, smoothing lengths,
+/// modes and iteration counts, with a failed frame among them, gives every
+/// frame bitwise what the one-shot functions give.
+#[test]
+fn extractor_reused_across_frames_matches_one_shot() {
+    let frames = [
+        (sphere(), ExtractParams::new(H)),
+        (
+            block(),
+            ExtractParams {
+                iterations: 3,
+                ..ExtractParams::new(H)
+            },
+        ),
+        (sphere(), ExtractParams::new(1.3 * H).thesis()),
+        (
+            sphere().into_iter().take(40).collect(),
+            ExtractParams {
+                iterations: 1,
+                camera: Some(Vec3::new(0.0, 0.0, 1.0)),
+                ..ExtractParams::new(H)
+            },
+        ),
+        (Vec::new(), ExtractParams::new(H)),
+        (sphere(), ExtractParams::new(H)),
+    ];
+    let mut extractor = Extractor::new();
+    for (k, (points, params)) in frames.iter().enumerate() {
+        let expected = extract_points(points, params).unwrap();
+        let got = extractor.extract_points(points, params).unwrap();
+        assert_eq!(got.surfels, expected.surfels, "frame {k}");
+        assert_eq!(
+            got.stats.evaluations, expected.stats.evaluations,
+            "frame {k}"
+        );
+        assert_eq!(extractor.field().unwrap().len(), points.len());
+        // A bad frame in between: an error, and an empty output.
+        assert!(
+            extractor
+                .extract_points(&[Vec3::ZERO, Vec3::NAN], params)
+                .is_err()
+        );
+        assert!(extractor.surfels().surfels.is_empty());
+        assert_eq!(extractor.surfels().stats.surfels, 0);
+    }
+    // Simulated particles, and a prepared field, through the same extractor.
+    let frame = dam_break_frame();
+    let params = ExtractParams::new(0.02);
+    let expected = surfel_extract::extract(&frame, &params).unwrap();
+    assert_eq!(
+        extractor.extract(&frame, &params).unwrap().surfels,
+        expected.surfels
+    );
+    let field = ColourField::from_particles(&frame, 0.02).unwrap();
+    assert_eq!(
+        extractor.extract_field(&field, &params).unwrap().surfels,
+        expected.surfels
+    );
+    assert_eq!(extractor.take().surfels, expected.surfels);
+    assert!(extractor.surfels().surfels.is_empty());
 }
