@@ -8,10 +8,10 @@ use sph_core::{Particles, Result};
 use crate::{ColourField, ExtractParams, Stats, Surfels, on_pool, thesis};
 
 /// Extracts surfels frame after frame, keeping the colour field's neighbour
-/// grid, every intermediate buffer and the output between calls: after the
-/// first frames a steady run allocates next to nothing (the hole closing's
-/// small per-round buffers aside), where the one-shot [`crate::extract`]
-/// pays for fresh memory, page faults included, on every call.
+/// grid, the passes' buffers and the output between calls, where the
+/// one-shot [`crate::extract`] pays for fresh memory, page faults included,
+/// on every call. Hole closing still builds its index over the first
+/// iteration's surfels per call (keeping it measured no faster).
 ///
 /// The result is the same as `extract`'s, bit for bit.
 ///
