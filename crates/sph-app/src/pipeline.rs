@@ -229,7 +229,10 @@ impl Pipeline {
 
     /// The surfels as splats.
     pub fn splats(&self) -> Vec<Splat> {
-        (self.extractor.surfels().surfels.iter())
+        self.extractor
+            .surfels()
+            .surfels
+            .iter()
             .map(|s| Splat::new(s.position, s.normal, s.radius))
             .collect()
     }

@@ -83,8 +83,9 @@ impl Extractor {
         };
         params.validate()?;
         let (scratch, out) = (&mut self.scratch, &mut self.out);
-        out.stats = on_pool(|| thesis::run(field, &params, scratch, &mut out.surfels))?;
-        Ok(&self.out)
+        let result = on_pool(|| thesis::run(field, &params, scratch, &mut out.surfels))
+            .map(|stats| out.stats = stats);
+        self.finish(result)
     }
 
     /// The last extraction's surfels and statistics (empty after an error).
@@ -105,7 +106,8 @@ impl Extractor {
     }
 
     /// The colour field the last [`Extractor::extract`] or
-    /// [`Extractor::extract_points`] built (empty after one that failed).
+    /// [`Extractor::extract_points`] with valid parameters built: empty if
+    /// building it failed, `None` before any.
     pub fn field(&self) -> Option<&ColourField> {
         self.field.as_ref()
     }
@@ -124,18 +126,30 @@ impl Extractor {
             scratch,
             out,
         } = self;
-        on_pool(|| {
+        let result = on_pool(|| {
             let start = Instant::now();
             let field = match field {
                 Some(field) => field,
-                None => field.insert(ColourField::empty(params.h)?),
+                None => field.insert(ColourField::empty()),
             };
             refill(field, params.h)?;
             let field_time = start.elapsed();
             out.stats = thesis::run(field, params, scratch, &mut out.surfels)?;
             out.stats.field_time = field_time;
             Ok(())
-        })?;
-        Ok(&self.out)
+        });
+        self.finish(result)
+    }
+
+    /// The output, or the error with the output emptied: a pass that failed
+    /// part way may have written some surfels.
+    fn finish(&mut self, result: Result<()>) -> Result<&Surfels> {
+        match result {
+            Ok(()) => Ok(&self.out),
+            Err(e) => {
+                self.clear();
+                Err(e)
+            }
+        }
     }
 }

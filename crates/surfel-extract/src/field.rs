@@ -84,20 +84,20 @@ enum Volumes<'a> {
 impl ColourField {
     /// The field of particles with known volumes m/ρ.
     pub fn with_volumes(positions: &[Vec3], volumes: &[f32], h: f32) -> Result<Self> {
-        Self::empty(h)?.refilled(positions, h, Volumes::Given(volumes))
+        Self::empty().refilled(positions, h, Volumes::Given(volumes))
     }
 
     /// The field of bare positions (any point set): each particle gets the Shepard
     /// volume 1/Σ_k W(x_j − x_k), so c ≈ 1 inside a uniform cloud and a lone point
     /// reaches c = 1 at its centre.
     pub fn from_positions(positions: &[Vec3], h: f32) -> Result<Self> {
-        Self::empty(h)?.refilled(positions, h, Volumes::Shepard)
+        Self::empty().refilled(positions, h, Volumes::Shepard)
     }
 
     /// The field of simulated particles, V = m/ρ with the solver's densities, or,
     /// where a density is not positive (not computed yet), ρ = Σ m W recomputed.
     pub fn from_particles(particles: &Particles, h: f32) -> Result<Self> {
-        let mut field = Self::empty(h)?;
+        let mut field = Self::empty();
         field.refill_from_particles(particles, h)?;
         Ok(field)
     }
@@ -124,16 +124,17 @@ impl ColourField {
         self.refill(positions, h, Volumes::Shepard)
     }
 
-    /// An empty field, to refill.
-    pub(crate) fn empty(h: f32) -> Result<Self> {
-        Ok(Self {
-            grid: NeighbourGrid::build(&[], h)?,
+    /// An empty field, to refill (its h is a placeholder until then).
+    pub(crate) fn empty() -> Self {
+        let h = 1.0;
+        Self {
+            grid: NeighbourGrid::build(&[], h).expect("an empty grid of h = 1 builds"),
             positions: Vec::new(),
             volumes: Vec::new(),
             slot_volumes: Vec::new(),
-            poly6: Poly6::new(h)?,
+            poly6: Poly6::new(h).expect("h = 1 is a valid kernel radius"),
             evaluations: Counter::default(),
-        })
+        }
     }
 
     fn refilled(mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<Self> {
@@ -142,17 +143,16 @@ impl ColourField {
     }
 
     /// Rebuilds the field for new particles, reusing its memory; on error the
-    /// field is left empty.
+    /// field is left empty (with its former h).
     fn refill(&mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<()> {
         let result = self.try_refill(positions, h, volumes);
         if result.is_err() {
             self.positions.clear();
             self.volumes.clear();
             self.slot_volumes.clear();
-            // An empty grid of a valid h cannot fail to build.
-            if let Ok(grid) = NeighbourGrid::build(&[], self.grid.h()) {
-                self.grid = grid;
-            }
+            self.evaluations = Counter::default();
+            // Empty, its memory kept (an empty set is always in range).
+            let _ = self.grid.rebuild(&[]);
         }
         result
     }
@@ -171,16 +171,17 @@ impl ColourField {
                 expected: positions.len(),
             });
         }
-        self.poly6 = Poly6::new(h)?;
+        // The kernel and the grid change together, or not at all.
+        let poly6 = Poly6::new(h)?;
         if self.grid.h() == h {
             self.grid.rebuild(positions)?;
         } else {
             self.grid = NeighbourGrid::build(positions, h)?;
         }
+        self.poly6 = poly6;
         self.positions.clear();
         self.positions.extend_from_slice(positions);
         self.evaluations = Counter::default();
-        let poly6 = self.poly6;
         match volumes {
             Volumes::Given(v) => {
                 self.volumes.clear();
@@ -296,7 +297,7 @@ impl ColourField {
         }
     }
 
-    /// Evaluations made so far.
+    /// Evaluations made since the field was built or last refilled.
     pub fn evaluations(&self) -> u64 {
         self.evaluations.total()
     }
@@ -438,7 +439,32 @@ mod tests {
         assert!(ColourField::from_positions(&[Vec3::NAN], 0.1).is_err());
         assert!(ColourField::from_positions(&[Vec3::ZERO], 0.0).is_err());
         assert!(ColourField::with_volumes(&[Vec3::ZERO], &[-1.0], 0.1).is_err());
-        assert!(ColourField::with_volumes(&[Vec3::ZERO], &[], 0.1).is_err());
+        // The length is checked first, whatever h.
+        for h in [0.1, 0.0] {
+            assert!(matches!(
+                ColourField::with_volumes(&[Vec3::ZERO], &[], h),
+                Err(Error::LengthMismatch {
+                    what: "volumes",
+                    actual: 0,
+                    expected: 1
+                })
+            ));
+        }
+        // A failed refill leaves the field empty, its kernel and grid agreeing.
+        let mut field = ColourField::from_positions(&[Vec3::ZERO, Vec3::X], 0.1).unwrap();
+        field.sample(Vec3::ZERO);
+        assert!(field.refill_from_positions(&[Vec3::NAN], 0.2).is_err());
+        assert!(field.is_empty() && field.volumes().is_empty());
+        assert_eq!((field.h(), field.evaluations()), (0.1, 0));
+        assert_eq!(field.sample(Vec3::ZERO), Sample::default());
+        field.refill_from_positions(&[Vec3::ZERO], 0.2).unwrap();
+        assert_eq!(field.h(), 0.2);
+        assert_eq!(
+            field.lone_iso_radius(field.volumes()[0], 0.5),
+            ColourField::from_positions(&[Vec3::ZERO], 0.2)
+                .unwrap()
+                .lone_iso_radius(field.volumes()[0], 0.5)
+        );
         let empty = ColourField::from_positions(&[], 0.1).unwrap();
         assert_eq!(empty.sample(Vec3::ZERO), Sample::default());
     }

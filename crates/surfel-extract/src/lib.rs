@@ -169,6 +169,13 @@ impl ExtractParams {
         positive("discard_step", self.discard_step)?;
         positive("split_laplacian", self.split_laplacian)?;
         positive("radius", self.radius)?;
+        if !(self.radius * self.h).is_finite() {
+            return Err(Error::InvalidParameter {
+                name: "radius",
+                value: self.radius.to_string(),
+                reason: "radius · h, the surfels' radius, must be finite",
+            });
+        }
         if !(self.iso.is_finite() && self.iso > 0.0 && self.iso < 1.0) {
             return Err(Error::InvalidParameter {
                 name: "iso",

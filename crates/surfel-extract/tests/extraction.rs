@@ -273,6 +273,17 @@ fn bad_input_is_an_error() {
     .unwrap_err()
     .to_string();
     assert!(err.contains("iterations"), "{err}");
+    // A surfel radius r·h that overflows f32.
+    let err = extract_points(
+        &[Vec3::ZERO],
+        &ExtractParams {
+            radius: 1e37,
+            ..ExtractParams::new(100.0)
+        },
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("radius"), "{err}");
     assert!(
         extract_ldc(
             &ColourField::from_positions(&[Vec3::ZERO], H).unwrap(),
