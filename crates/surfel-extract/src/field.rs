@@ -71,8 +71,6 @@ pub struct ColourField {
 /// Where a refilled field's particle volumes come from.
 #[derive(Debug, Clone, Copy)]
 enum Volumes<'a> {
-    /// Given, one per particle.
-    Given(&'a [f32]),
     /// Shepard volumes 1/Σ_k W(x_j − x_k).
     Shepard,
     /// m/ρ with ρ = Σ m W recomputed from these masses.
@@ -84,7 +82,9 @@ enum Volumes<'a> {
 impl ColourField {
     /// The field of particles with known volumes m/ρ.
     pub fn with_volumes(positions: &[Vec3], volumes: &[f32], h: f32) -> Result<Self> {
-        Self::empty().refilled(positions, h, Volumes::Given(volumes))
+        let mut field = Self::empty();
+        field.volumes.extend_from_slice(volumes);
+        field.refilled(positions, h, Volumes::Kept)
     }
 
     /// The field of bare positions (any point set): each particle gets the Shepard
@@ -159,7 +159,6 @@ impl ColourField {
 
     fn try_refill(&mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<()> {
         let (what, given) = match volumes {
-            Volumes::Given(v) => ("volumes", v.len()),
             Volumes::Density(m) => ("masses", m.len()),
             Volumes::Kept => ("volumes", self.volumes.len()),
             Volumes::Shepard => ("positions", positions.len()),
@@ -183,10 +182,6 @@ impl ColourField {
         self.positions.extend_from_slice(positions);
         self.evaluations = Counter::default();
         match volumes {
-            Volumes::Given(v) => {
-                self.volumes.clear();
-                self.volumes.extend_from_slice(v);
-            }
             Volumes::Kept => {}
             Volumes::Shepard => self.grid.par_map_into(
                 |_, nb| {
