@@ -3,8 +3,9 @@
 //!
 //! - `sph_step`: one SPH step (`World::step`, all threads, vs
 //!   `GpuSolver::step`, waiting for the device);
-//! - `extraction`: the surfels of that state (`surfel_extract::extract`, the
-//!   default covered mode and the thesis mode, vs `GpuExtractor` reading the
+//! - `extraction`: the surfels of that state (a `surfel_extract::Extractor`
+//!   kept across iterations, as the demo keeps one, in the default covered
+//!   mode and the thesis mode, vs `GpuExtractor` reading the
 //!   solver's buffers, thesis mode, waiting for the device);
 //! - `frame`: one whole frame at 1920×1080 — step, extraction, splat rendering
 //!   (the CPU path uploads its surfels; the GPU path draws them indirectly and
@@ -19,7 +20,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use sph_core::{Scene, World};
 use sph_gpu::{GpuExtractor, GpuSolver};
 use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, wgpu};
-use surfel_extract::{ExtractParams, extract};
+use surfel_extract::{ExtractParams, Extractor, extract};
 
 /// A 3D dam break of side `a` (m) at 1 cm spacing after one CPU step, and a
 /// GPU solver of the same particles after one step.
@@ -111,11 +112,22 @@ fn gpu_vs_cpu(c: &mut Criterion) {
         let mut group = c.benchmark_group("extraction");
         group.sample_size(10);
         group.throughput(Throughput::Elements(n as u64));
+        let mut cpu = Extractor::new();
         group.bench_function(BenchmarkId::new("cpu_covered", label), |b| {
-            b.iter(|| extract(&world.particles, &covered).expect("extract"))
+            b.iter(|| {
+                cpu.extract(&world.particles, &covered)
+                    .expect("extract")
+                    .stats
+                    .surfels
+            })
         });
         group.bench_function(BenchmarkId::new("cpu_thesis", label), |b| {
-            b.iter(|| extract(&world.particles, &thesis).expect("extract"))
+            b.iter(|| {
+                cpu.extract(&world.particles, &thesis)
+                    .expect("extract")
+                    .stats
+                    .surfels
+            })
         });
         group.bench_function(BenchmarkId::new("gpu_thesis", label), |b| {
             b.iter(|| {
@@ -146,7 +158,7 @@ fn gpu_vs_cpu(c: &mut Criterion) {
         group.bench_function(BenchmarkId::new("cpu", label), |b| {
             b.iter(|| {
                 world.step().expect("stable");
-                let out = extract(&world.particles, &covered).expect("extract");
+                let out = cpu.extract(&world.particles, &covered).expect("extract");
                 let splats: Vec<Splat> = out
                     .surfels
                     .iter()
