@@ -51,7 +51,12 @@ fn free_cluster_conserves_momentum_and_mass() {
         }
     }
     let mass_of = |p: &Particles| {
-        let mut by_id: Vec<(u64, f32)> = p.ids().iter().copied().zip(p.masses().to_vec()).collect();
+        let mut by_id: Vec<(u64, f32)> = p
+            .ids()
+            .iter()
+            .copied()
+            .zip(p.masses().iter().copied())
+            .collect();
         by_id.sort_by_key(|&(id, _)| id);
         by_id
     };
