@@ -373,7 +373,7 @@ impl Neighbourhood<'_> {
         let mut scan = Scan::new(c, self.grid.h2, [xs, ys, zs], &self.rows);
         let mut hits = [0u32; scan::HIT_CAPACITY];
         while !scan.done() {
-            let n = scan.fill(&mut hits);
+            let n = scan.fill(&mut hits, 0);
             for &k in &hits[..n] {
                 let k = k as usize;
                 // The scan's arithmetic, so `r2` is the value it tested.

@@ -127,6 +127,11 @@ impl Neighbourhood<'_> {
     force_sums_with!(force_sums_avx2, "avx2");
     force_sums_with!(force_sums_avx512, "avx512f,avx2");
 
+    /// The force sums with hit m of the neighbourhood (in slot order, row by
+    /// row) in lane m mod 16. The scan's fills end at path-dependent counts,
+    /// so a fill's last partial chunk is carried to the front of the buffer
+    /// and completed by the next fill: only the neighbourhood's last chunk is
+    /// partial, on every path.
     #[inline(always)]
     fn force_sums_lanes(
         &self,
@@ -135,82 +140,113 @@ impl Neighbourhood<'_> {
         fluid: &SlotFluid<'_>,
     ) -> ForceSums {
         let [xs, ys, zs] = &self.grid.layout.coords;
+        let mut l = Lanes::new();
+        let mut scan = scan::Scan::new(self.centre, self.grid.h2, [xs, ys, zs], &self.rows);
+        let mut hits = [0u32; scan::HIT_CAPACITY];
+        let mut carried = 0;
+        loop {
+            let n = scan.fill(&mut hits, carried);
+            let done = scan.done();
+            let whole = if done { n } else { n - n % LANES };
+            for chunk in hits[..whole].chunks(LANES) {
+                self.add_chunk(&mut l, chunk, centre, kernels, fluid);
+            }
+            if done {
+                break;
+            }
+            hits.copy_within(whole..n, 0);
+            carried = n - whole;
+        }
+        l.finish()
+    }
+
+    /// Adds up to 16 hits (slots), hit k to lane k, to the lanes.
+    #[inline(always)]
+    fn add_chunk(
+        &self,
+        l: &mut Lanes,
+        chunk: &[u32],
+        centre: Centre,
+        kernels: &ForceKernels,
+        fluid: &SlotFluid<'_>,
+    ) {
+        let [xs, ys, zs] = &self.grid.layout.coords;
         let (c, h2, h) = (self.centre, self.grid.h2, self.grid.h);
         let three_h2 = 3.0 * h2;
-        let mut l = Lanes {
+        // Lanes past the hits repeat the chunk's first hit with weight 0: its
+        // values are finite (it lies within h), and finite values times 0 add
+        // exact zeros.
+        let mut slot = [chunk[0]; LANES];
+        let mut weight = [0.0f32; LANES];
+        slot[..chunk.len()].copy_from_slice(chunk);
+        weight[..chunk.len()].fill(1.0);
+        // Gather the lanes' data, then compute on whole arrays: the second
+        // loop has no indexing by slot, so the compiler vectorises it.
+        let mut g = [[0.0f32; LANES]; 9];
+        for k in 0..LANES {
+            let s = slot[k] as usize;
+            // SAFETY: hits are slots of the grid; coords have a value per slot
+            // (and padding), and `force_sums` checked the fluid's slices.
+            unsafe {
+                g[0][k] = *xs.get_unchecked(s);
+                g[1][k] = *ys.get_unchecked(s);
+                g[2][k] = *zs.get_unchecked(s);
+                g[3][k] = *fluid.volume.get_unchecked(s);
+                g[4][k] = *fluid.mass.get_unchecked(s);
+                g[5][k] = *fluid.pressure.get_unchecked(s);
+                g[6][k] = *fluid.v[0].get_unchecked(s);
+                g[7][k] = *fluid.v[1].get_unchecked(s);
+                g[8][k] = *fluid.v[2].get_unchecked(s);
+            }
+        }
+        for k in 0..LANES {
+            let (vol, m, pr) = (weight[k] * g[3][k], weight[k] * g[4][k], g[5][k]);
+            // The scan's arithmetic, so r² is the value it tested.
+            let d = [c.x - g[0][k], c.y - g[1][k], c.z - g[2][k]];
+            let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let t = h2 - r2;
+            let g6 = -kernels.poly6_grad * t * t;
+            let len = r2.sqrt();
+            let gp = match kernels.spiky_grad {
+                None => g6,
+                Some(spiky) => {
+                    let e = h - len;
+                    let q = -spiky * e * e / len;
+                    if len > 0.0 { q } else { 0.0 }
+                }
+            };
+            let fp = m * (centre.pressure + pr) * gp;
+            let fv = vol * (kernels.visc_lap * (h - len));
+            let v_i = centre.velocity;
+            let dv = [g[6][k] - v_i.x, g[7][k] - v_i.y, g[8][k] - v_i.z];
+            for a in 0..3 {
+                l.normal[a][k] += vol * (g6 * d[a]);
+                l.pressure[a][k] -= fp * d[a];
+                l.viscosity[a][k] += fv * dv[a];
+            }
+            l.laplacian[k] += vol * (kernels.poly6_grad * t * (7.0 * r2 - three_h2));
+        }
+    }
+}
+
+impl Lanes {
+    fn new() -> Self {
+        Self {
             pressure: [[0.0; LANES]; 3],
             viscosity: [[0.0; LANES]; 3],
             normal: [[0.0; LANES]; 3],
             laplacian: [0.0; LANES],
-        };
-        let mut scan = scan::Scan::new(c, h2, [xs, ys, zs], &self.rows);
-        let mut hits = [0u32; scan::HIT_CAPACITY];
-        while !scan.done() {
-            let n = scan.fill(&mut hits);
-            for chunk in hits[..n].chunks(LANES) {
-                // Lanes past the hits repeat the chunk's first hit with
-                // weight 0: its values are finite (it lies within h), and
-                // finite values times 0 add exact zeros.
-                let mut slot = [chunk[0]; LANES];
-                let mut weight = [0.0f32; LANES];
-                slot[..chunk.len()].copy_from_slice(chunk);
-                weight[..chunk.len()].fill(1.0);
-                // Gather the lanes' data, then compute on whole arrays: the
-                // second loop has no indexing by slot, so the compiler
-                // vectorises it.
-                let mut g = [[0.0f32; LANES]; 9];
-                for k in 0..LANES {
-                    let s = slot[k] as usize;
-                    // SAFETY: hits are slots of the grid; coords have a value
-                    // per slot (and padding), and `force_sums` checked the
-                    // fluid's slices.
-                    unsafe {
-                        g[0][k] = *xs.get_unchecked(s);
-                        g[1][k] = *ys.get_unchecked(s);
-                        g[2][k] = *zs.get_unchecked(s);
-                        g[3][k] = *fluid.volume.get_unchecked(s);
-                        g[4][k] = *fluid.mass.get_unchecked(s);
-                        g[5][k] = *fluid.pressure.get_unchecked(s);
-                        g[6][k] = *fluid.v[0].get_unchecked(s);
-                        g[7][k] = *fluid.v[1].get_unchecked(s);
-                        g[8][k] = *fluid.v[2].get_unchecked(s);
-                    }
-                }
-                for k in 0..LANES {
-                    let (vol, m, pr) = (weight[k] * g[3][k], weight[k] * g[4][k], g[5][k]);
-                    // The scan's arithmetic, so r² is the value it tested.
-                    let d = [c.x - g[0][k], c.y - g[1][k], c.z - g[2][k]];
-                    let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                    let t = h2 - r2;
-                    let g6 = -kernels.poly6_grad * t * t;
-                    let len = r2.sqrt();
-                    let gp = match kernels.spiky_grad {
-                        None => g6,
-                        Some(spiky) => {
-                            let e = h - len;
-                            let q = -spiky * e * e / len;
-                            if len > 0.0 { q } else { 0.0 }
-                        }
-                    };
-                    let fp = m * (centre.pressure + pr) * gp;
-                    let fv = vol * (kernels.visc_lap * (h - len));
-                    let v_i = centre.velocity;
-                    let dv = [g[6][k] - v_i.x, g[7][k] - v_i.y, g[8][k] - v_i.z];
-                    for a in 0..3 {
-                        l.normal[a][k] += vol * (g6 * d[a]);
-                        l.pressure[a][k] -= fp * d[a];
-                        l.viscosity[a][k] += fv * dv[a];
-                    }
-                    l.laplacian[k] += vol * (kernels.poly6_grad * t * (7.0 * r2 - three_h2));
-                }
-            }
         }
+    }
+
+    /// The lanes reduced by [`reduce`]'s tree.
+    fn finish(&self) -> ForceSums {
         let v3 = |a: &[[f32; LANES]; 3]| Vec3::new(reduce(&a[0]), reduce(&a[1]), reduce(&a[2]));
         ForceSums {
-            pressure: v3(&l.pressure),
-            viscosity: v3(&l.viscosity),
-            normal: v3(&l.normal),
-            laplacian: reduce(&l.laplacian),
+            pressure: v3(&self.pressure),
+            viscosity: v3(&self.viscosity),
+            normal: v3(&self.normal),
+            laplacian: reduce(&self.laplacian),
         }
     }
 }
@@ -267,6 +303,94 @@ mod tests {
         (s, scale)
     }
 
+    /// Made-up fluid values for the particles at `x`, by particle and in the
+    /// grid's slot order.
+    struct Fluid {
+        v: Vec<Vec3>,
+        m: Vec<f32>,
+        vol: Vec<f32>,
+        pr: Vec<f32>,
+        /// Velocity components, volume, mass, pressure term in slot order.
+        slots: [Vec<f32>; 6],
+    }
+
+    impl Fluid {
+        fn new(grid: &NeighbourGrid, n: usize) -> Self {
+            let f = |i: usize, k: usize| ((i * 7919 + k * 104_729) % 1000) as f32 / 1000.0;
+            let v: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(f(i, 1), f(i, 2), f(i, 3)) - 0.5)
+                .collect();
+            let m: Vec<f32> = (0..n).map(|i| 0.5 + f(i, 4)).collect();
+            let vol: Vec<f32> = (0..n).map(|i| m[i] / (900.0 + 200.0 * f(i, 5))).collect();
+            let pr: Vec<f32> = (0..n).map(|i| f(i, 6) * 1e-3).collect();
+            let slot = |x: &[f32]| grid.to_slot_order(x).into_owned();
+            let va = |a: usize| slot(&v.iter().map(|v| v[a]).collect::<Vec<_>>());
+            let slots = [va(0), va(1), va(2), slot(&vol), slot(&m), slot(&pr)];
+            Self {
+                v,
+                m,
+                vol,
+                pr,
+                slots,
+            }
+        }
+
+        fn by_slot(&self) -> SlotFluid<'_> {
+            let s = &self.slots;
+            SlotFluid {
+                v: [&s[0], &s[1], &s[2]],
+                volume: &s[3],
+                mass: &s[4],
+                pressure: &s[5],
+            }
+        }
+
+        fn centre(&self, i: usize) -> Centre {
+            Centre {
+                pressure: self.pr[i],
+                velocity: self.v[i],
+            }
+        }
+    }
+
+    fn kernels(h: f32, spiky: bool) -> ForceKernels {
+        ForceKernels {
+            poly6_grad: Poly6::new(h).unwrap().coefficients().1,
+            visc_lap: Viscosity::new(h).unwrap().coefficient(),
+            spiky_grad: spiky.then(|| Spiky::new(h).unwrap().coefficient()),
+        }
+    }
+
+    /// Hit m of a neighbourhood goes to lane m mod 16 however the scan's
+    /// fills (whose lengths depend on the SIMD path) cut the hits: the sums
+    /// of neighbourhoods of up to some 600 hits, more than two buffers, equal
+    /// bitwise the sums over the whole hit list in chunks of 16.
+    #[test]
+    fn lanes_follow_the_hit_order_across_fills() {
+        let x = cloud();
+        let h = 0.55;
+        let grid = NeighbourGrid::build(&x, h).unwrap();
+        let fluid = Fluid::new(&grid, x.len());
+        let by_slot = fluid.by_slot();
+        let mut most = 0;
+        for spiky in [false, true] {
+            let kernels = kernels(h, spiky);
+            for i in (0..x.len()).step_by(17) {
+                let nb = grid.neighbourhood(i);
+                let mut hits = Vec::new();
+                nb.for_each_slot(|k, _, _| hits.push(k as u32));
+                let mut lanes = Lanes::new();
+                for chunk in hits.chunks(LANES) {
+                    nb.add_chunk(&mut lanes, chunk, fluid.centre(i), &kernels, &by_slot);
+                }
+                let got = nb.force_sums(fluid.centre(i), &kernels, &by_slot);
+                assert_eq!(got, lanes.finish(), "particle {i}, {} hits", hits.len());
+                most = most.max(hits.len());
+            }
+        }
+        assert!(most > 2 * scan::HIT_CAPACITY, "{most} hits at most");
+    }
+
     /// The sums agree with term-by-term sums to rounding for both pressure
     /// kernels, and every vector path this CPU can run gives bitwise the
     /// plain path's sums.
@@ -276,38 +400,16 @@ mod tests {
         let n = x.len();
         let h = 0.23;
         let grid = NeighbourGrid::build(&x, h).unwrap();
-        let f = |i: usize, k: usize| ((i * 7919 + k * 104_729) % 1000) as f32 / 1000.0;
-        let v: Vec<Vec3> = (0..n)
-            .map(|i| Vec3::new(f(i, 1), f(i, 2), f(i, 3)) - 0.5)
-            .collect();
-        let m: Vec<f32> = (0..n).map(|i| 0.5 + f(i, 4)).collect();
-        let vol: Vec<f32> = (0..n).map(|i| m[i] / (900.0 + 200.0 * f(i, 5))).collect();
-        let pr: Vec<f32> = (0..n).map(|i| f(i, 6) * 1e-3).collect();
-        let slot = |x: &[f32]| grid.to_slot_order(x).into_owned();
-        let vs: [Vec<f32>; 3] =
-            std::array::from_fn(|a| slot(&v.iter().map(|v| v[a]).collect::<Vec<_>>()));
-        let (vol_s, m_s, pr_s) = (slot(&vol), slot(&m), slot(&pr));
-        let fluid = SlotFluid {
-            v: [&vs[0], &vs[1], &vs[2]],
-            volume: &vol_s,
-            mass: &m_s,
-            pressure: &pr_s,
-        };
-        let poly6 = Poly6::new(h).unwrap();
+        let data = Fluid::new(&grid, n);
+        let (v, m, vol, pr) = (&data.v, &data.m, &data.vol, &data.pr);
+        let fluid = data.by_slot();
         let mut found = 0;
         for spiky in [false, true] {
-            let kernels = ForceKernels {
-                poly6_grad: poly6.coefficients().1,
-                visc_lap: Viscosity::new(h).unwrap().coefficient(),
-                spiky_grad: spiky.then(|| Spiky::new(h).unwrap().coefficient()),
-            };
+            let kernels = kernels(h, spiky);
             for i in (0..n).step_by(23) {
                 let nb = grid.neighbourhood(i);
-                let (want, scale) = brute(&x, &v, &vol, &m, &pr, i, spiky, h);
-                let centre = Centre {
-                    pressure: pr[i],
-                    velocity: v[i],
-                };
+                let (want, scale) = brute(&x, v, vol, m, pr, i, spiky, h);
+                let centre = data.centre(i);
                 let got = nb.force_sums(centre, &kernels, &fluid);
                 let tol = |s: f32| 1e-5 * s + 1e-30;
                 let close = |a: Vec3, b: Vec3, s: f32| (a - b).abs().max_element() <= tol(s);

@@ -71,34 +71,39 @@ impl<'a> Scan<'a> {
         self.row >= self.rows.len()
     }
 
-    /// Writes the next hits (slots) into `hits` and returns how many; fewer than
-    /// the capacity does not mean the scan is done, see [`Scan::done`].
+    /// Writes the next hits (slots) into `hits` after its first `start`
+    /// entries (at most 16, left as they are) and returns the new count; fewer
+    /// than the capacity does not mean the scan is done, see [`Scan::done`].
+    /// Where a fill stops depends on the path's chunk width.
     #[inline]
-    pub(super) fn fill(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
+    pub(super) fn fill(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
+        assert!(start <= MAX_LANES, "at most one chunk carried over");
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `simd_level` never exceeds what the CPU supports (AVX-512F and
         // POPCNT, or AVX2), and SSE2 is part of the x86-64 baseline.
         unsafe {
             match simd_level() {
-                Simd::Avx512 => self.fill_avx512(hits),
-                Simd::Avx2 => self.fill_avx2(hits),
-                Simd::Baseline => self.fill_sse2(hits),
+                Simd::Avx512 => self.fill_avx512(hits, start),
+                Simd::Avx2 => self.fill_avx2(hits, start),
+                Simd::Baseline => self.fill_sse2(hits, start),
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        self.fill_scalar(hits)
+        self.fill_scalar(hits, start)
     }
 
     /// The row loop shared by every path: `chunk(k, end, hits, n)` tests the slots
     /// from `k` (at most `LANES` of them, none at or past `end`), appends the hits
-    /// at `hits[n..]` and returns the new count.
+    /// at `hits[n..]` and returns the new count; the first chunk appends at
+    /// `hits[start..]`.
     #[inline(always)]
     fn drive<const LANES: usize>(
         &mut self,
         hits: &mut [u32; HIT_CAPACITY],
+        start: usize,
         mut chunk: impl FnMut(usize, usize, &mut [u32; HIT_CAPACITY], usize) -> usize,
     ) -> usize {
-        let mut n = 0;
+        let mut n = start;
         while self.row < self.rows.len() {
             let end = self.rows[self.row].end as usize;
             while self.slot < end {
@@ -118,9 +123,9 @@ impl<'a> Scan<'a> {
 
     /// One candidate at a time: the reference the vector paths are tested against.
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-    fn fill_scalar(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
+    fn fill_scalar(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
-        self.drive::<1>(hits, |k, _, hits, n| {
+        self.drive::<1>(hits, start, |k, _, hits, n| {
             let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
             hits[n] = k as u32;
             n + usize::from(d.x * d.x + d.y * d.y + d.z * d.z <= h2)
@@ -134,12 +139,12 @@ impl<'a> Scan<'a> {
     /// The CPU must support SSE2 (every x86-64 CPU does).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    unsafe fn fill_sse2(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
+    unsafe fn fill_sse2(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         let (cx, cy, cz) = (_mm_set1_ps(c.x), _mm_set1_ps(c.y), _mm_set1_ps(c.z));
         let lim = _mm_set1_ps(h2);
-        self.drive::<4>(hits, |k, end, hits, mut n| {
+        self.drive::<4>(hits, start, |k, end, hits, mut n| {
             // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
             // row's end (asserted in `new`), so xs/ys/zs[k..k + 4] are in bounds.
             let (x, y, z) = unsafe {
@@ -172,7 +177,7 @@ impl<'a> Scan<'a> {
     /// The CPU must support AVX2 and POPCNT.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt")]
-    unsafe fn fill_avx2(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
+    unsafe fn fill_avx2(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         let cs = [
@@ -181,7 +186,7 @@ impl<'a> Scan<'a> {
             _mm256_set1_ps(c.z),
         ];
         let lim = _mm256_set1_ps(h2);
-        self.drive::<8>(hits, |k, end, hits, n| {
+        self.drive::<8>(hits, start, |k, end, hits, n| {
             // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
             // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds;
             // the store writes 8 entries at hits[n..], and the driver calls with
@@ -210,7 +215,7 @@ impl<'a> Scan<'a> {
     /// The CPU must support AVX-512F and POPCNT.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,popcnt")]
-    unsafe fn fill_avx512(&mut self, hits: &mut [u32; HIT_CAPACITY]) -> usize {
+    unsafe fn fill_avx512(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         let (cx, cy, cz) = (
@@ -220,7 +225,7 @@ impl<'a> Scan<'a> {
         );
         let lim = _mm512_set1_ps(h2);
         let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        self.drive::<16>(hits, |k, end, hits, n| {
+        self.drive::<16>(hits, start, |k, end, hits, n| {
             let valid: __mmask16 = if end - k >= 16 {
                 u16::MAX
             } else {
@@ -365,7 +370,7 @@ mod tests {
             });
             let view = [&coords[0][..], &coords[1][..], &coords[2][..]];
             let scan = || Scan::new(Vec3::ZERO, 1.0, view, &rows);
-            let scalar = all_hits(scan(), |s, h| s.fill_scalar(h));
+            let scalar = all_hits(scan(), |s, h| s.fill_scalar(h, 0));
             let brute: Vec<u32> = rows
                 .iter()
                 .flat_map(|r| r.start..r.end)
@@ -376,20 +381,24 @@ mod tests {
                 })
                 .collect();
             assert_eq!(scalar, brute, "rows of {len}");
-            assert_eq!(all_hits(scan(), |s, h| s.fill(h)), scalar, "rows of {len}");
+            assert_eq!(
+                all_hits(scan(), |s, h| s.fill(h, 0)),
+                scalar,
+                "rows of {len}"
+            );
             #[cfg(target_arch = "x86_64")]
             {
                 // SAFETY: SSE2 is part of the x86-64 baseline.
-                let sse2 = all_hits(scan(), |s, h| unsafe { s.fill_sse2(h) });
+                let sse2 = all_hits(scan(), |s, h| unsafe { s.fill_sse2(h, 0) });
                 assert_eq!(sse2, scalar, "SSE2, rows of {len}");
                 if Simd::detect() >= Simd::Avx2 {
                     // SAFETY: AVX2 and POPCNT were detected.
-                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx2(h) });
+                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx2(h, 0) });
                     assert_eq!(avx, scalar, "AVX2, rows of {len}");
                 }
                 if Simd::detect() >= Simd::Avx512 {
                     // SAFETY: AVX-512F and POPCNT were detected.
-                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx512(h) });
+                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx512(h, 0) });
                     assert_eq!(avx, scalar, "AVX-512, rows of {len}");
                 }
             }
