@@ -60,8 +60,10 @@ fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
                     let len = sqrt(r2);
                     var grad = grad6;
                     if f.spiky_pressure == 1u {
+                        // Zero for coincident particles, as on the CPU (r/len
+                        // would be 0/0).
                         let e = f.h - len;
-                        grad = -f.spiky_grad * e * e * r / len;
+                        grad = select(vec3<f32>(0.0), -f.spiky_grad * e * e * r / len, len > 0.0);
                     }
                     a_p -= y.w * (pi + pressures[j] / (rho_j * rho_j)) * grad;
                     a_v += vol * f.visc_lap * (f.h - len) * (velocities[j].xyz - vi);
