@@ -86,6 +86,8 @@ pub struct GpuState {
 /// never changes, so index i is the same particle on both paths.
 pub struct GpuSolver {
     params: Params,
+    /// [`FluidParams::viscous_dt`]: the adaptive step's `max_dt` is at most this.
+    viscous_dt: f32,
     grid: GpuGrid,
     density: GpuDensity,
     uniform: wgpu::Buffer,
@@ -253,6 +255,7 @@ impl GpuSolver {
         );
         let mut solver = Self {
             params: p,
+            viscous_dt: params.viscous_dt(),
             grid,
             density,
             uniform,
@@ -281,7 +284,9 @@ impl GpuSolver {
             .map_err(|_| GpuError::Invalid("time stepping rejected by sph-core"))?;
         self.params.cfl = stepping.cfl;
         self.params.force_factor = stepping.force_factor;
-        self.params.max_dt = stepping.max_dt;
+        // The viscous limit is constant: folded into the largest step, as
+        // `World::stable_dt` takes it.
+        self.params.max_dt = stepping.max_dt.min(self.viscous_dt);
         self.params.min_dt = stepping.min_dt;
         Ok(())
     }

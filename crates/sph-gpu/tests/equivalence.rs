@@ -320,3 +320,42 @@ fn adaptive_gpu_frames_match_world_advance() {
     let err = gpu.advance(device, queue, frame_dt, 8).unwrap_err();
     assert!(matches!(err, GpuError::Unstable(_)), "{err}");
 }
+
+/// A fluid viscous enough that the viscous step limit binds: the GPU takes
+/// the CPU's substeps, and the particles stay together.
+#[test]
+fn viscous_gpu_frame_keeps_to_the_cpu_step_limit() {
+    use sph_gpu::GpuSolver;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
+    scene.fluid.viscosity = 3000.0;
+    let mut world = scene.build_world().unwrap();
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let mut gpu = GpuSolver::new(
+        device,
+        queue,
+        &world.particles,
+        world.params(),
+        &scene.boundary(),
+    )
+    .unwrap();
+    gpu.set_time_stepping(world.time_stepping()).unwrap();
+    let frame_dt = 1.0 / 60.0;
+    let cpu = world.advance(frame_dt).unwrap();
+    let g = gpu.advance(device, queue, frame_dt, 64).unwrap();
+    let limit = world.params().viscous_dt();
+    println!(
+        "μ = 3000 Pa·s: {} CPU substeps (longest {:e} s, limit {limit:e} s), {} GPU substeps",
+        cpu.substeps, cpu.dt_range.1, g.substeps
+    );
+    assert!(cpu.dt_range.1 <= limit);
+    assert_eq!(g.substeps, cpu.substeps);
+    let state = gpu.read_state(device, queue).unwrap();
+    let p = &world.particles;
+    let dx = (p.ids().iter().zip(p.positions()))
+        .map(|(&id, x)| (state.positions[id as usize] - *x).length())
+        .fold(0f32, f32::max);
+    assert!(dx < 1e-3 * world.params().h, "positions differ by {dx} m");
+}
