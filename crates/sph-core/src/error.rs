@@ -22,6 +22,19 @@ pub enum Error {
         /// The offending position.
         position: [f32; 3],
     },
+    /// A particle's mass is not finite and positive, or its velocity is not
+    /// finite.
+    #[error("particle {index} has {what} {value}: {reason}")]
+    InvalidParticle {
+        /// Index of the particle.
+        index: usize,
+        /// What is wrong with it: "mass" or "velocity".
+        what: &'static str,
+        /// The offending value, formatted.
+        value: String,
+        /// Why it is rejected.
+        reason: &'static str,
+    },
     /// A particle lies so far from the origin, relative to the cell size, that its
     /// cell coordinate does not fit the grid's 32-bit cell coordinates.
     #[error(

@@ -296,6 +296,43 @@ impl Particles {
         Ok(())
     }
 
+    /// Checks what a simulation needs of every particle: a finite position,
+    /// a finite velocity and a finite mass above zero (a zero mass would give
+    /// its neighbourhood a zero density and the forces NaN). The error names
+    /// the first offending particle.
+    pub fn validate(&self) -> Result<()> {
+        let columns = self
+            .positions
+            .iter()
+            .zip(&self.velocities)
+            .zip(&self.masses);
+        for (index, ((x, v), &m)) in columns.enumerate() {
+            if !x.is_finite() {
+                return Err(Error::NonFinitePosition {
+                    index,
+                    position: x.to_array(),
+                });
+            }
+            if !v.is_finite() {
+                return Err(Error::InvalidParticle {
+                    index,
+                    what: "velocity",
+                    value: format!("{v}"),
+                    reason: "must be finite",
+                });
+            }
+            if !(m.is_finite() && m > 0.0) {
+                return Err(Error::InvalidParticle {
+                    index,
+                    what: "mass",
+                    value: m.to_string(),
+                    reason: "must be finite and > 0",
+                });
+            }
+        }
+        Ok(())
+    }
+
     /// Total mass Σ m (kg), summed in f64 in index order.
     pub fn total_mass(&self) -> f64 {
         self.masses.iter().map(|&m| m as f64).sum()

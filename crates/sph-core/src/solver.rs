@@ -243,9 +243,12 @@ impl Processor for BuildGrid {
     }
 }
 
+/// The context's neighbour grid, checked to be over `particles` and for the
+/// fluid's smoothing length `h`.
 fn grid<'a>(
     ctx: &'a Context,
     particles: &Particles,
+    h: f32,
     who: &'static str,
 ) -> Result<&'a crate::NeighbourGrid> {
     let grid = ctx.grid.as_ref().ok_or(Error::Pipeline {
@@ -256,6 +259,12 @@ fn grid<'a>(
         return Err(Error::Pipeline {
             processor: who,
             reason: "the neighbour grid is out of date: a processor added or removed particles after `grid` without calling `Context::invalidate_grid`",
+        });
+    }
+    if grid.h() != h {
+        return Err(Error::Pipeline {
+            processor: who,
+            reason: "the neighbour grid was built for another h than the fluid's: give `BuildGrid` the fluid's h",
         });
     }
     Ok(grid)
@@ -301,7 +310,7 @@ impl Processor for DensityPressure {
         "density"
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let grid = grid(ctx, particles, "density")?;
+        let grid = grid(ctx, particles, self.0.params.h, "density")?;
         let masses = particles.masses();
         let FluidModel {
             params,
@@ -354,7 +363,7 @@ impl Processor for Forces {
         "forces"
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let grid = grid(ctx, particles, "forces")?;
+        let grid = grid(ctx, particles, self.0.params.h, "forces")?;
         let v = particles.velocities();
         let (m, rho, p) = (
             particles.masses(),
@@ -684,6 +693,9 @@ pub struct FrameReport {
 
 impl World {
     /// A world running the [`default_program`].
+    ///
+    /// # Errors
+    /// Invalid parameters or particles ([`Particles::validate`]).
     pub fn new(
         particles: Particles,
         params: FluidParams,
@@ -692,6 +704,7 @@ impl World {
     ) -> Result<Self> {
         params.validate()?;
         stepping.validate()?;
+        particles.validate()?;
         let program = default_program(params, boundary)?;
         Ok(Self {
             particles,

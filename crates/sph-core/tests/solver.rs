@@ -331,6 +331,62 @@ fn a_stale_grid_is_an_error() {
     assert!(e.to_string().contains("invalidate_grid"), "{e}");
 }
 
+/// Particles a simulation cannot run are errors naming the particle, before
+/// any step (a zero mass used to surface as an `Unstable` NaN with a hint
+/// about time steps), and a grid built for another h than the fluid's is a
+/// pipeline error, not a panic or forces for the wrong h.
+#[test]
+fn bad_particles_and_a_grid_of_another_h_are_errors() {
+    let scene = Scene::dam_break(0.1, 0.04, 0.02);
+    let good = scene.particles().unwrap();
+    let bad = |x: Vec3, v: Vec3, m: f32| {
+        let mut p = good.clone();
+        p.push(x, v, m);
+        scene.world_with(p).unwrap_err()
+    };
+    let x = Vec3::splat(0.05);
+    let m = good.masses()[0];
+    for mass in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        let e = bad(x, Vec3::ZERO, mass);
+        assert!(
+            matches!(e, Error::InvalidParticle { what: "mass", index, .. } if index == good.len()),
+            "{e}"
+        );
+    }
+    let e = bad(x, Vec3::new(0.0, f32::NAN, 0.0), m);
+    assert!(
+        matches!(
+            e,
+            Error::InvalidParticle {
+                what: "velocity",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let e = bad(Vec3::new(f32::INFINITY, 0.0, 0.0), Vec3::ZERO, m);
+    assert!(matches!(e, Error::NonFinitePosition { .. }), "{e}");
+
+    let mut world = scene.world_with(good).unwrap();
+    let h = world.params().h;
+    assert!(world.program_mut().remove("grid"));
+    world
+        .program_mut()
+        .insert_before("density", sph_core::solver::BuildGrid::new(2.0 * h, 0));
+    let e = world.step().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Pipeline {
+                processor: "density",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("another h"), "{e}");
+}
+
 /// Parameters that pass one by one but cannot run together are errors up
 /// front: a largest step below the blow-up threshold, and a lattice so fine
 /// for h that finding the particle mass alone would take minutes.
