@@ -18,6 +18,14 @@
 //! see a density deficit, are pushed into it by the fluid behind them and pile up
 //! there; the analytic wall term costs nothing per neighbour, unlike boundary
 //! particles (Akinci et al. 2012), and needs no sampling of curved obstacles.
+//!
+//! Known limitation: where walls meet, each adds its own half-space's fluid,
+//! so the region behind both is counted twice. A particle on a box edge gets
+//! ρ0 added where 0.75 ρ0 is missing, and on a corner 1.5 ρ0 where 0.875 ρ0 is
+//! (exact inclusion–exclusion would need the poly6 integral over a quadrant
+//! and an octant, which has no closed form as simple as the plane's). The
+//! excess pressure pushes fluid slightly out of edges and corners; it stays
+//! energy-consistent, being the gradient of the same (overestimated) term.
 
 use glam::Vec3;
 

@@ -325,6 +325,17 @@ impl Scene {
             }
             let n = lattice_count(min, max, self.spacing);
             count = count.saturating_add(n[0].saturating_mul(n[1]).saturating_mul(n[2]));
+            // Overlapping blocks would put two particles on one lattice point
+            // (or nearly), which pressure cannot separate.
+            for (j, other) in self.blocks[..k].iter().enumerate() {
+                let (omin, omax) = (Vec3::from(other.min), Vec3::from(other.max));
+                if min.cmplt(omax).all() && omin.cmplt(max).all() {
+                    return Err(invalid(
+                        &field,
+                        format!("overlaps blocks[{j}]: their particles would be placed twice"),
+                    ));
+                }
+            }
         }
         for (k, o) in self.obstacles.iter().enumerate() {
             let field = format!("obstacles[{k}]");
@@ -360,6 +371,16 @@ impl Scene {
             }
             if e.width == 0 {
                 return Err(invalid(format!("{field}.width"), "must be at least 1"));
+            }
+            let layer = u64::from(e.width) * u64::from(e.width);
+            if layer > self.max_particles as u64 {
+                return Err(invalid(
+                    format!("{field}.width"),
+                    format!(
+                        "the nozzle's layer of {layer} particles is more than max_particles = {}",
+                        self.max_particles
+                    ),
+                ));
             }
             // The whole nozzle, not only its centre, must lie in free space:
             // particles emitted into a wall or an obstacle would be projected

@@ -58,7 +58,7 @@ fn message(text: &str) -> String {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 21] = [
+    let cases: [(&str, &str, &[&str]); 22] = [
         ("h = 0.04", "h = 0.04 +", &["scene file", "line"]),
         (
             "h = 0.04",
@@ -140,6 +140,12 @@ fn malformed_scenes_name_the_field_and_reason() {
             "max_particles = 5000000000",
             &["max_particles", "limit"],
         ),
+        // Two particles on one lattice point would never separate.
+        (
+            "[time_step]",
+            "[[blocks]]\nmin = [0.2, 0.4, 0.0]\nmax = [0.4, 0.6, 0.08]\nvelocity = [0.0, 0.0, 0.0]\n\n[time_step]",
+            &["blocks[1]", "overlaps blocks[0]"],
+        ),
     ];
     for (find, replace, words) in cases {
         let msg = message(&with(find, replace));
@@ -153,6 +159,18 @@ fn malformed_scenes_name_the_field_and_reason() {
     // A nozzle that fits and is inside no obstacle is accepted.
     let fits = "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 3\n\n[time_step]";
     Scene::from_toml(&with("[time_step]", fits)).unwrap();
+    // Blocks that touch without overlapping are accepted.
+    let touching = "[[blocks]]\nmin = [0.25, 0.0, 0.0]\nmax = [0.4, 0.2, 0.08]\nvelocity = [0.0, 0.0, 0.0]\n\n[time_step]";
+    Scene::from_toml(&with("[time_step]", touching)).unwrap();
+    // A nozzle layer larger than the particle budget (checked before walking
+    // its points, whose number is the layer's).
+    let wide =
+        with("[time_step]", fits).replacen("max_particles = 2000000", "max_particles = 8", 1);
+    let msg = message(&wide);
+    assert!(
+        msg.contains("emitters[0].width") && msg.contains("max_particles"),
+        "{msg}"
+    );
     // Obstacles over the whole block leave no fluid: an error, not an empty run.
     let buried = with(
         "[time_step]",
