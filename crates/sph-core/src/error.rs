@@ -143,8 +143,11 @@ pub(crate) fn check_h(h: f32) -> Result<()> {
 
 /// The smallest and largest smoothing lengths the kernels accept (m): their
 /// coefficients, up to 945/(32π h⁹), and powers up to h⁹ stay finite,
-/// normal f32 values in between.
-pub const KERNEL_H_RANGE: (f32, f32) = (1e-4, 1e4);
+/// normal f32 values in between, and so does a density sum Σ m (h² − r²)³,
+/// about 4 ρ0 h⁹ before its coefficient, for rest densities up to
+/// [`crate::solver::MAX_REST_DENSITY`] (at h = 1e4 m and water's density it
+/// overflowed).
+pub const KERNEL_H_RANGE: (f32, f32) = (1e-4, 1e3);
 
 /// Checks that `h` is a smoothing length the kernels can represent: within
 /// [`KERNEL_H_RANGE`].
@@ -157,7 +160,7 @@ pub(crate) fn check_kernel_h(h: f32) -> Result<()> {
         Err(Error::InvalidParameter {
             name: "h",
             value: h.to_string(),
-            reason: "the kernels' smoothing length must lie in [1e-4, 1e4] m (their coefficients overflow f32 outside); rescale the units",
+            reason: "the kernels' smoothing length must lie in [1e-4, 1e3] m (their coefficients or sums overflow f32 outside); rescale the units",
         })
     }
 }

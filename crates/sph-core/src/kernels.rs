@@ -278,18 +278,18 @@ impl Kernels {
 mod tests {
     use super::*;
 
-    /// Outside [1e-4, 1e4] m the coefficients are not finite, normal f32
+    /// Outside [1e-4, 1e3] m the coefficients or sums are not finite, normal f32
     /// values: such an h is an error, not a run that blows up at step 1.
     #[test]
     fn h_outside_the_representable_range_is_an_error() {
-        for h in [1e-4, 0.02, 1e4] {
+        for h in [1e-4, 0.02, 1e3] {
             let k = Kernels::new(h).unwrap();
             let (w, grad) = k.poly6.coefficients();
             for c in [w, grad, k.spiky.coefficient(), k.viscosity.coefficient()] {
                 assert!(c.is_normal(), "h = {h}: coefficient {c}");
             }
         }
-        for h in [6.5e-5, 2e4, 0.0, f32::NAN] {
+        for h in [6.5e-5, 2e3, 0.0, f32::NAN] {
             assert!(Kernels::new(h).is_err(), "h = {h}");
         }
     }

@@ -13,7 +13,8 @@ use crate::error::{Error, Result, check_kernel_h};
 use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
-    Emitter, FluidParams, MAX_H_OVER_SPACING, TimeStepping, World, nozzle_corners, nozzle_points,
+    Emitter, FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, TimeStepping, World,
+    nozzle_corners, nozzle_points,
 };
 
 /// A complete scene description.
@@ -273,6 +274,15 @@ impl Scene {
         // The kernels' own check: h must keep their coefficients finite f32.
         check_kernel_h(f.h).map_err(|e| invalid("fluid.h", e.to_string()))?;
         positive("fluid.rest_density", f.rest_density)?;
+        if f.rest_density > MAX_REST_DENSITY {
+            return Err(invalid(
+                "fluid.rest_density",
+                format!(
+                    "{} exceeds {MAX_REST_DENSITY} kg/m³: denser fluids overflow the f32 density sums",
+                    f.rest_density
+                ),
+            ));
+        }
         positive("fluid.stiffness", f.stiffness)?;
         non_negative("fluid.viscosity", f.viscosity)?;
         non_negative("fluid.surface_tension", f.surface_tension)?;

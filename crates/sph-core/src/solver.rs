@@ -86,6 +86,13 @@ impl FluidParams {
     pub fn validate(&self) -> Result<()> {
         positive("h", self.h)?;
         positive("rest_density", self.rest_density)?;
+        if self.rest_density > MAX_REST_DENSITY {
+            return Err(Error::InvalidParameter {
+                name: "rest_density",
+                value: self.rest_density.to_string(),
+                reason: "must be at most 1e6 kg/m³ (40 times osmium's): denser fluids overflow the f32 density sums",
+            });
+        }
         positive("stiffness", self.stiffness)?;
         non_negative("viscosity", self.viscosity)?;
         non_negative("surface_tension", self.surface_tension)?;
@@ -158,6 +165,10 @@ impl FluidParams {
 /// The largest h / spacing [`FluidParams::particle_mass`] (and a scene)
 /// accepts: about 4,200 neighbours per particle. Usual values are 2 to 3.
 pub const MAX_H_OVER_SPACING: f32 = 10.0;
+
+/// The largest rest density [`FluidParams::validate`] accepts (kg/m³), so that
+/// density sums stay finite over all of [`crate::error::KERNEL_H_RANGE`].
+pub const MAX_REST_DENSITY: f32 = 1e6;
 
 /// The factor of [`FluidParams::viscous_dt`].
 const VISCOUS_FACTOR: f32 = 0.125;

@@ -95,7 +95,7 @@ fn malformed_scenes_name_the_field_and_reason() {
             &["spacing", "exceeds 10"],
         ),
         // The kernels' coefficients overflow f32 below h = 1e-4 m.
-        ("h = 0.04", "h = 0.00005", &["h", "[1e-4, 1e4]"]),
+        ("h = 0.04", "h = 0.00005", &["h", "[1e-4, 1e3]"]),
         (
             "frame_dt = 0.016666668",
             "frame_dt = 10000.0",

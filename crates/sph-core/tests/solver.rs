@@ -387,6 +387,52 @@ fn bad_particles_and_a_grid_of_another_h_are_errors() {
     assert!(e.to_string().contains("another h"), "{e}");
 }
 
+/// At the largest h and rest density the parameters accept, the density
+/// sums stay finite (at h = 1e4 m, then accepted, water's density overflowed
+/// f32 at the first step), and the fluid sums to about its rest density.
+#[test]
+fn largest_h_and_rest_density_stay_finite() {
+    use sph_core::error::KERNEL_H_RANGE;
+    use sph_core::solver::MAX_REST_DENSITY;
+    let h = KERNEL_H_RANGE.1;
+    let params = FluidParams {
+        rest_density: MAX_REST_DENSITY,
+        ..FluidParams::water(h)
+    };
+    let spacing = 0.5 * h;
+    let mass = params.particle_mass(spacing).unwrap();
+    let mut particles = Particles::new();
+    for i in 0..6 {
+        for j in 0..6 {
+            for k in 0..6 {
+                let x = Vec3::new(i as f32, j as f32, k as f32) * spacing;
+                particles.push(x, Vec3::ZERO, mass);
+            }
+        }
+    }
+    let domain = Aabb::new(Vec3::splat(-10.0 * h), Vec3::splat(10.0 * h));
+    let mut world = World::new(
+        particles,
+        params,
+        Boundary::new(domain),
+        TimeStepping::default(),
+    )
+    .unwrap();
+    world.step().unwrap();
+    let rho = world.particles.densities();
+    let inner = rho.iter().copied().fold(0.0f32, f32::max);
+    assert!(rho.iter().all(|r| r.is_finite() && *r > 0.0));
+    assert!(
+        (inner / MAX_REST_DENSITY - 1.0).abs() < 0.05,
+        "densest particle {inner} kg/m³"
+    );
+    let denser = FluidParams {
+        rest_density: 2.0 * MAX_REST_DENSITY,
+        ..params
+    };
+    assert!(denser.validate().is_err());
+}
+
 /// Parameters that pass one by one but cannot run together are errors up
 /// front: a largest step below the blow-up threshold, and a lattice so fine
 /// for h that finding the particle mass alone would take minutes.
