@@ -180,6 +180,51 @@ fn values_in_slot_order() {
     ));
 }
 
+/// Thread count does not change a large grid: above 2 × 32,768 particles
+/// the counting sort splits its input into one chunk per thread (1, 2 or 4
+/// here), which the small property test above never reaches. Dense and
+/// sparse cell tables both (one cube, and four cubes kilometres apart).
+#[test]
+fn large_sets_identical_for_1_2_and_4_threads() {
+    let mut seed = 0x2545_F491_4F6C_DD1Du64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let unit: Vec<Vec3> = (0..100_000)
+        .map(|_| Vec3::new(next(), next(), next()))
+        .collect();
+    for spread in [0.0f32, 1000.0] {
+        let positions: Vec<Vec3> = (unit.iter().enumerate())
+            .map(|(i, &u)| u + spread * Vec3::new((i % 4) as f32, (i % 3) as f32, 0.0))
+            .collect();
+        let run = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let grid = NeighbourGrid::build(&positions, 0.03).unwrap();
+                    let sums = grid.par_map(|_, nb| {
+                        let mut s = 0.0f32;
+                        nb.for_each(|j, _, r2| s += r2 * (j as f32 + 1.0));
+                        s.to_bits()
+                    });
+                    (grid.order().to_vec(), sums)
+                })
+        };
+        let one = run(1);
+        assert!(
+            one.1.iter().any(|&s| s != 0),
+            "spread {spread}: no neighbours"
+        );
+        assert_eq!(one, run(2), "spread {spread}");
+        assert_eq!(one, run(4), "spread {spread}");
+    }
+}
+
 #[test]
 fn degenerate_sets() {
     let h = 0.1;

@@ -240,9 +240,18 @@ fn dam_break_soak_stays_contained_and_subcritical() {
     );
 }
 
+/// Bitwise the same particles for 1, 2 and 4 threads: a small dam break over
+/// 200 steps, and one of 70,000 particles, past the 2 × 32,768 at which the
+/// grid's counting sort splits its input by thread, over 5 steps.
 #[test]
 fn identical_for_1_2_and_4_threads() {
-    let scene = Scene::dam_break(0.16, 0.08, 0.02);
+    identical_runs(&Scene::dam_break(0.16, 0.08, 0.02), 200);
+    let large = Scene::dam_break(0.5, 0.14, 0.01);
+    assert!(large.particles().unwrap().len() > 65_536);
+    identical_runs(&large, 5);
+}
+
+fn identical_runs(scene: &Scene, steps: usize) {
     let run = |threads| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -250,7 +259,7 @@ fn identical_for_1_2_and_4_threads() {
             .unwrap()
             .install(|| {
                 let mut world = scene.build_world().unwrap();
-                for _ in 0..200 {
+                for _ in 0..steps {
                     world.step().unwrap();
                 }
                 let p = &world.particles;
