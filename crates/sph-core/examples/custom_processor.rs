@@ -4,12 +4,12 @@
 //!
 //! A "temperature" attribute starts hot in the dam-break column and diffuses
 //! between neighbours (an SPH laplacian, gathered like the solver's own forces);
-//! a second processor adds buoyancy from it. Both are inserted into the default
-//! program after the built-in force processor.
+//! a second processor adds buoyancy from it (Boussinesq: a = −β (T − T₀) g).
+//! Both are inserted into the default program after the built-in force
+//! processor.
 
 use sph_core::glam::Vec3;
 use sph_core::processor::{Context, Processor};
-use sph_core::solver::ExternalAcceleration;
 use sph_core::{Kernels, Particles, Result, Scene};
 
 /// Heat diffusion: dT_i/dt = α Σ_j m_j/ρ_j (T_j − T_i) ∇²W_visc(r_ij).
@@ -50,6 +50,30 @@ impl Processor for Diffuse {
     }
 }
 
+/// Boussinesq buoyancy: warmer fluid is lighter by β (T − T₀) of its weight.
+struct Buoyancy {
+    /// Thermal expansion coefficient β (1/K).
+    beta: f32,
+    /// Reference temperature T₀ (°C).
+    reference: f32,
+    gravity: Vec3,
+}
+
+impl Processor for Buoyancy {
+    fn name(&self) -> &str {
+        "buoyancy"
+    }
+
+    fn process(&mut self, particles: &mut Particles, _: &mut Context) -> Result<()> {
+        // A copy, so that the accelerations can be borrowed mutably beside it.
+        let t = particles.attribute::<f32>("temperature")?.to_vec();
+        for (a, t) in particles.accelerations_mut().iter_mut().zip(t) {
+            *a -= self.beta * (t - self.reference) * self.gravity;
+        }
+        Ok(())
+    }
+}
+
 fn main() -> Result<()> {
     let scene = Scene::dam_break(0.2, 0.06, 0.02);
     let mut world = scene.build_world()?;
@@ -79,11 +103,15 @@ fn main() -> Result<()> {
             kernels: Kernels::new(h)?,
         },
     );
-    // Buoyancy needs the temperature, which an acceleration field of position and
-    // time cannot see; a constant updraft stands in for it here.
+    // β ten times water's (2.1e-4 /K), so that the effect shows in a second.
+    let gravity = world.params().gravity;
     world.program_mut().insert_after(
         "diffuse-heat",
-        ExternalAcceleration::new("updraft", |_, _| Vec3::new(0.0, 0.5, 0.0)),
+        Buoyancy {
+            beta: 2e-3,
+            reference: 20.0,
+            gravity,
+        },
     );
     println!(
         "program: {:?}",
