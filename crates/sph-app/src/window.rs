@@ -415,6 +415,7 @@ impl App {
         let raw = gfx.egui_state.take_egui_input(&gfx.window);
         let mut changed = false;
         let mut scene_choice = None;
+        let extract_before = self.pipeline.extract;
         let stats = self.pipeline.stats;
         let (fps, render_ms) = (self.fps, self.render_ms);
         let settings = &mut self.settings;
@@ -528,6 +529,12 @@ impl App {
 
         if changed {
             self.apply_fluid_params()?;
+        }
+        if self.pipeline.extract != extract_before
+            && let Some(gfx) = self.gfx.as_ref()
+        {
+            self.pipeline.extract_params_changed(&gfx.ctx)?;
+            self.uploaded = None;
         }
         if let Some(i) = scene_choice {
             self.switch_scene(i)?;
