@@ -12,7 +12,7 @@ pub struct Orbit {
     pub distance: f32,
     /// Rotation about +y (rad).
     pub yaw: f32,
-    /// Elevation (rad), kept inside ±85°.
+    /// Elevation (rad); [`Orbit::rotate`] keeps it inside ±85°.
     pub pitch: f32,
     /// Vertical field of view (rad).
     pub fov_y: f32,

@@ -221,9 +221,9 @@ impl App {
             .create_surface(window.clone())
             .map_err(|e| AppError::Window(e.to_string()))?;
         let ctx = pollster::block_on(GpuContext::for_surface(instance, &surface))?;
-        let size = window.inner_size();
+        let (width, height) = surface_size(&ctx, window.inner_size());
         let config = surface
-            .get_default_config(&ctx.adapter, size.width.max(1), size.height.max(1))
+            .get_default_config(&ctx.adapter, width, height)
             .ok_or_else(|| {
                 AppError::Window("the surface is not supported by the adapter".into())
             })?;
@@ -598,8 +598,7 @@ impl ApplicationHandler for App {
             }
             WindowEvent::Resized(size) => {
                 if let Some(gfx) = self.gfx.as_mut() {
-                    gfx.config.width = size.width.max(1);
-                    gfx.config.height = size.height.max(1);
+                    (gfx.config.width, gfx.config.height) = surface_size(&gfx.ctx, size);
                     gfx.surface.configure(&gfx.ctx.device, &gfx.config);
                     gfx.renderer
                         .resize(&gfx.ctx, gfx.config.width, gfx.config.height)
@@ -651,4 +650,12 @@ impl ApplicationHandler for App {
             gfx.window.request_redraw();
         }
     }
+}
+
+/// A window size as the surface can take it: at least 1 and at most the
+/// device's largest texture on each side (a larger surface would be a fatal
+/// configuration error; the compositor scales the image up).
+fn surface_size(ctx: &GpuContext, size: winit::dpi::PhysicalSize<u32>) -> (u32, u32) {
+    let max = ctx.device.limits().max_texture_dimension_2d;
+    (size.width.clamp(1, max), size.height.clamp(1, max))
 }

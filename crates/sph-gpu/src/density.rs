@@ -41,7 +41,8 @@ impl GpuDensity {
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for parameters sph-core rejects, an `h` different
-    /// from the grid's, or a non-finite obstacle; [`GpuError::DeviceLimit`]
+    /// from the grid's, a capacity below the grid's (the pass writes one
+    /// density per grid particle), or a non-finite obstacle; [`GpuError::DeviceLimit`]
     /// for a capacity beyond one dispatch or storage binding of this device.
     pub fn new(
         device: &wgpu::Device,
@@ -56,6 +57,11 @@ impl GpuDensity {
         if params.h != grid.h() {
             return Err(GpuError::Invalid(
                 "the density's h must be the grid's cell size",
+            ));
+        }
+        if capacity < grid.capacity() {
+            return Err(GpuError::Invalid(
+                "the density's capacity must be at least the grid's",
             ));
         }
         check_fits(device, "particles", capacity, 64, 4)?;

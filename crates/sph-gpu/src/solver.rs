@@ -116,7 +116,9 @@ impl GpuSolver {
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for parameters sph-core rejects, a non-finite
-    /// obstacle, or non-finite particle data.
+    /// obstacle, or non-finite particle data; [`GpuError::DeviceLimit`] for
+    /// more particles than one dispatch or storage binding of this device
+    /// holds.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,

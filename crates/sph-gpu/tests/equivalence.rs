@@ -109,6 +109,14 @@ fn bad_input_is_an_error() {
             .unwrap()
             .is_empty()
     );
+    // A density pass smaller than its grid would write past its buffers.
+    let params = sph_core::FluidParams::water(0.1);
+    let boundary = sph_core::Boundary::new(sph_core::Aabb::new(Vec3::splat(-1.0), Vec3::ONE));
+    match sph_gpu::GpuDensity::new(&ctx.device, &grid, 1, &params, &boundary) {
+        Err(e) => assert!(e.to_string().contains("capacity"), "{e}"),
+        Ok(_) => panic!("a density pass for 1 particle on a grid of 2"),
+    }
+    sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &boundary).unwrap();
 }
 
 #[test]

@@ -72,7 +72,9 @@ impl Accumulation {
 /// was drawn onto an offscreen stand-in for a window surface.
 ///
 /// # Errors
-/// [`RenderError::Readback`] when the texture is not 4 bytes per texel or the copy fails.
+/// [`RenderError::Readback`] when the texture is not 4 bytes per texel, cannot
+/// be copied from (no `COPY_SRC` usage, multisampled), is larger than the
+/// device's largest buffer, or the copy fails.
 pub fn read_texture_rgba8(ctx: &GpuContext, texture: &wgpu::Texture) -> Result<image::RgbaImage> {
     if texture.format().block_copy_size(None) != Some(4) {
         return Err(RenderError::Readback(format!(
@@ -99,19 +101,36 @@ fn f16_to_f32(h: u16) -> f32 {
 }
 
 /// Copies a whole 2D texture to the CPU, removing the 256-byte row padding.
+/// What wgpu would reject as a validation error (a panic without an error
+/// scope) is a [`RenderError::Readback`] instead.
 pub(crate) fn read_texture(
     ctx: &GpuContext,
     texture: &wgpu::Texture,
     aspect: wgpu::TextureAspect,
     bytes_per_texel: u32,
 ) -> Result<Vec<u8>> {
+    if !texture.usage().contains(wgpu::TextureUsages::COPY_SRC) || texture.sample_count() != 1 {
+        return Err(RenderError::Readback(format!(
+            "a texture of usage {:?} and {} samples cannot be read back: it needs COPY_SRC and one sample",
+            texture.usage(),
+            texture.sample_count()
+        )));
+    }
     let (width, height) = (texture.width(), texture.height());
-    let row = width * bytes_per_texel;
-    let padded =
-        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let row = u64::from(width) * u64::from(bytes_per_texel);
+    let align = u64::from(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let padded = row.div_ceil(align) * align;
+    let size = padded * u64::from(height);
+    let max = ctx.device.limits().max_buffer_size;
+    let (Ok(padded), Ok(row), true) = (u32::try_from(padded), usize::try_from(row), size <= max)
+    else {
+        return Err(RenderError::Readback(format!(
+            "a {width}×{height} texture of {bytes_per_texel} bytes per texel needs a {size}-byte buffer, more than the device's {max}"
+        )));
+    };
     let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("readback"),
-        size: u64::from(padded) * u64::from(height),
+        size,
         usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
         mapped_at_creation: false,
     });
@@ -147,10 +166,10 @@ pub(crate) fn read_texture(
     let mapped = buffer
         .get_mapped_range(..)
         .map_err(|e| RenderError::Readback(e.to_string()))?;
-    let mut out = Vec::with_capacity((row * height) as usize);
+    let mut out = Vec::with_capacity(row * height as usize);
     for r in 0..height as usize {
         let start = r * padded as usize;
-        out.extend_from_slice(&mapped[start..start + row as usize]);
+        out.extend_from_slice(&mapped[start..start + row]);
     }
     Ok(out)
 }

@@ -450,7 +450,7 @@ impl SplatRenderer {
     ///
     /// # Errors
     /// [`RenderError::InvalidSource`] when `splats` is not a storage buffer of
-    /// whole splats within the binding limit or `draw_args` not an indirect
+    /// one or more whole splats within the binding limit or `draw_args` not an indirect
     /// buffer of at least 16 bytes.
     pub fn use_gpu_splats(
         &mut self,
@@ -463,10 +463,11 @@ impl SplatRenderer {
         let max = ctx.device.limits().max_storage_buffer_binding_size;
         if !splats.usage().contains(U::STORAGE)
             || !splats.size().is_multiple_of(per)
+            || splats.size() < per
             || splats.size() > max
         {
             return Err(RenderError::InvalidSource(
-                "splats must be a storage buffer of whole 32-byte splats within the binding limit",
+                "splats must be a storage buffer of one or more whole 32-byte splats within the binding limit",
             ));
         }
         if !draw_args.usage().contains(U::INDIRECT) || draw_args.size() < 16 {
@@ -496,6 +497,11 @@ impl SplatRenderer {
     }
 
     /// Records the three passes into `encoder` (visibility, attribute, shade).
+    ///
+    /// The camera and shading go into the renderer's one uniform buffer by
+    /// `queue.write_buffer`, which takes effect before the next submit: two
+    /// `encode` calls recorded into encoders submitted together both draw
+    /// with the second call's camera and shading. Submit between calls.
     ///
     /// # Errors
     /// [`RenderError::InvalidCamera`].

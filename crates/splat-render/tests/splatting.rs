@@ -294,6 +294,41 @@ fn bad_input_is_an_error() {
     );
     let bad_cam = Camera::looking_at(Vec3::ZERO, Vec3::ZERO);
     assert!(r.render(ctx, &bad_cam, &Shading::default()).is_err());
+
+    // GPU sources wgpu would reject (a panic without an error scope): an
+    // empty splat buffer, a texture that cannot be copied from.
+    let buffer = |size, usage| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    use wgpu::BufferUsages as U;
+    let args = buffer(16, U::INDIRECT);
+    let err = r
+        .use_gpu_splats(ctx, &buffer(0, U::STORAGE), &args)
+        .unwrap_err();
+    assert!(err.to_string().contains("one or more"), "{err}");
+    r.use_gpu_splats(ctx, &buffer(32, U::STORAGE), &args)
+        .unwrap();
+    let texture = ctx.device.create_texture(&wgpu::TextureDescriptor {
+        label: None,
+        size: wgpu::Extent3d {
+            width: 4,
+            height: 4,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+        view_formats: &[],
+    });
+    let err = splat_render::read_texture_rgba8(ctx, &texture).unwrap_err();
+    assert!(err.to_string().contains("COPY_SRC"), "{err}");
 }
 
 #[test]

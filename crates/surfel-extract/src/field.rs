@@ -143,7 +143,8 @@ impl ColourField {
     }
 
     /// Rebuilds the field for new particles, reusing its memory; on error the
-    /// field is left empty (with its former h).
+    /// field is left empty (its h the former one, or the new one when the
+    /// error came after the grid was rebuilt).
     fn refill(&mut self, positions: &[Vec3], h: f32, volumes: Volumes<'_>) -> Result<()> {
         let result = self.try_refill(positions, h, volumes);
         if result.is_err() {

@@ -62,8 +62,9 @@ pub struct SurfelIndex {
 }
 
 impl SurfelIndex {
-    /// An index over all of `surfels` for discs `thickness` thick. Errors only
-    /// for non-finite surfel positions.
+    /// An index over all of `surfels` for discs `thickness` thick. Errors for
+    /// non-finite surfel positions, positions too far out for the grid's
+    /// cells, and an infinite radius or thickness.
     pub fn build(surfels: &[Surfel], thickness: f32) -> Result<Self> {
         let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
         // A disc covering a probe of surfel s (loosely) has its centre within

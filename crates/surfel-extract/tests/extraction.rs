@@ -189,6 +189,12 @@ fn iterations_and_ldc_stay_on_the_surface() {
             "{iterations} iterations: {} surfels, {r:?}",
             out.surfels.len()
         );
+        // Residuals of no surfels would pass.
+        assert!(
+            out.surfels.len() > 100,
+            "{iterations} iterations: {} surfels",
+            out.surfels.len()
+        );
         assert!(r.p95 < 0.05, "{iterations} iterations: {r:?}");
     }
     let ldc = extract_ldc(&field, &ExtractParams::new(H), 0.25 * H).unwrap();
