@@ -80,6 +80,12 @@ pub struct Args {
     #[arg(long)]
     pub gpu_extract: bool,
 
+    /// Extract only the surfels facing the camera (thesis 4.2.1), about half
+    /// of them; the window re-extracts as the camera turns, and surfel exports
+    /// then hold only those.
+    #[arg(long)]
+    pub cull: bool,
+
     /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,

@@ -123,6 +123,17 @@ impl GpuExtract {
         }
     }
 
+    /// Culls back-facing surfels for an eye at `camera` (`None`: keeps every
+    /// surfel) from the next extraction on.
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] for a non-finite position.
+    pub fn set_camera(&mut self, camera: Option<glam::Vec3>) -> Result<(), AppError> {
+        self.extractor.set_camera(&self.queue, camera)?;
+        self.params.camera = camera;
+        Ok(())
+    }
+
     /// Makes `renderer` draw the last extraction's surfels from the GPU.
     ///
     /// # Errors

@@ -99,6 +99,9 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     );
     let camera = pipeline.camera();
     let shading = pipeline.shading();
+    if args.cull {
+        pipeline.set_viewpoint(Some(camera.eye))?;
+    }
     for frame in 0..frames {
         let result = (|| -> Result<(), AppError> {
             pipeline.advance(frame_dt)?;

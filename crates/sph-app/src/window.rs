@@ -91,6 +91,8 @@ struct Settings {
     gpu_sim: Toggle,
     /// Surfel extraction on the GPU (`--gpu-extract`, the panel).
     gpu_extract: Toggle,
+    /// Only front-facing surfels (`--cull`, the panel).
+    cull: bool,
 }
 
 /// A GPU path the panel switches on and off.
@@ -184,6 +186,7 @@ impl App {
                 step_once: false,
                 gpu_sim: Toggle::new(args.gpu_sim),
                 gpu_extract: Toggle::new(args.gpu_extract),
+                cull: args.cull,
             },
             push,
             gfx: None,
@@ -371,8 +374,10 @@ impl App {
     }
 
     fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<(), AppError> {
-        self.simulate()?;
         let camera = self.orbit.camera();
+        self.pipeline
+            .set_viewpoint(self.settings.cull.then_some(camera.eye))?;
+        self.simulate()?;
         let Some(gfx) = self.gfx.as_mut() else {
             return Ok(());
         };
@@ -446,6 +451,8 @@ impl App {
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
                 settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu); ctrl+drag push acts on the CPU path only");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
+                ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
+                    .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");
                 egui::ComboBox::from_label("view (F)")
                     .selected_text(VIEW_NAMES[settings.view])
                     .show_ui(ui, |ui| {

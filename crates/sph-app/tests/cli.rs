@@ -390,3 +390,33 @@ fn gpu_sim_refuses_a_scene_with_emitters() {
     let err = stderr(&o);
     assert!(err.contains("emitters are not on the GPU path"), "{err}");
 }
+
+/// `--cull` keeps only the surfels facing the scene's camera: fewer surfels
+/// in `frames.csv` than the same frame without it.
+#[test]
+fn cull_extracts_only_front_facing_surfels() {
+    let surfels = |cull: bool| {
+        let out = scratch(if cull { "cull" } else { "no-cull" });
+        let mut args = vec![
+            "--headless",
+            "--frames",
+            "2",
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        if cull {
+            args.push("--cull");
+        }
+        let o = app(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+        let last = csv.lines().last().unwrap().to_owned();
+        last.split(',').nth(3).unwrap().parse::<usize>().unwrap()
+    };
+    let (all, front) = (surfels(false), surfels(true));
+    assert!(0 < front && front < 3 * all / 4, "{front} of {all} surfels");
+}

@@ -363,6 +363,26 @@ impl GpuExtractor {
         self.upload(queue, field.positions(), field.volumes())
     }
 
+    /// Culls back-facing surfels for an eye at `camera` from the next
+    /// extraction on (`None`: keeps every surfel), as
+    /// [`ExtractParams::camera`] does.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a non-finite eye position.
+    pub fn set_camera(
+        &mut self,
+        queue: &wgpu::Queue,
+        camera: Option<Vec3>,
+    ) -> Result<(), GpuError> {
+        if camera.is_some_and(|c| !c.is_finite()) {
+            return Err(GpuError::Invalid("the camera position must be finite"));
+        }
+        self.uniform.has_camera = u32::from(camera.is_some());
+        self.uniform.camera = camera.unwrap_or_default().extend(0.0).to_array();
+        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
+        Ok(())
+    }
+
     fn set_len(&mut self, queue: &wgpu::Queue, n: usize) {
         self.uniform.n = n as u32;
         queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
