@@ -507,6 +507,18 @@ fn inconsistent_parameters_are_errors() {
     assert!(fluid.particle_mass(0.004).is_ok());
     let e = fluid.particle_mass(0.0039).unwrap_err().to_string();
     assert!(e.contains("at most 10"), "{e}");
+    // So viscous that its stable step is below the blow-up threshold: every
+    // run would stop at step 1 with a hint that cannot help.
+    let syrup = FluidParams {
+        viscosity: 1e4,
+        ..FluidParams::water(1e-3)
+    };
+    assert!(syrup.viscous_dt() < TimeStepping::default().min_dt);
+    let boundary = Boundary::new(Aabb::new(Vec3::ZERO, Vec3::ONE));
+    let e = World::new(Particles::new(), syrup, boundary, TimeStepping::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("viscosity") && e.contains("min_dt"), "{e}");
 }
 
 /// A very viscous fluid, whose explicit viscosity needs shorter steps than

@@ -284,6 +284,11 @@ impl GpuSolver {
         stepping
             .validate()
             .map_err(|_| GpuError::Invalid("time stepping rejected by sph-core"))?;
+        if self.viscous_dt < stepping.min_dt {
+            return Err(GpuError::Invalid(
+                "the viscous step limit 0.125 h²ρ0/μ is below min_dt: lower μ or raise h",
+            ));
+        }
         self.params.cfl = stepping.cfl;
         self.params.force_factor = stepping.force_factor;
         // The viscous limit is constant: folded into the largest step, as
@@ -381,7 +386,7 @@ impl GpuSolver {
     }
 
     /// Advances `frame_dt` seconds in adaptive steps whose length the GPU
-    /// chooses as `World::advance` does (acoustic CFL and force condition, the
+    /// chooses as `World::advance` does (viscous limit, acoustic CFL and force condition, the
     /// last steps landing on the frame time). Steps are recorded `batch` at a
     /// time; steps past the frame's end dispatch no work (their workgroup
     /// counts, chosen on the GPU, are zero), so a batch somewhat larger than

@@ -16,7 +16,7 @@ use std::collections::HashMap;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use sph_core::{NeighbourGrid, Result};
+use sph_core::{Error, NeighbourGrid, Result};
 
 use crate::field::ColourField;
 use crate::thesis::{front_facing, newton_step};
@@ -63,9 +63,24 @@ pub struct SurfelIndex {
 
 impl SurfelIndex {
     /// An index over all of `surfels` for discs `thickness` thick. Errors for
-    /// non-finite surfel positions, positions too far out for the grid's
-    /// cells, and an infinite radius or thickness.
+    /// a radius or thickness that is not finite and ≥ 0, non-finite surfel
+    /// positions, and positions too far out for the grid's cells.
     pub fn build(surfels: &[Surfel], thickness: f32) -> Result<Self> {
+        let bad = |v: f32| !(v.is_finite() && v >= 0.0);
+        if let Some(s) = surfels.iter().find(|s| bad(s.radius)) {
+            return Err(Error::InvalidParameter {
+                name: "surfel radius",
+                value: s.radius.to_string(),
+                reason: "must be finite and >= 0",
+            });
+        }
+        if bad(thickness) {
+            return Err(Error::InvalidParameter {
+                name: "thickness",
+                value: thickness.to_string(),
+                reason: "must be finite and >= 0",
+            });
+        }
         let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
         // A disc covering a probe of surfel s (loosely) has its centre within
         // √(r_max² + (LOOSE thickness)²) of the probe, which lies PROBE r_s

@@ -7,7 +7,9 @@ use sph_core::Scene;
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
 use surfel_extract::ldc::extract_ldc;
 use surfel_extract::samples::jittered_lattice;
-use surfel_extract::{ColourField, ExtractParams, Extractor, Mode, extract_field, extract_points};
+use surfel_extract::{
+    ColourField, ExtractParams, Extractor, Mode, Surfel, extract_field, extract_points,
+};
 
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
@@ -298,6 +300,17 @@ fn bad_input_is_an_error() {
         )
         .is_err()
     );
+    // Coverage of surfels with a NaN radius, or for a NaN thickness: an
+    // error, not an empty index that covers nothing.
+    let disc = |radius| Surfel {
+        position: Vec3::ZERO,
+        normal: Vec3::Z,
+        radius,
+    };
+    let q = [Vec3::ZERO];
+    assert_eq!(covered_fraction(&[disc(0.1)], &q, 0.01).unwrap(), 1.0);
+    assert!(covered_fraction(&[disc(f32::NAN)], &q, 0.01).is_err());
+    assert!(covered_fraction(&[disc(0.1)], &q, f32::NAN).is_err());
 }
 
 #[test]
