@@ -232,6 +232,35 @@ fn hydrostatic_tank() {
     );
     // 2.5 % of the free-fall speed √(g·depth) ≈ 2 m/s.
     assert!(rms_speed < 0.05, "rms speed {rms_speed} m/s");
+    // Where the floor meets a side wall the two walls' density terms overlap
+    // (see `sph_core::boundary`): the edge must not empty out or overfill.
+    // Particles and mean density in a 2h × h channel along the edge, and in
+    // one on the floor away from the walls (2h wide, so that where the
+    // settled layers fall matters less).
+    let channel = |x0: f32| {
+        let inside: Vec<usize> = (0..p.len())
+            .filter(|&i| {
+                let x = p.positions()[i];
+                (x0..x0 + 2.0 * h).contains(&x.x) && x.y < h && x.z > h && x.z < w - h
+            })
+            .collect();
+        let rho = inside.iter().map(|&i| p.densities()[i] as f64).sum::<f64>();
+        (inside.len(), rho / inside.len().max(1) as f64)
+    };
+    let ((edge, edge_rho), (floor, floor_rho)) = (channel(0.0), channel(0.5 * w - h));
+    println!(
+        "floor–wall edge: {edge} particles, mean ρ {edge_rho:.1}; floor alone: {floor}, {floor_rho:.1}"
+    );
+    // (Layering along the walls makes the counts differ by some 10 %; a
+    // void at the edge would show as far fewer.)
+    assert!(
+        edge as f64 > 0.75 * floor as f64,
+        "{edge} particles at the edge, {floor} on the floor"
+    );
+    assert!(
+        (edge_rho - floor_rho).abs() < 0.01 * rho0,
+        "mean density {edge_rho} at the edge, {floor_rho} on the floor"
+    );
 }
 
 #[test]
