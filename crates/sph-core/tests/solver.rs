@@ -388,6 +388,23 @@ fn frames_end_without_sliver_steps() {
     }
 }
 
+/// Asserts the world's next step fails in the density processor, with a
+/// message saying `why`.
+fn density_refuses(world: &mut World, why: &str) {
+    let e = world.step().unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Pipeline {
+                processor: "density",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains(why), "{e}");
+}
+
 /// A processor that adds particles after the grid was built, without
 /// `Context::invalidate_grid`, gets an error from the next gather, not a panic.
 #[test]
@@ -404,18 +421,7 @@ fn a_stale_grid_is_an_error() {
     }
     let mut world = Scene::dam_break(0.1, 0.04, 0.02).build_world().unwrap();
     assert!(world.program_mut().insert_after("grid", Sneak));
-    let e = world.step().unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::Pipeline {
-                processor: "density",
-                ..
-            }
-        ),
-        "{e}"
-    );
-    assert!(e.to_string().contains("invalidate_grid"), "{e}");
+    density_refuses(&mut world, "invalidate_grid");
 }
 
 /// Particles a simulation cannot run are errors naming the particle, before
@@ -460,18 +466,7 @@ fn bad_particles_and_a_grid_of_another_h_are_errors() {
     world
         .program_mut()
         .insert_before("density", sph_core::solver::BuildGrid::new(2.0 * h, 0));
-    let e = world.step().unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::Pipeline {
-                processor: "density",
-                ..
-            }
-        ),
-        "{e}"
-    );
-    assert!(e.to_string().contains("another h"), "{e}");
+    density_refuses(&mut world, "another h");
 }
 
 /// At the largest h and rest density the parameters accept, the density

@@ -281,24 +281,34 @@ fn hundred_steps(
     assert!(drho < 5e-3, "densities differ by {drho}");
 }
 
-#[test]
-fn adaptive_gpu_frames_match_world_advance() {
-    use sph_gpu::{GpuError, GpuSolver};
-    let Some(ctx) = GpuContext::headless_or_skip() else {
-        return;
-    };
-    let scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
-    let mut world = scene.build_world().unwrap();
-    let (device, queue) = (&ctx.device, &ctx.queue);
-    let mut gpu = GpuSolver::new(
-        device,
-        queue,
+/// The CPU world of `scene` and a GPU solver of the same particles,
+/// parameters and time stepping.
+fn world_and_gpu_solver(
+    ctx: &GpuContext,
+    scene: &sph_core::Scene,
+) -> (sph_core::World, sph_gpu::GpuSolver) {
+    let world = scene.build_world().unwrap();
+    let mut gpu = sph_gpu::GpuSolver::new(
+        &ctx.device,
+        &ctx.queue,
         &world.particles,
         world.params(),
         &scene.boundary(),
     )
     .unwrap();
     gpu.set_time_stepping(world.time_stepping()).unwrap();
+    (world, gpu)
+}
+
+#[test]
+fn adaptive_gpu_frames_match_world_advance() {
+    use sph_gpu::GpuError;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let (mut world, mut gpu) =
+        world_and_gpu_solver(&ctx, &sph_core::Scene::dam_break(0.2, 0.06, 0.02));
+    let (device, queue) = (&ctx.device, &ctx.queue);
     let h = world.params().h;
     let frame_dt = 1.0 / 60.0;
     // Batches of one step, of fewer steps than a frame takes, and of far more
@@ -344,23 +354,13 @@ fn adaptive_gpu_frames_match_world_advance() {
 /// substep count to the last bit of the f32/f64 time sums.)
 #[test]
 fn viscous_gpu_frame_keeps_to_the_cpu_step_limit() {
-    use sph_gpu::GpuSolver;
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
     scene.fluid.viscosity = 2900.0;
-    let mut world = scene.build_world().unwrap();
+    let (mut world, mut gpu) = world_and_gpu_solver(&ctx, &scene);
     let (device, queue) = (&ctx.device, &ctx.queue);
-    let mut gpu = GpuSolver::new(
-        device,
-        queue,
-        &world.particles,
-        world.params(),
-        &scene.boundary(),
-    )
-    .unwrap();
-    gpu.set_time_stepping(world.time_stepping()).unwrap();
     let frame_dt = 1.0 / 60.0;
     let cpu = world.advance(frame_dt).unwrap();
     let g = gpu.advance(device, queue, frame_dt, 64).unwrap();
