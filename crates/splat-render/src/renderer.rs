@@ -28,6 +28,7 @@ struct FrameUniform {
     ray: [f32; 4],
     params: [f32; 4],
     fluid: [f32; 4],
+    flags: [f32; 4],
 }
 
 /// Render targets of one size.
@@ -539,6 +540,7 @@ impl SplatRenderer {
                 shading.view.code(),
             ],
             fluid: shading.fluid_colour.extend(shading.reflectivity).to_array(),
+            flags: [f32::from(u8::from(shading.cull_back_faces)), 0.0, 0.0, 0.0],
         };
         ctx.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));

@@ -50,6 +50,12 @@ pub struct Shading {
     pub weight_scale: f32,
     /// Multiplies the Fresnel term of eq. 38–40 (1 = the thesis).
     pub reflectivity: f32,
+    /// Drops splats whose normal points away from the eye, as Botsch et al.
+    /// (2005) do: the back of a closed surface, or of a thin sheet within ε
+    /// behind its front, would otherwise blend into it with an opposite
+    /// normal, and holes in the front would show the back from inside. Turn
+    /// it off for surfels without a consistent outward orientation.
+    pub cull_back_faces: bool,
 }
 
 impl Default for Shading {
@@ -61,6 +67,7 @@ impl Default for Shading {
             fluid_colour: Vec3::new(0.55, 0.75, 0.85),
             weight_scale: 2.0,
             reflectivity: 1.0,
+            cull_back_faces: true,
         }
     }
 }

@@ -76,6 +76,39 @@ fn one_surfel_weight_matches_eq_37() {
     assert!(worst < 1e-3, "max |w − eq. 37| = {worst}");
 }
 
+/// A surfel facing away from the camera is culled by default, and drawn as
+/// one facing it when culling is off (its normal, negated in the
+/// accumulation, is what it was given).
+#[test]
+fn back_facing_surfels_are_culled_unless_asked_not_to() {
+    let Some(ctx) = gpu() else { return };
+    let away = Splat::new(Vec3::ZERO, Vec3::NEG_Z, 0.5);
+    let cam = camera();
+    let (_, culled) = render(ctx, &[away], &cam, &Shading::default());
+    assert_eq!(culled.covered(), 0, "a back-facing surfel was drawn");
+    let shading = Shading {
+        cull_back_faces: false,
+        ..Shading::default()
+    };
+    let (_, kept) = render(ctx, &[away], &cam, &shading);
+    let (_, front) = render(
+        ctx,
+        &[Splat::new(Vec3::ZERO, Vec3::Z, 0.5)],
+        &cam,
+        &Shading::default(),
+    );
+    assert!(kept.covered() > 1_700, "{} pixels", kept.covered());
+    assert_eq!(kept.covered(), front.covered());
+    for y in 0..H {
+        for x in 0..W {
+            if let Some(n) = kept.normalised(x, y) {
+                assert!((n - Vec3::NEG_Z).length() < 1e-5, "normal {n} at ({x},{y})");
+                assert_eq!(kept.weight(x, y), front.weight(x, y));
+            }
+        }
+    }
+}
+
 #[test]
 fn two_overlapping_surfels_average_their_normals() {
     let Some(ctx) = gpu() else { return };

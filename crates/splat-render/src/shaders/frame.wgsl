@@ -7,6 +7,7 @@ struct Frame {
     ray: vec4<f32>,         // 1/proj[0][0], 1/proj[1][1], near, far
     params: vec4<f32>,      // depth epsilon, refraction mu, weight scale, view code
     fluid: vec4<f32>,       // fluid colour (rgb), reflectivity (w)
+    flags: vec4<f32>,       // x: 1 culls back-facing splats
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;

@@ -46,10 +46,14 @@ fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) ->
         lo = min(lo, ndc);
         hi = max(hi, ndc);
     }
+    // Back-facing splats (their normal pointing away from the eye, at the
+    // view-space origin) are dropped when culling is on.
+    let back = frame.flags.x > 0.5 && dot(n, c) >= 0.0;
     let corner = vec2<f32>(f32(vi & 1u), f32((vi >> 1u) & 1u));
     var xy = mix(lo, hi, corner);
-    if clipped {
-        // Splats reaching in front of the near plane are dropped (zero-area quad).
+    if clipped || back {
+        // Splats reaching in front of the near plane, and culled ones, are
+        // dropped (zero-area quad).
         xy = vec2<f32>(-2.0, -2.0);
     }
     var out: VsOut;
