@@ -323,8 +323,8 @@ mod tests {
         let scene = Scene::dam_break(0.2, 0.06, 0.02);
         let mut p = Pipeline::new("dam".into(), scene, 2).unwrap();
         let start = p.world.particles.positions().to_vec();
-        p.set_gpu_sim(Some(&ctx)).unwrap();
-        p.set_gpu_extract(Some(&ctx)).unwrap();
+        p.set_gpu_sim(Some(ctx)).unwrap();
+        p.set_gpu_extract(Some(ctx)).unwrap();
         let gpu_positions = |p: &Pipeline| {
             let solver = p.gpu.as_ref().unwrap().solver();
             solver
@@ -375,12 +375,12 @@ mod tests {
         let scene = Scene::dam_break(0.2, 0.06, 0.02);
         for gpu in [false, true] {
             let mut p = Pipeline::new("dam".into(), scene.clone(), 2).unwrap();
-            p.set_gpu_extract(gpu.then_some(&ctx)).unwrap();
+            p.set_gpu_extract(gpu.then_some(ctx)).unwrap();
             p.extract_surfels().unwrap();
             let two = p.stats.surfels;
             assert!(!p.needs_extraction());
             p.extract.iterations = 1;
-            p.extract_params_changed(&ctx).unwrap();
+            p.extract_params_changed(ctx).unwrap();
             assert!(p.needs_extraction());
             p.extract_surfels().unwrap();
             let one = p.stats.surfels;
@@ -398,7 +398,7 @@ mod tests {
         let eye = scene.render.camera.into();
         for gpu in [false, true] {
             let mut p = Pipeline::new("dam".into(), scene.clone(), 2).unwrap();
-            p.set_gpu_extract(gpu.then_some(&ctx)).unwrap();
+            p.set_gpu_extract(gpu.then_some(ctx)).unwrap();
             p.extract_surfels().unwrap();
             let all = p.stats.surfels;
             p.set_viewpoint(Some(eye)).unwrap();

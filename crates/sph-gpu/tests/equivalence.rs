@@ -169,7 +169,7 @@ fn gpu_density_matches_the_cpu_processor() {
 #[test]
 fn hundred_gpu_steps_match_the_cpu_solver() {
     let Some(ctx) = gpu() else { return };
-    hundred_steps(&ctx, sph_core::Scene::dam_break(0.2, 0.06, 0.02), |_, _| {});
+    hundred_steps(ctx, sph_core::Scene::dam_break(0.2, 0.06, 0.02), |_, _| {});
 }
 
 /// The thesis's spiky pressure gradient, with two particles at the same
@@ -179,7 +179,7 @@ fn hundred_gpu_steps_match_the_cpu_solver() {
 fn hundred_gpu_steps_with_spiky_pressure_and_a_duplicate_match_the_cpu_solver() {
     let Some(ctx) = gpu() else { return };
     let scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
-    hundred_steps(&ctx, scene, |particles, params| {
+    hundred_steps(ctx, scene, |particles, params| {
         params.pressure_kernel = sph_core::PressureKernel::Spiky;
         let (x, m) = (particles.positions()[7], particles.masses()[7]);
         particles.push(x, Vec3::ZERO, m);
@@ -203,7 +203,7 @@ fn hundred_gpu_steps_with_obstacles_match_the_cpu_solver() {
             max: [0.26, 0.06, 0.06],
         },
     ];
-    hundred_steps(&ctx, scene, |_, _| {});
+    hundred_steps(ctx, scene, |_, _| {});
 }
 
 /// 100 steps of `scene` on both paths, its particles and parameters changed
@@ -296,7 +296,7 @@ fn adaptive_gpu_frames_match_world_advance() {
     use sph_gpu::GpuError;
     let Some(ctx) = gpu() else { return };
     let (mut world, mut gpu) =
-        world_and_gpu_solver(&ctx, &sph_core::Scene::dam_break(0.2, 0.06, 0.02));
+        world_and_gpu_solver(ctx, &sph_core::Scene::dam_break(0.2, 0.06, 0.02));
     let (device, queue) = (&ctx.device, &ctx.queue);
     let h = world.params().h;
     let frame_dt = 1.0 / 60.0;
@@ -346,7 +346,7 @@ fn viscous_gpu_frame_keeps_to_the_cpu_step_limit() {
     let Some(ctx) = gpu() else { return };
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
     scene.fluid.viscosity = 2900.0;
-    let (mut world, mut gpu) = world_and_gpu_solver(&ctx, &scene);
+    let (mut world, mut gpu) = world_and_gpu_solver(ctx, &scene);
     let (device, queue) = (&ctx.device, &ctx.queue);
     let frame_dt = 1.0 / 60.0;
     let cpu = world.advance(frame_dt).unwrap();

@@ -114,7 +114,7 @@ fn sphere_and_block_match_the_cpu_extractor() {
     let block = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
     for (name, points) in [("sphere", sphere), ("block", block)] {
         let field = ColourField::from_positions(&points, H).unwrap();
-        compare(&ctx, name, &field, 0.25 * H, 0.1 * H, 0.99);
+        compare(ctx, name, &field, 0.25 * H, 0.1 * H, 0.99);
     }
 }
 
@@ -127,7 +127,7 @@ fn dam_break_frame_matches_the_cpu_extractor() {
     // The thesis mode leaves holes on a moving frame (closing them is the
     // covered mode's job, tested on the CPU): 98.3 % here on both paths, so
     // the floor is lower than on the sphere and block.
-    compare(&ctx, "dam break", &field, 0.01, 0.004, 0.98);
+    compare(ctx, "dam break", &field, 0.01, 0.004, 0.98);
 }
 
 #[test]
@@ -136,7 +136,7 @@ fn lone_particles_get_their_analytic_iso_sphere_and_culling_holds() {
     let points = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0)];
     let field = ColourField::from_positions(&points, H).unwrap();
     let params = ExtractParams::new(H).thesis();
-    let (surfels, stats) = gpu_extract(&ctx, &field, &params, 64);
+    let (surfels, stats) = gpu_extract(ctx, &field, &params, 64);
     assert_eq!((stats.lone, surfels.len()), (2, 28));
     let radius = field.lone_iso_radius(field.volumes()[0], 0.5).unwrap();
     for s in &surfels {
@@ -150,7 +150,7 @@ fn lone_particles_get_their_analytic_iso_sphere_and_culling_holds() {
         camera: Some(eye),
         ..params
     };
-    let (front, _) = gpu_extract(&ctx, &field, &culled, 64);
+    let (front, _) = gpu_extract(ctx, &field, &culled, 64);
     assert!(!front.is_empty() && front.len() < surfels.len());
     assert!(front.iter().all(|s| (eye - s.position).dot(s.normal) > 0.0));
 }
@@ -161,7 +161,7 @@ fn overflow_is_reported_and_bad_input_rejected() {
     let points = lattice(4, |_| true);
     let field = ColourField::from_positions(&points, H).unwrap();
     let params = ExtractParams::new(H).thesis();
-    let (surfels, stats) = gpu_extract(&ctx, &field, &params, 100);
+    let (surfels, stats) = gpu_extract(ctx, &field, &params, 100);
     println!("capacity 100: {stats:?}");
     assert_eq!(surfels.len(), 100);
     assert!(stats.dropped > 0);
@@ -269,12 +269,12 @@ fn gpu_surfels_render_indirectly_as_their_upload_does() {
         depth_epsilon: 0.5 * H,
         ..Default::default()
     };
-    let mut renderer = SplatRenderer::new(&ctx, 96, 72, &Environment::procedural()).unwrap();
+    let mut renderer = SplatRenderer::new(ctx, 96, 72, &Environment::procedural()).unwrap();
     renderer
-        .use_gpu_splats(&ctx, gpu.surfels_buffer(), gpu.draw_args_buffer())
+        .use_gpu_splats(ctx, gpu.surfels_buffer(), gpu.draw_args_buffer())
         .unwrap();
-    renderer.render(&ctx, &camera, &shading).unwrap();
-    let indirect = renderer.read_accumulation(&ctx).unwrap();
+    renderer.render(ctx, &camera, &shading).unwrap();
+    let indirect = renderer.read_accumulation(ctx).unwrap();
 
     // The same surfels, read back in the GPU's order and uploaded.
     let (surfels, _) = gpu.read_surfels(&ctx.device, &ctx.queue).unwrap();
@@ -282,9 +282,9 @@ fn gpu_surfels_render_indirectly_as_their_upload_does() {
         .iter()
         .map(|s| Splat::new(s.position, s.normal, s.radius))
         .collect();
-    renderer.upload(&ctx, &splats).unwrap();
-    renderer.render(&ctx, &camera, &shading).unwrap();
-    let uploaded = renderer.read_accumulation(&ctx).unwrap();
+    renderer.upload(ctx, &splats).unwrap();
+    renderer.render(ctx, &camera, &shading).unwrap();
+    let uploaded = renderer.read_accumulation(ctx).unwrap();
     let covered = uploaded.texels.iter().filter(|t| t[3] > 0.0).count();
     println!("{} surfels cover {covered} of 96×72 pixels", surfels.len());
     assert!(covered > 96 * 72 / 10, "too few pixels covered: {covered}");
@@ -306,7 +306,7 @@ fn gpu_surfels_render_indirectly_as_their_upload_does() {
     // A draw-args buffer that cannot be one is rejected.
     assert!(
         renderer
-            .use_gpu_splats(&ctx, gpu.surfels_buffer(), gpu.surfels_buffer())
+            .use_gpu_splats(ctx, gpu.surfels_buffer(), gpu.surfels_buffer())
             .is_err()
     );
 }
