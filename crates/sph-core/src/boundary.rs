@@ -33,6 +33,8 @@
 
 use glam::Vec3;
 
+use crate::error::{Error, Result};
+
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Aabb {
@@ -153,13 +155,60 @@ impl Boundary {
         }
     }
 
+    /// Checks the domain (finite corners, min below max on every axis), the
+    /// obstacles (finite; boxes with min below max, spheres of radius > 0)
+    /// and `restitution` (in [0, 1]: more would add energy at every bounce).
+    pub fn validate(&self) -> Result<()> {
+        let invalid = |name, value: String, reason| {
+            Err(Error::InvalidParameter {
+                name,
+                value,
+                reason,
+            })
+        };
+        let a = self.domain;
+        if !(a.min.is_finite() && a.max.is_finite() && a.min.cmplt(a.max).all()) {
+            return invalid(
+                "boundary.domain",
+                format!("{a:?}"),
+                "corners must be finite, min below max on every axis",
+            );
+        }
+        for o in &self.obstacles {
+            let ok = match *o {
+                Obstacle::Box(b) => {
+                    b.min.is_finite() && b.max.is_finite() && b.min.cmplt(b.max).all()
+                }
+                Obstacle::Sphere { centre, radius } => {
+                    centre.is_finite() && radius.is_finite() && radius > 0.0
+                }
+            };
+            if !ok {
+                return invalid(
+                    "boundary.obstacles",
+                    format!("{o:?}"),
+                    "must be finite, a box with min below max, a sphere with radius > 0",
+                );
+            }
+        }
+        if !(0.0..=1.0).contains(&self.restitution) {
+            return invalid(
+                "boundary.restitution",
+                self.restitution.to_string(),
+                "must be in [0, 1]",
+            );
+        }
+        Ok(())
+    }
+
     /// Whether `x` is a valid fluid position: inside the domain, outside obstacles.
     pub fn admits(&self, x: Vec3) -> bool {
         self.domain.contains(x) && !self.obstacles.iter().any(|o| o.contains(x))
     }
 
-    /// Moves `x` to the nearest admitted position (when it is not one) and removes
-    /// the velocity component into the boundary there.
+    /// Moves `x` to the nearest admitted position (when it is not one) and
+    /// reflects the velocity component into the boundary there by
+    /// `restitution` (0 removes it).
     pub fn resolve(&self, x: &mut Vec3, v: &mut Vec3) {
         // A few rounds settle corners where an obstacle meets a wall.
         for _ in 0..3 {

@@ -3,6 +3,7 @@
 /// Everything that can go wrong in `sph-core`, each with a message that names the
 /// offending value and the reason.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[non_exhaustive]
 pub enum Error {
     /// A parameter is out of its valid range or not finite.
     #[error("invalid parameter `{name}` = {value}: {reason}")]

@@ -113,7 +113,8 @@ impl NeighbourGrid {
     /// parallel.
     ///
     /// Errors if `h` is not finite and positive, a position is NaN or infinite, a
-    /// position is beyond 2³⁰·h from the origin, or there are 2³² or more particles.
+    /// position is beyond 2³⁰·h from the origin, or there are more than
+    /// [`MAX_PARTICLES`] (2³² − 2) particles.
     pub fn build(positions: &[Vec3], h: f32) -> Result<Self> {
         Self::build_reusing(positions, h, layout::Layout::default(), Vec::new())
     }
@@ -233,7 +234,8 @@ impl NeighbourGrid {
     /// Renumbers the grid's particles by slot, for use after the particle storage
     /// was reordered with `particles.permute(grid.order())`: particle `k` of the
     /// reordered storage is slot `k`, and queries and [`NeighbourGrid::par_map`]
-    /// then walk memory in order.
+    /// then walk memory in order. Only after that permutation: otherwise every
+    /// index the grid reports names the wrong particle.
     pub fn renumber_by_slot(&mut self) {
         self.layout
             .order

@@ -41,7 +41,8 @@ pub struct Poly6 {
 }
 
 impl Poly6 {
-    /// The kernel for smoothing length `h` (finite, > 0).
+    /// The kernel for smoothing length `h` (m), within
+    /// [`crate::error::KERNEL_H_RANGE`]; other values are an error.
     pub fn new(h: f32) -> Result<Self> {
         check_kernel_h(h)?;
         let h9 = (h as f64).powi(9);
@@ -124,7 +125,8 @@ impl Spiky {
         self.grad
     }
 
-    /// The kernel for smoothing length `h` (finite, > 0).
+    /// The kernel for smoothing length `h` (m), within
+    /// [`crate::error::KERNEL_H_RANGE`]; other values are an error.
     pub fn new(h: f32) -> Result<Self> {
         check_kernel_h(h)?;
         let h6 = (h as f64).powi(6);
@@ -191,7 +193,8 @@ impl Viscosity {
         self.lap
     }
 
-    /// The kernel for smoothing length `h` (finite, > 0).
+    /// The kernel for smoothing length `h` (m), within
+    /// [`crate::error::KERNEL_H_RANGE`]; other values are an error.
     pub fn new(h: f32) -> Result<Self> {
         check_kernel_h(h)?;
         let h = h as f64;
@@ -264,7 +267,8 @@ pub struct Kernels {
 }
 
 impl Kernels {
-    /// All three kernels for smoothing length `h` (finite, > 0).
+    /// All three kernels for smoothing length `h` (m), within
+    /// [`crate::error::KERNEL_H_RANGE`]; other values are an error.
     pub fn new(h: f32) -> Result<Self> {
         Ok(Self {
             poly6: Poly6::new(h)?,

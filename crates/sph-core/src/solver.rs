@@ -309,7 +309,10 @@ fn grid<'a>(
 pub struct DensityPressure(FluidModel);
 
 impl DensityPressure {
-    /// For these parameters (validated by [`World::new`]) and walls.
+    /// For these parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
     pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         FluidModel::new(params, boundary).map(Self)
     }
@@ -326,6 +329,8 @@ struct FluidModel {
 
 impl FluidModel {
     fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
+        params.validate()?;
+        boundary.validate()?;
         Ok(Self {
             params,
             kernels: Kernels::new(params.h)?,
@@ -382,7 +387,10 @@ impl Processor for DensityPressure {
 pub struct Forces(FluidModel);
 
 impl Forces {
-    /// For these parameters (validated by [`World::new`]) and walls.
+    /// For these parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
     pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         FluidModel::new(params, boundary).map(Self)
     }

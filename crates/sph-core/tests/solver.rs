@@ -531,6 +531,31 @@ fn inconsistent_parameters_are_errors() {
     assert!(fluid.particle_mass(0.004).is_ok());
     let e = fluid.particle_mass(0.0039).unwrap_err().to_string();
     assert!(e.contains("at most 10"), "{e}");
+    // A boundary a program would run wrongly with, built by hand (scenes
+    // check theirs): an error from `World::new` and from the processors.
+    let water = FluidParams::water(0.04);
+    let unit = Aabb::new(Vec3::ZERO, Vec3::ONE);
+    let mut bad = Vec::new();
+    let mut b = Boundary::new(unit);
+    b.restitution = 1.5;
+    bad.push(b);
+    let mut b = Boundary::new(unit);
+    b.obstacles.push(sph_core::Obstacle::Sphere {
+        centre: Vec3::splat(0.5),
+        radius: -0.1,
+    });
+    bad.push(b);
+    bad.push(Boundary::new(Aabb {
+        min: Vec3::ONE,
+        max: Vec3::ZERO,
+    }));
+    for b in bad {
+        let e = World::new(Particles::new(), water, b.clone(), TimeStepping::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("boundary"), "{e}");
+        assert!(sph_core::solver::Forces::new(water, b).is_err());
+    }
     // So viscous that its stable step is below the blow-up threshold: every
     // run would stop at step 1 with a hint that cannot help.
     let syrup = FluidParams {

@@ -54,6 +54,9 @@ impl GpuDensity {
         params
             .validate()
             .map_err(|_| GpuError::Invalid("fluid parameters rejected by sph-core"))?;
+        boundary
+            .validate()
+            .map_err(|_| GpuError::Invalid("boundary rejected by sph-core"))?;
         if params.h != grid.h() {
             return Err(GpuError::Invalid(
                 "the density's h must be the grid's cell size",

@@ -8,6 +8,7 @@ use crate::passes::{Groups, bind_buffers, check_fits, read};
 
 /// What can go wrong on the GPU path.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum GpuError {
     /// More positions than the grid was created for.
     #[error("{given} positions exceed the grid's capacity of {capacity}")]

@@ -82,8 +82,11 @@ pub struct GpuState {
 
 /// The SPH step on the GPU with the same equations and parameters as
 /// `sph_core::solver::default_program`: domain walls and obstacles (boxes,
-/// spheres) included; emitters and sinks stay on the CPU path. Particle order
-/// never changes, so index i is the same particle on both paths.
+/// spheres) included; emitters and sinks stay on the CPU path. The GPU
+/// solver never reorders its particles: index i of its state is particle i
+/// of the `Particles` it was built from. The CPU `World` sorts its
+/// particles by cell, so match the two by `Particles::ids` (the original
+/// index, for particles built in order).
 pub struct GpuSolver {
     params: Params,
     /// [`FluidParams::viscous_dt`]: the adaptive step's `max_dt` is at most this.

@@ -4,6 +4,7 @@ use thiserror::Error;
 
 /// Everything that can go wrong while setting up or driving the renderer.
 #[derive(Debug, Error)]
+#[non_exhaustive]
 pub enum RenderError {
     /// No GPU adapter at all (or none compatible with the window surface).
     #[error(

@@ -50,12 +50,18 @@ impl Accumulation {
     }
 
     /// Σ w at pixel `(x, y)`.
+    ///
+    /// # Panics
+    /// If `(x, y)` lies outside the image.
     pub fn weight(&self, x: u32, y: u32) -> f32 {
         self.texels[(y * self.width + x) as usize][3]
     }
 
     /// The normalised attribute A = Σ wᵢ nᵢ / Σ wᵢ at `(x, y)` (not renormalised
     /// to unit length), or `None` where Σ w = 0.
+    ///
+    /// # Panics
+    /// If `(x, y)` lies outside the image.
     pub fn normalised(&self, x: u32, y: u32) -> Option<Vec3> {
         let [a, b, c, w] = self.texels[(y * self.width + x) as usize];
         (w > 0.0).then(|| Vec3::new(a, b, c) / w)

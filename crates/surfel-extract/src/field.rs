@@ -94,8 +94,11 @@ impl ColourField {
         Self::empty().refilled(positions, h, Volumes::Shepard)
     }
 
-    /// The field of simulated particles, V = m/ρ with the solver's densities, or,
-    /// where a density is not positive (not computed yet), ρ = Σ m W recomputed.
+    /// The field of simulated particles, V = m/ρ with the solver's densities.
+    /// If any density is not finite and positive (not computed yet, or a
+    /// particle added since the last step), every density is recomputed as
+    /// ρ = Σ m W, without the solver's wall terms, so the whole field changes
+    /// slightly, not that particle's alone.
     pub fn from_particles(particles: &Particles, h: f32) -> Result<Self> {
         let mut field = Self::empty();
         field.refill_from_particles(particles, h)?;
@@ -274,6 +277,9 @@ impl ColourField {
 
     /// c, ∇c, ∇²c at particle `i` and the covariance of its neighbourhood about it
     /// (thesis eq. 35), from one scan (one counted evaluation).
+    ///
+    /// # Panics
+    /// If `i` is not below [`ColourField::len`].
     pub fn sample_particle(&self, i: usize) -> ParticleSample {
         self.sample_neighbourhood(self.grid.neighbourhood(i))
     }

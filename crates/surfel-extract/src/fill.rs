@@ -96,6 +96,9 @@ impl SurfelIndex {
     }
 
     /// Whether some surfel of `surfels` (the indexed ones) covers `q`.
+    ///
+    /// # Panics
+    /// If `surfels` is shorter than the slice the index was built over.
     pub fn covered(&self, surfels: &[Surfel], q: Vec3) -> bool {
         let Some(grid) = &self.grid else {
             return false;

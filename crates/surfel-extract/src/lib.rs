@@ -108,18 +108,21 @@ pub struct ExtractParams {
     pub iso: f32,
     /// Refinement iterations, 1–3; surfels split in every iteration but the last.
     pub iterations: u32,
-    /// A particle whose Newton-Raphson step is longer than this is interior.
+    /// A particle whose Newton-Raphson step is longer than this (× h) is
+    /// interior.
     pub interior_step: f32,
-    /// A surfel whose Newton-Raphson step is longer than this is discarded.
+    /// A surfel whose Newton-Raphson step is longer than this (× h) is
+    /// discarded.
     pub discard_step: f32,
-    /// Initial surfels split where |∇²c|·h² exceeds this (figure 6).
+    /// Initial surfels split where |∇²c|·h² (dimensionless) exceeds this
+    /// (figure 6).
     pub split_laplacian: f32,
     /// A particle with P = det C/(tr C/3)³ below this (eq. 36) has surface on
     /// several sides and is surrounded by surfels.
     pub covariance_threshold: f32,
     /// Six or eight surfels around such particles.
     pub all_around: AllAround,
-    /// Radius of an initial surfel.
+    /// Radius of an initial surfel (× h; `Surfel::radius` is in metres).
     pub radius: f32,
     /// Eye position (m) for front-facing culling; `None` keeps every surfel.
     pub camera: Option<Vec3>,
