@@ -541,8 +541,12 @@ pub struct Boundaries {
 
 impl Boundaries {
     /// Enforces `boundary`.
-    pub fn new(boundary: Boundary) -> Self {
-        Self { boundary }
+    ///
+    /// # Errors
+    /// A boundary that does not validate ([`Boundary::validate`]).
+    pub fn new(boundary: Boundary) -> Result<Self> {
+        boundary.validate()?;
+        Ok(Self { boundary })
     }
 }
 
@@ -701,7 +705,7 @@ pub fn default_program(params: FluidParams, boundary: Boundary) -> Result<Progra
         .push(DensityPressure::new(params, boundary.clone())?)
         .push(Forces::new(params, boundary.clone())?)
         .push(Integrate)
-        .push(Boundaries::new(boundary));
+        .push(Boundaries::new(boundary)?);
     Ok(program)
 }
 
@@ -733,7 +737,8 @@ impl World {
     /// A world running the [`default_program`].
     ///
     /// # Errors
-    /// Invalid parameters or particles ([`Particles::validate`]).
+    /// Invalid parameters, boundary ([`Boundary::validate`]) or particles
+    /// ([`Particles::validate`]).
     pub fn new(
         particles: Particles,
         params: FluidParams,

@@ -554,7 +554,8 @@ fn inconsistent_parameters_are_errors() {
             .unwrap_err()
             .to_string();
         assert!(e.contains("boundary"), "{e}");
-        assert!(sph_core::solver::Forces::new(water, b).is_err());
+        assert!(sph_core::solver::Forces::new(water, b.clone()).is_err());
+        assert!(sph_core::solver::Boundaries::new(b).is_err());
     }
     // So viscous that its stable step is below the blow-up threshold: every
     // run would stop at step 1 with a hint that cannot help.

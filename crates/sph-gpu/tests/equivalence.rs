@@ -234,7 +234,7 @@ fn hundred_steps(
         Box::new(DensityPressure::new(params, boundary.clone()).unwrap()),
         Box::new(Forces::new(params, boundary.clone()).unwrap()),
         Box::new(Integrate),
-        Box::new(Boundaries::new(boundary.clone())),
+        Box::new(Boundaries::new(boundary.clone()).unwrap()),
     ];
     let mut gpu = GpuSolver::new(&ctx.device, &ctx.queue, &cpu, &params, &boundary).unwrap();
     for _ in 0..100 {
