@@ -660,21 +660,50 @@ pub fn nozzle_corners(centre: Vec3, velocity: Vec3, n: u32, spacing: f32) -> [Ve
 }
 
 /// Removes the particles inside a box.
+///
+/// Once the sink is in a [`Program`], read its count through
+/// [`Sink::counter`], taken before:
+///
+/// ```
+/// use std::sync::atomic::Ordering;
+/// use sph_core::{Aabb, Scene, glam::Vec3, solver::Sink};
+///
+/// let mut world = Scene::dam_break(0.1, 0.04, 0.02).build_world()?;
+/// let start = world.particles.len() as u64;
+/// // Over the foot of the column.
+/// let sink = Sink::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.05)));
+/// let removed = sink.counter();
+/// world.program_mut().push(sink);
+/// world.advance(0.01)?;
+/// let removed = removed.load(Ordering::Relaxed);
+/// assert!(removed > 0);
+/// assert_eq!(world.particles.len() as u64 + removed, start);
+/// # Ok::<(), sph_core::Error>(())
+/// ```
 #[derive(Debug, Clone)]
 pub struct Sink {
     region: crate::boundary::Aabb,
-    removed: u64,
+    removed: std::sync::Arc<std::sync::atomic::AtomicU64>,
 }
 
 impl Sink {
     /// A sink over `region`.
     pub fn new(region: crate::boundary::Aabb) -> Self {
-        Self { region, removed: 0 }
+        Self {
+            region,
+            removed: Default::default(),
+        }
     }
 
     /// Particles removed so far.
     pub fn removed(&self) -> u64 {
-        self.removed
+        self.removed.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// A handle on the count of removed particles that stays readable after
+    /// the sink moved into a program.
+    pub fn counter(&self) -> std::sync::Arc<std::sync::atomic::AtomicU64> {
+        self.removed.clone()
     }
 }
 
@@ -690,7 +719,8 @@ impl Processor for Sink {
             .collect();
         let removed = particles.retain(&keep)?;
         if removed > 0 {
-            self.removed += removed as u64;
+            self.removed
+                .fetch_add(removed as u64, std::sync::atomic::Ordering::Relaxed);
             ctx.invalidate_grid();
         }
         Ok(())

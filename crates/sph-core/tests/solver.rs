@@ -599,3 +599,37 @@ fn very_viscous_fluid_keeps_to_the_viscous_step_limit() {
     };
     assert_eq!(water.viscous_dt(), f32::INFINITY);
 }
+
+/// A sink at the far end of the tank removes the fluid that reaches it: after
+/// every frame nothing is inside it, and the particles left plus those
+/// removed are the ones the run started with, each id once, with their mass.
+#[test]
+fn sink_removes_what_reaches_it() {
+    use std::sync::atomic::Ordering;
+    let scene = Scene::dam_break(0.2, 0.06, 0.02);
+    let mut world = scene.build_world().unwrap();
+    let (start, mass) = (world.particles.len() as u64, world.particles.total_mass());
+    let m = world.particles.masses()[0] as f64;
+    let region = Aabb::new(Vec3::new(0.6, 0.0, 0.0), Vec3::new(0.8, 0.1, 0.06));
+    let sink = sph_core::solver::Sink::new(region);
+    let removed = sink.counter();
+    world.program_mut().push(sink);
+    for _ in 0..30 {
+        world.advance(1.0 / 30.0).unwrap();
+        let p = &world.particles;
+        assert!(p.positions().iter().all(|&x| !region.contains(x)));
+        let gone = removed.load(Ordering::Relaxed);
+        assert_eq!(p.len() as u64 + gone, start);
+        assert!((p.total_mass() + gone as f64 * m - mass).abs() < 1e-9 * mass);
+        let mut ids = p.ids().to_vec();
+        ids.sort_unstable();
+        ids.dedup();
+        assert_eq!(ids.len(), p.len(), "an id twice");
+    }
+    let gone = removed.load(Ordering::Relaxed);
+    println!("the sink removed {gone} of {start} particles in 1 s");
+    assert!(
+        gone > start / 10,
+        "the front never reached the sink: {gone}"
+    );
+}
