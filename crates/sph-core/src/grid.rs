@@ -219,9 +219,11 @@ impl NeighbourGrid {
     /// `values` (one per particle, by input index) in slot order, as
     /// [`Neighbourhood::poly6_sums`] takes its weights.
     ///
-    /// Panics if `values.len() != self.len()`.
     /// After [`NeighbourGrid::renumber_by_slot`] (a solver's particles stored in
     /// grid order) they already are, and are borrowed, not copied.
+    ///
+    /// # Panics
+    /// If `values.len() != self.len()`.
     pub fn to_slot_order<'v>(&self, values: &'v [f32]) -> Cow<'v, [f32]> {
         assert_eq!(values.len(), self.len(), "one value per particle");
         if self.by_slot {
@@ -254,7 +256,8 @@ impl NeighbourGrid {
     /// particle `i` (`i` itself included, first among its cell's particles by
     /// input index), in an order that does not depend on threads.
     ///
-    /// Panics if `i >= self.len()`, like slice indexing.
+    /// # Panics
+    /// If `i >= self.len()`, like slice indexing.
     #[inline]
     pub fn for_each_neighbour(&self, i: usize, f: impl FnMut(usize, Vec3, f32)) {
         self.neighbourhood(i).for_each(f);
@@ -262,7 +265,8 @@ impl NeighbourGrid {
 
     /// The neighbourhood of particle `i`, to scan one or more times.
     ///
-    /// Panics if `i >= self.len()`, like slice indexing.
+    /// # Panics
+    /// If `i >= self.len()`, like slice indexing.
     #[inline]
     pub fn neighbourhood(&self, i: usize) -> Neighbourhood<'_> {
         self.neighbourhood_of_slot(self.layout.rank[i] as usize)

@@ -601,7 +601,8 @@ impl Scene {
 
     /// The dam break: a water column of width `a` and height 2a at the left of a
     /// tank 4a long and 2.5a high, `depth` deep (a thin slab when depth is a few
-    /// spacings, full 3D when depth ≈ a).
+    /// spacings, full 3D when depth ≈ a); lengths in metres, particles on a
+    /// lattice of `spacing`, h = 2 × spacing.
     pub fn dam_break(a: f32, depth: f32, spacing: f32) -> Self {
         let mut s = Self::base("dam break", Vec3::new(4.0 * a, 2.5 * a, depth), spacing);
         s.blocks.push(BlockSpec {

@@ -90,8 +90,9 @@ impl Neighbourhood<'_> {
     /// `weights_by_slot[k]` where slot k holds j (see
     /// [`super::NeighbourGrid::to_slot_order`]). `kernel` must have the grid's h.
     ///
-    /// Panics if `weights_by_slot` is shorter than the grid or the kernel's h
-    /// is not the grid's.
+    /// # Panics
+    /// If `weights_by_slot` is shorter than the grid or the kernel's h is not
+    /// the grid's.
     #[inline]
     pub fn poly6_sums(&self, kernel: &Poly6, weights_by_slot: &[f32]) -> Poly6Sums {
         self.raw::<false>(kernel, weights_by_slot).finish(kernel)
