@@ -666,3 +666,21 @@ fn surface_size(ctx: &GpuContext, size: winit::dpi::PhysicalSize<u32>) -> (u32, 
     let max = ctx.device.limits().max_texture_dimension_2d;
     (size.width.clamp(1, max), size.height.clamp(1, max))
 }
+
+#[cfg(test)]
+mod tests {
+    /// The panel's labels can be drawn: egui 0.37 bundles no font unless its
+    /// `default_fonts` feature is on, and without one every label was blank
+    /// ("No font provider has any font"). The characters are the panel's own,
+    /// Greek letters and symbols included.
+    #[test]
+    fn panel_fonts_have_the_labels_glyphs() {
+        let ctx = egui::Context::default();
+        let _ = ctx.run_pass(egui::RawInput::default(), |_| {});
+        let text = "simulate 12.3 ms, k (m²/s²) μ (Pa·s) σ (N/m) ε Σw 3×3 –";
+        for font in [egui::FontId::default(), egui::FontId::monospace(12.0)] {
+            let ok = ctx.fonts_mut(|f| f.has_glyphs(&font, text));
+            assert!(ok, "{font:?} lacks glyphs of {text:?}");
+        }
+    }
+}
