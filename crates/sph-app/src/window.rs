@@ -225,11 +225,21 @@ impl App {
             .map_err(|e| AppError::Window(e.to_string()))?;
         let ctx = pollster::block_on(GpuContext::for_surface(instance, &surface))?;
         let (width, height) = surface_size(&ctx, window.inner_size());
-        let config = surface
+        let mut config = surface
             .get_default_config(&ctx.adapter, width, height)
             .ok_or_else(|| {
                 AppError::Window("the surface is not supported by the adapter".into())
             })?;
+        // egui blends in gamma space and wants a non-sRGB target; the splat
+        // image's blit encodes sRGB itself for such a format.
+        let plain = config.format.remove_srgb_suffix();
+        if surface
+            .get_capabilities(&ctx.adapter)
+            .formats
+            .contains(&plain)
+        {
+            config.format = plain;
+        }
         surface.configure(&ctx.device, &config);
         let renderer =
             SplatRenderer::new(&ctx, config.width, config.height, &crate::environment())?;
