@@ -128,7 +128,7 @@ fn splats_match_the_ray_cast_iso_surface() {
         depth_epsilon: 0.5 * H,
         ..Default::default()
     };
-    let mut renderer = SplatRenderer::new(&ctx, W, H_PX, &env).unwrap();
+    let mut renderer = SplatRenderer::new(ctx, W, H_PX, &env).unwrap();
     let golden_dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
     let failures_dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("golden-failures");
     let update = std::env::var("SPH_UPDATE_GOLDEN").is_ok_and(|v| v == "1");
@@ -158,10 +158,10 @@ fn splats_match_the_ray_cast_iso_surface() {
             .iter()
             .map(|s| Splat::new(s.position, s.normal, s.radius))
             .collect();
-        renderer.upload(&ctx, &splats).unwrap();
-        renderer.render(&ctx, &case.camera, &shading).unwrap();
-        let acc = renderer.read_accumulation(&ctx).unwrap();
-        let image = renderer.read_image(&ctx).unwrap();
+        renderer.upload(ctx, &splats).unwrap();
+        renderer.render(ctx, &case.camera, &shading).unwrap();
+        let acc = renderer.read_accumulation(ctx).unwrap();
+        let image = renderer.read_image(ctx).unwrap();
 
         let reference = reference_normals(&case.field, &case.camera);
         let (mut both, mut either, mut angles, mut holes) = (0usize, 0usize, Vec::new(), 0usize);

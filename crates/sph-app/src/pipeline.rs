@@ -309,17 +309,13 @@ impl Pipeline {
 mod tests {
     use super::*;
 
-    /// One device for the tests of this binary (lavapipe starts slowly).
-    fn gpu() -> Option<&'static GpuContext> {
-        static CTX: std::sync::OnceLock<Option<GpuContext>> = std::sync::OnceLock::new();
-        CTX.get_or_init(GpuContext::headless_or_skip).as_ref()
-    }
-
     /// With the step and the extraction on the GPU, frames read no particle
     /// back; whatever needs them on the CPU gets the GPU's current state.
     #[test]
     fn gpu_frames_leave_the_particles_on_the_gpu_until_needed() {
-        let Some(ctx) = gpu() else { return };
+        let Some(ctx) = GpuContext::headless_or_skip() else {
+            return;
+        };
         let scene = Scene::dam_break(0.2, 0.06, 0.02);
         let mut p = Pipeline::new("dam".into(), scene, 2).unwrap();
         let start = p.world.particles.positions().to_vec();
@@ -371,7 +367,9 @@ mod tests {
     /// parameters: one iteration gives fewer surfels than two.
     #[test]
     fn new_extraction_parameters_apply_without_a_step() {
-        let Some(ctx) = gpu() else { return };
+        let Some(ctx) = GpuContext::headless_or_skip() else {
+            return;
+        };
         let scene = Scene::dam_break(0.2, 0.06, 0.02);
         for gpu in [false, true] {
             let mut p = Pipeline::new("dam".into(), scene.clone(), 2).unwrap();
@@ -393,7 +391,9 @@ mod tests {
     /// re-extracts without a step, and `None` brings every surfel back.
     #[test]
     fn a_viewpoint_culls_back_facing_surfels() {
-        let Some(ctx) = gpu() else { return };
+        let Some(ctx) = GpuContext::headless_or_skip() else {
+            return;
+        };
         let scene = Scene::dam_break(0.2, 0.2, 0.02);
         let eye = scene.render.camera.into();
         for gpu in [false, true] {

@@ -6,6 +6,9 @@
 //! (pressure eq. 15, viscosity eq. 17, surface tension eq. 18–20, gravity) →
 //! [`Integrate`] (semi-implicit Euler) → [`Boundaries`].
 
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -178,7 +181,7 @@ pub const MAX_REST_DENSITY: f32 = 1e6;
 
 /// An error when the viscous step limit is below `min_dt`, the step that
 /// counts as a blow-up: every run would stop at its first step.
-pub fn check_viscous_dt(params: &FluidParams, stepping: &TimeStepping) -> Result<()> {
+fn check_viscous_dt(params: &FluidParams, stepping: &TimeStepping) -> Result<()> {
     if params.viscous_dt() < stepping.min_dt {
         return Err(Error::InvalidParameter {
             name: "viscosity",
@@ -683,7 +686,7 @@ pub fn nozzle_corners(centre: Vec3, velocity: Vec3, n: u32, spacing: f32) -> [Ve
 #[derive(Debug, Clone)]
 pub struct Sink {
     region: crate::boundary::Aabb,
-    removed: std::sync::Arc<std::sync::atomic::AtomicU64>,
+    removed: Arc<AtomicU64>,
 }
 
 impl Sink {
@@ -697,12 +700,12 @@ impl Sink {
 
     /// Particles removed so far.
     pub fn removed(&self) -> u64 {
-        self.removed.load(std::sync::atomic::Ordering::Relaxed)
+        self.removed.load(Ordering::Relaxed)
     }
 
     /// A handle on the count of removed particles that stays readable after
     /// the sink moved into a program.
-    pub fn counter(&self) -> std::sync::Arc<std::sync::atomic::AtomicU64> {
+    pub fn counter(&self) -> Arc<AtomicU64> {
         self.removed.clone()
     }
 }
@@ -719,8 +722,7 @@ impl Processor for Sink {
             .collect();
         let removed = particles.retain(&keep)?;
         if removed > 0 {
-            self.removed
-                .fetch_add(removed as u64, std::sync::atomic::Ordering::Relaxed);
+            self.removed.fetch_add(removed as u64, Ordering::Relaxed);
             ctx.invalidate_grid();
         }
         Ok(())
@@ -827,7 +829,9 @@ impl World {
             .reduce(|| (0.0, 0.0), |x, y| (x.0.max(y.0), x.1.max(y.1)));
         let h = self.params.h;
         let s = &self.stepping;
-        let mut dt = (s.max_dt.min(self.params.viscous_dt()))
+        let mut dt = s
+            .max_dt
+            .min(self.params.viscous_dt())
             .min(s.cfl * h / (self.params.sound_speed() + v_max));
         if a_max > 0.0 {
             dt = dt.min(s.force_factor * (h / a_max).sqrt());

@@ -3,9 +3,6 @@
 //! the same densities and pressures. On lavapipe in CI; skipped
 //! without an adapter unless `SPH_REQUIRE_GPU=1`.
 
-mod common;
-
-use common::gpu;
 use glam::Vec3;
 use sph_core::NeighbourGrid;
 use sph_gpu::GpuGrid;
@@ -35,7 +32,9 @@ fn particles() -> Vec<Vec3> {
 
 #[test]
 fn gpu_grid_finds_the_cpu_grids_neighbour_sets() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let h = 0.02;
     let x = particles();
     let cpu = NeighbourGrid::build(&x, h).unwrap();
@@ -85,7 +84,9 @@ fn gpu_grid_finds_the_cpu_grids_neighbour_sets() {
 
 #[test]
 fn bad_input_is_an_error() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     assert!(GpuGrid::new(&ctx.device, 10, 0.0, 8).is_err());
     // More particles than one dispatch of this device covers: an error that
     // names the limit, before anything is allocated.
@@ -125,7 +126,9 @@ fn gpu_density_matches_the_cpu_processor() {
     use sph_core::{Context, Scene};
     use sph_gpu::GpuDensity;
 
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let scene = Scene::dam_break(0.2, 0.06, 0.02);
     let mut world = scene.build_world().unwrap();
     world.advance(0.3).unwrap();
@@ -168,7 +171,9 @@ fn gpu_density_matches_the_cpu_processor() {
 
 #[test]
 fn hundred_gpu_steps_match_the_cpu_solver() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     hundred_steps(ctx, sph_core::Scene::dam_break(0.2, 0.06, 0.02), |_, _| {});
 }
 
@@ -177,7 +182,9 @@ fn hundred_gpu_steps_match_the_cpu_solver() {
 /// other (on the GPU that took a guard against 0/0).
 #[test]
 fn hundred_gpu_steps_with_spiky_pressure_and_a_duplicate_match_the_cpu_solver() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
     hundred_steps(ctx, scene, |particles, params| {
         params.pressure_kernel = sph_core::PressureKernel::Spiky;
@@ -189,7 +196,9 @@ fn hundred_gpu_steps_with_spiky_pressure_and_a_duplicate_match_the_cpu_solver() 
 #[test]
 fn hundred_gpu_steps_with_obstacles_match_the_cpu_solver() {
     use sph_core::scene::ObstacleSpec;
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
     // A sphere inside the column (its lattice points are left out) and a box
     // against the column's front: fluid is within h of both from the start.
@@ -294,7 +303,9 @@ fn world_and_gpu_solver(
 #[test]
 fn adaptive_gpu_frames_match_world_advance() {
     use sph_gpu::GpuError;
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let (mut world, mut gpu) =
         world_and_gpu_solver(ctx, &sph_core::Scene::dam_break(0.2, 0.06, 0.02));
     let (device, queue) = (&ctx.device, &ctx.queue);
@@ -343,7 +354,9 @@ fn adaptive_gpu_frames_match_world_advance() {
 /// substep count to the last bit of the f32/f64 time sums.)
 #[test]
 fn viscous_gpu_frame_keeps_to_the_cpu_step_limit() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
     scene.fluid.viscosity = 2900.0;
     let (mut world, mut gpu) = world_and_gpu_solver(ctx, &scene);

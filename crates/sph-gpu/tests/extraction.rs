@@ -5,9 +5,6 @@
 //! rejected, and the solver's particles extracted without leaving the GPU. On
 //! lavapipe in CI; skipped without an adapter unless `SPH_REQUIRE_GPU=1`.
 
-mod common;
-
-use common::gpu;
 use glam::Vec3;
 use sph_core::Scene;
 use sph_gpu::{GpuExtractStats, GpuExtractor, GpuSolver};
@@ -109,7 +106,9 @@ fn compare(
 
 #[test]
 fn sphere_and_block_match_the_cpu_extractor() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let sphere = lattice(9, |x| x.length() <= 8.5 * SPACING);
     let block = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
     for (name, points) in [("sphere", sphere), ("block", block)] {
@@ -120,7 +119,9 @@ fn sphere_and_block_match_the_cpu_extractor() {
 
 #[test]
 fn dam_break_frame_matches_the_cpu_extractor() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let mut world = Scene::dam_break(0.2, 0.06, 0.02).build_world().unwrap();
     world.advance(0.4).unwrap();
     let field = ColourField::from_particles(&world.particles, 0.04).unwrap();
@@ -132,7 +133,9 @@ fn dam_break_frame_matches_the_cpu_extractor() {
 
 #[test]
 fn lone_particles_get_their_analytic_iso_sphere_and_culling_holds() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let points = [Vec3::ZERO, Vec3::new(1.0, 0.0, 0.0)];
     let field = ColourField::from_positions(&points, H).unwrap();
     let params = ExtractParams::new(H).thesis();
@@ -157,7 +160,9 @@ fn lone_particles_get_their_analytic_iso_sphere_and_culling_holds() {
 
 #[test]
 fn overflow_is_reported_and_bad_input_rejected() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let points = lattice(4, |_| true);
     let field = ColourField::from_positions(&points, H).unwrap();
     let params = ExtractParams::new(H).thesis();
@@ -201,7 +206,9 @@ fn overflow_is_reported_and_bad_input_rejected() {
 
 #[test]
 fn solver_particles_are_extracted_on_the_gpu() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let scene = Scene::dam_break(0.2, 0.06, 0.02);
     let world = scene.build_world().unwrap();
     let (device, queue) = (&ctx.device, &ctx.queue);
@@ -254,7 +261,9 @@ fn solver_particles_are_extracted_on_the_gpu() {
 #[test]
 fn gpu_surfels_render_indirectly_as_their_upload_does() {
     use splat_render::{Camera, Environment, Shading, Splat, SplatRenderer};
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let points = lattice(9, |x| x.length() <= 8.5 * SPACING);
     let field = ColourField::from_positions(&points, H).unwrap();
     let params = ExtractParams::new(H).thesis();

@@ -82,23 +82,28 @@ impl GpuContext {
         })
     }
 
-    /// For GPU tests: a headless context, or `None` after printing
-    /// `skipped: no GPU adapter (…)` when there is no adapter.
+    /// For GPU tests: one headless context for the whole process (the tests
+    /// of a binary run on threads and share it; a device per test starts
+    /// slowly on lavapipe), or `None` after printing `skipped: no GPU adapter
+    /// (…)` once when there is no adapter.
     ///
     /// # Panics
     /// When there is no adapter and `SPH_REQUIRE_GPU=1` (as CI sets it), so a
     /// machine that should have a (software) GPU cannot skip silently.
-    pub fn headless_or_skip() -> Option<Self> {
-        match Self::headless() {
-            Ok(ctx) => Some(ctx),
-            Err(err) if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
-                panic!("SPH_REQUIRE_GPU=1 but: {err}")
-            }
-            Err(err) => {
-                eprintln!("skipped: no GPU adapter ({err})");
-                None
-            }
-        }
+    pub fn headless_or_skip() -> Option<&'static Self> {
+        static SHARED: std::sync::OnceLock<Option<GpuContext>> = std::sync::OnceLock::new();
+        SHARED
+            .get_or_init(|| match Self::headless() {
+                Ok(ctx) => Some(ctx),
+                Err(err) if std::env::var("SPH_REQUIRE_GPU").is_ok_and(|v| v == "1") => {
+                    panic!("SPH_REQUIRE_GPU=1 but: {err}")
+                }
+                Err(err) => {
+                    eprintln!("skipped: no GPU adapter ({err})");
+                    None
+                }
+            })
+            .as_ref()
     }
 
     /// The adapter's name and backend, for logs and reports.

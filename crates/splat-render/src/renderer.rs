@@ -540,7 +540,12 @@ impl SplatRenderer {
                 shading.view.code(),
             ],
             fluid: shading.fluid_colour.extend(shading.reflectivity).to_array(),
-            flags: [f32::from(u8::from(shading.cull_back_faces)), 0.0, 0.0, 0.0],
+            flags: [
+                if shading.cull_back_faces { 1.0 } else { 0.0 },
+                0.0,
+                0.0,
+                0.0,
+            ],
         };
         ctx.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));

@@ -2,18 +2,11 @@
 //! in CI). Without an adapter they print "skipped: no GPU adapter" and pass,
 //! unless `SPH_REQUIRE_GPU=1`.
 
-use std::sync::OnceLock;
-
 use glam::{Vec2, Vec3};
 use splat_render::{
     Accumulation, Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, View, alpha_mask,
     wgpu,
 };
-
-fn gpu() -> Option<&'static GpuContext> {
-    static CTX: OnceLock<Option<GpuContext>> = OnceLock::new();
-    CTX.get_or_init(GpuContext::headless_or_skip).as_ref()
-}
 
 const W: u32 = 160;
 const H: u32 = 120;
@@ -50,7 +43,9 @@ fn camera() -> Camera {
 
 #[test]
 fn one_surfel_weight_matches_eq_37() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let s = Splat::new(Vec3::ZERO, Vec3::Z, 0.5);
     let cam = camera();
     let (_, acc) = render(ctx, &[s], &cam, &Shading::default());
@@ -81,7 +76,9 @@ fn one_surfel_weight_matches_eq_37() {
 /// accumulation, is what it was given).
 #[test]
 fn back_facing_surfels_are_culled_unless_asked_not_to() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let away = Splat::new(Vec3::ZERO, Vec3::NEG_Z, 0.5);
     let cam = camera();
     let (_, culled) = render(ctx, &[away], &cam, &Shading::default());
@@ -111,7 +108,9 @@ fn back_facing_surfels_are_culled_unless_asked_not_to() {
 
 #[test]
 fn two_overlapping_surfels_average_their_normals() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let a = Splat::new(
         Vec3::new(-0.2, 0.0, 0.0),
         Vec3::new(0.3, 0.0, 1.0).normalize(),
@@ -151,7 +150,9 @@ fn two_overlapping_surfels_average_their_normals() {
 
 #[test]
 fn surfel_behind_beyond_epsilon_is_hidden_within_epsilon_blends() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let front = Splat::new(Vec3::ZERO, Vec3::Z, 0.5);
     // The back disc's depth varies by ±0.07 across it: it lies 0.23–0.37 behind.
     let back = Splat::new(
@@ -200,7 +201,9 @@ fn surfel_behind_beyond_epsilon_is_hidden_within_epsilon_blends() {
 
 #[test]
 fn tiled_plane_has_no_holes_and_a_constant_normal() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     // Square grid of spacing s with radius s: every point lies within 0.71 s of a centre.
     let s = 0.1;
     let normal = Vec3::new(0.0, 1.0, 0.2).normalize();
@@ -231,7 +234,9 @@ fn tiled_plane_has_no_holes_and_a_constant_normal() {
 
 #[test]
 fn empty_scene_shows_the_background_and_debug_views_differ() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let env = Environment::procedural();
     let mut r = SplatRenderer::new(ctx, W, H, &env).unwrap();
     let cam = camera();
@@ -288,7 +293,9 @@ fn empty_scene_shows_the_background_and_debug_views_differ() {
 
 #[test]
 fn uploads_reuse_the_buffer_until_it_must_grow() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let mut r = SplatRenderer::new(ctx, 32, 32, &Environment::procedural()).unwrap();
     let many = |n: usize| vec![Splat::new(Vec3::ZERO, Vec3::Z, 0.1); n];
     for n in [10, 1024, 500] {
@@ -304,7 +311,9 @@ fn uploads_reuse_the_buffer_until_it_must_grow() {
 
 #[test]
 fn bad_input_is_an_error() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let env = Environment::procedural();
     assert!(SplatRenderer::new(ctx, 0, 10, &env).is_err());
     let mut r = SplatRenderer::new(ctx, 16, 16, &env).unwrap();
@@ -366,7 +375,9 @@ fn bad_input_is_an_error() {
 
 #[test]
 fn surface_blit_reproduces_the_image() {
-    let Some(ctx) = gpu() else { return };
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
     let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
     r.upload(
         ctx,
