@@ -13,12 +13,19 @@
 //! - `advance_batch`: one adaptive GPU frame of a small dam break (8,000
 //!   particles) recorded in batches of its substeps + 1 and of 4 × them.
 //!
+//! Before the timed groups it prints, for each size, the GPU path's time per
+//! compute and render pass from timestamp queries (`wgpu_profiler`): medians
+//! of `SPH_PROFILE_RUNS` runs (default 10; 0 skips the profiles) of one
+//! adaptive step (`GpuSolver::advance_profiled` over a frame one stable
+//! step long), the extraction and the 1080p render.
+//!
 //! Without a GPU this runs on lavapipe: software figures, the "GPU" path on the
 //! same CPU cores.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use sph_core::{Scene, World};
 use sph_gpu::{GpuExtractor, GpuSolver};
+use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
 use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, wgpu};
 use surfel_extract::{ExtractParams, Extractor, extract};
 
@@ -68,6 +75,102 @@ fn gpu_extractor(ctx: &GpuContext, gpu: &GpuSolver, params: &ExtractParams) -> G
     x
 }
 
+/// Runs `record` (which submits its own work, timed by the profiler it is
+/// given) `runs` times and prints, per pass in the order the passes first
+/// ran, the medians of two GPU times:
+///
+/// - `pass`: from the pass's start timestamp to its end timestamp;
+/// - `from prev`: from the previous pass's end (the first pass: its start) to
+///   its end, so that the column adds up to the GPU's whole span and counts
+///   the gaps between passes. Lavapipe writes a pass's start timestamp only
+///   after the dispatch's work on large grids, so there only this column
+///   holds the pass's cost.
+///
+/// A label that runs several times in one run (a frame's substeps, the steps
+/// recorded past its end) counts its sum. Then the span from the first start
+/// to the last end, and the wall time from recording to idle.
+fn print_profile(ctx: &GpuContext, title: &str, mut record: impl FnMut(&GpuProfiler)) {
+    let runs: usize = std::env::var("SPH_PROFILE_RUNS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(10);
+    if runs == 0 {
+        return;
+    }
+    if !ctx
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY)
+    {
+        println!("  profile {title}: skipped, the adapter has no timestamp queries");
+        return;
+    }
+    let mut profiler =
+        GpuProfiler::new(&ctx.device, GpuProfilerSettings::default()).expect("profiler");
+    let mut labels: Vec<String> = Vec::new();
+    // Per label, per run: [pass, from prev] in ms.
+    let mut times: Vec<[Vec<f64>; 2]> = Vec::new();
+    let (mut spans, mut walls) = (Vec::new(), Vec::new());
+    for _ in 0..runs {
+        wait(ctx);
+        let start = std::time::Instant::now();
+        record(&profiler);
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        profiler.resolve_queries(&mut encoder);
+        ctx.queue.submit([encoder.finish()]);
+        profiler.end_frame().expect("profiler frame");
+        wait(ctx);
+        walls.push(start.elapsed().as_secs_f64() * 1e3);
+        let results = profiler
+            .process_finished_frame(ctx.queue.get_timestamp_period())
+            .expect("the profiler's frame is done after the wait");
+        let mut run = vec![[0.0; 2]; labels.len()];
+        let (mut first, mut prev) = (None, None);
+        for r in results {
+            let Some(t) = r.time else { continue };
+            let k = labels
+                .iter()
+                .position(|l| *l == r.label)
+                .unwrap_or_else(|| {
+                    labels.push(r.label);
+                    times.push([Vec::new(), Vec::new()]);
+                    run.push([0.0; 2]);
+                    labels.len() - 1
+                });
+            run[k][0] += (t.end - t.start) * 1e3;
+            run[k][1] += (t.end - prev.unwrap_or(t.start)) * 1e3;
+            first.get_or_insert(t.start);
+            prev = Some(t.end);
+        }
+        if let (Some(first), Some(last)) = (first, prev) {
+            spans.push((last - first) * 1e3);
+        }
+        for (k, [pass, from_prev]) in run.into_iter().enumerate() {
+            times[k][0].push(pass);
+            times[k][1].push(from_prev);
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    println!("  profile {title}: GPU ms, medians of {runs} runs");
+    println!("    {:<28} {:>10} {:>10}", "", "pass", "from prev");
+    for (label, [pass, from_prev]) in labels.iter().zip(&mut times) {
+        println!(
+            "    {label:<28} {:>10.3} {:>10.3}",
+            median(pass),
+            median(from_prev)
+        );
+    }
+    println!("    {:<28} {:>21.3}", "GPU span", median(&mut spans));
+    println!(
+        "    {:<28} {:>21.3}",
+        "wall: record to idle",
+        median(&mut walls)
+    );
+}
+
 fn gpu_vs_cpu(c: &mut Criterion) {
     let ctx = match GpuContext::headless() {
         Ok(ctx) => ctx,
@@ -94,6 +197,25 @@ fn gpu_vs_cpu(c: &mut Criterion) {
             cpu_thesis.stats.efficiency()
         );
         let mut extractor = gpu_extractor(&ctx, &gpu, &thesis);
+        // One stable step's worth of frame: the GPU chooses its step as the
+        // CPU does, so this is one adaptive step (two if its speeds differ).
+        let mut substeps = 0;
+        print_profile(&ctx, &format!("{label} adaptive step"), |profiler| {
+            let frame = gpu
+                .advance_profiled(&ctx.device, &ctx.queue, dt, 2, profiler)
+                .expect("frame");
+            substeps = substeps.max(frame.substeps);
+        });
+        if substeps > 1 {
+            println!("    (frames of up to {substeps} substeps: the passes' times are their sums)");
+        }
+        print_profile(&ctx, &format!("{label} extraction"), |profiler| {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            extractor
+                .encode_attached_profiled(&ctx.queue, &mut encoder, profiler)
+                .expect("encode");
+            ctx.queue.submit([encoder.finish()]);
+        });
 
         let mut group = c.benchmark_group("sph_step");
         group.sample_size(10);
@@ -180,6 +302,13 @@ fn gpu_vs_cpu(c: &mut Criterion) {
                 extractor.draw_args_buffer(),
             )
             .expect("GPU splats");
+        print_profile(&ctx, &format!("{label} render 1080p"), |profiler| {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            renderer
+                .encode_profiled(&ctx, &mut encoder, &camera, &shading, profiler)
+                .expect("render");
+            ctx.queue.submit([encoder.finish()]);
+        });
         group.bench_function(BenchmarkId::new("gpu", label), |b| {
             b.iter(|| {
                 gpu.step(&ctx.device, &ctx.queue, dt).expect("step");

@@ -4,9 +4,10 @@ use bytemuck::{Pod, Zeroable};
 use sph_core::{Boundary, FluidParams, Obstacle};
 
 use wgpu::util::DeviceExt;
+use wgpu_profiler::GpuProfiler;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, check_fits, compute_pass, read};
+use crate::passes::{Groups, check_fits, compute_pass, read, timed_pass};
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -137,7 +138,7 @@ impl GpuDensity {
         grid: &GpuGrid,
     ) {
         let groups = grid.len().div_ceil(64).max(1) as u32;
-        self.encode_with(queue, encoder, grid, Groups::Direct(groups));
+        self.encode_with(queue, encoder, grid, Groups::Direct(groups), None);
     }
 
     /// The same pass with its workgroups given (one thread per particle).
@@ -147,6 +148,7 @@ impl GpuDensity {
         encoder: &mut wgpu::CommandEncoder,
         grid: &GpuGrid,
         groups: Groups<'_>,
+        profiler: Option<&GpuProfiler>,
     ) {
         // Written only when the count changes: a batch of steps records this
         // pass many times with the same uniform.
@@ -155,13 +157,11 @@ impl GpuDensity {
             self.fluid.n = n;
             queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.fluid));
         }
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("density"),
-            timestamp_writes: None,
+        timed_pass(encoder, profiler, "density", |pass| {
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            groups.dispatch(pass);
         });
-        pass.set_pipeline(&self.pipeline);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        groups.dispatch(&mut pass);
     }
 
     /// Densities (storage buffer of `f32`, one per particle).

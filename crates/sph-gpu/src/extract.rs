@@ -7,9 +7,10 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Split, Surfel};
 use wgpu::util::DeviceExt;
+use wgpu_profiler::GpuProfiler;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Staging, bind_pairs, pipeline, read, shader};
+use crate::passes::{Groups, Staging, bind_pairs, pipeline, read, shader, timed_pass};
 use crate::solver::GpuSolver;
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
@@ -434,6 +435,32 @@ impl GpuExtractor {
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
     ) -> Result<(), GpuError> {
+        self.encode_attached_timed(queue, encoder, None)
+    }
+
+    /// [`encode_attached`](Self::encode_attached) with each compute pass
+    /// timed by `profiler` ("extract: volumes", the grid's "grid: …",
+    /// "extract: guess", then per iteration i "extract: prepare i" and
+    /// "extract: refine i", "extract: finish"). The caller resolves the
+    /// profiler's queries and ends its frame.
+    ///
+    /// # Errors
+    /// As [`encode_attached`](Self::encode_attached).
+    pub fn encode_attached_profiled(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        profiler: &GpuProfiler,
+    ) -> Result<(), GpuError> {
+        self.encode_attached_timed(queue, encoder, Some(profiler))
+    }
+
+    fn encode_attached_timed(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<(), GpuError> {
         let Some((positions, group)) = &self.attached else {
             return Err(GpuError::Invalid("no solver attached"));
         };
@@ -445,46 +472,64 @@ impl GpuExtractor {
             0,
             Some((16 * n as u64).max(16).min(positions.size())),
         );
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("volumes from densities"),
-                timestamp_writes: None,
-            });
+        timed_pass(encoder, profiler, "extract: volumes", |pass| {
             pass.set_pipeline(&self.volumes_pass);
             pass.set_bind_group(0, group, &[]);
             let (x, y) = groups(n as u32);
             pass.dispatch_workgroups(x, y, 1);
-        }
+        });
         self.grid.set_len(queue, n);
         self.set_len(queue, n);
-        self.encode(encoder);
+        self.encode_timed(encoder, profiler);
         Ok(())
     }
 
     /// Records the extraction of the uploaded particles: grid build, initial
     /// guess, the refinement iterations, the indirect draw arguments.
     pub fn encode(&self, encoder: &mut wgpu::CommandEncoder) {
-        self.grid.encode_build(encoder);
+        self.encode_timed(encoder, None);
+    }
+
+    fn encode_timed(&self, encoder: &mut wgpu::CommandEncoder, profiler: Option<&GpuProfiler>) {
+        const PREPARE: [&str; 3] = [
+            "extract: prepare 1",
+            "extract: prepare 2",
+            "extract: prepare 3",
+        ];
+        const REFINE: [&str; 3] = [
+            "extract: refine 1",
+            "extract: refine 2",
+            "extract: refine 3",
+        ];
+        self.grid.encode_build_gated(encoder, None, profiler);
         encoder.clear_buffer(&self.counters, 0, None);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("surfel extraction"),
-            timestamp_writes: None,
-        });
+        let run = |encoder: &mut wgpu::CommandEncoder,
+                   label: &str,
+                   (pipeline, group): &(wgpu::ComputePipeline, wgpu::BindGroup),
+                   groups: Groups<'_>| {
+            timed_pass(encoder, profiler, label, |pass| {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                groups.dispatch(pass);
+            });
+        };
         let (x, y) = groups(self.uniform.n);
-        pass.set_pipeline(&self.guess.0);
-        pass.set_bind_group(0, &self.guess.1, &[]);
-        pass.dispatch_workgroups(x, y, 1);
-        for [prepare, refine] in &self.stages {
-            pass.set_pipeline(&prepare.0);
-            pass.set_bind_group(0, &prepare.1, &[]);
-            pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&refine.0);
-            pass.set_bind_group(0, &refine.1, &[]);
-            pass.dispatch_workgroups_indirect(&self.dispatch, 0);
+        run(
+            encoder,
+            "extract: guess",
+            &self.guess,
+            Groups::DirectXY(x, y),
+        );
+        for (i, [prepare, refine]) in self.stages.iter().enumerate() {
+            run(encoder, PREPARE[i], prepare, Groups::Direct(1));
+            run(
+                encoder,
+                REFINE[i],
+                refine,
+                Groups::Indirect(&self.dispatch, 0),
+            );
         }
-        pass.set_pipeline(&self.finish.0);
-        pass.set_bind_group(0, &self.finish.1, &[]);
-        pass.dispatch_workgroups(1, 1, 1);
+        run(encoder, "extract: finish", &self.finish, Groups::Direct(1));
     }
 
     /// The surfels of the last extraction, [`SURFEL_BYTES`] each:

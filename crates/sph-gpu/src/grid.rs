@@ -4,7 +4,9 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use thiserror::Error;
 
-use crate::passes::{Groups, bind_buffers, check_fits, read};
+use wgpu_profiler::GpuProfiler;
+
+use crate::passes::{Groups, bind_buffers, check_fits, read, timed_pass};
 
 /// What can go wrong on the GPU path.
 #[derive(Debug, Error)]
@@ -52,6 +54,17 @@ const PASSES: [&str; 7] = [
     "add_block_sums",
     "scatter",
     "sort_buckets",
+];
+
+/// The passes' labels (debug labels and profiler scopes).
+const LABELS: [&str; 7] = [
+    "grid: clear_counts",
+    "grid: count_cells",
+    "grid: scan_blocks",
+    "grid: scan_block_sums",
+    "grid: add_block_sums",
+    "grid: scatter",
+    "grid: sort_buckets",
 ];
 
 /// A uniform grid of cell size h over particles kept on the GPU, rebuilt by
@@ -291,7 +304,7 @@ impl GpuGrid {
 
     /// Records the build: clear, count, scan, scatter, per-bucket sort.
     pub fn encode_build(&self, encoder: &mut wgpu::CommandEncoder) {
-        self.encode_build_gated(encoder, None);
+        self.encode_build_gated(encoder, None, None);
     }
 
     /// Workgroups of the build's three kinds of pass: over the hash buckets,
@@ -303,26 +316,26 @@ impl GpuGrid {
     /// The build, its workgroup counts given here or, with `gate`, read from
     /// its first three `[x, y, z]` triples (in [`build_groups`](Self::build_groups)'
     /// order): a pass that writes zeros there turns the build off on the GPU.
+    /// One compute pass per stage, each timed by `profiler` where there is one.
     pub(crate) fn encode_build_gated(
         &self,
         encoder: &mut wgpu::CommandEncoder,
         gate: Option<&wgpu::Buffer>,
+        profiler: Option<&GpuProfiler>,
     ) {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("grid build"),
-            timestamp_writes: None,
-        });
-        pass.set_bind_group(0, &self.bind_group, &[]);
         let counts = self.build_groups();
         // Which kind each of `PASSES` is.
         const KINDS: [usize; 7] = [0, 1, 0, 2, 0, 1, 0];
-        for (pipeline, kind) in self.pipelines.iter().zip(KINDS) {
-            pass.set_pipeline(pipeline);
-            match gate {
-                None => Groups::Direct(counts[kind]),
-                Some(buffer) => Groups::Indirect(buffer, 12 * kind as u64),
-            }
-            .dispatch(&mut pass);
+        for ((pipeline, kind), label) in self.pipelines.iter().zip(KINDS).zip(LABELS) {
+            timed_pass(encoder, profiler, label, |pass| {
+                pass.set_bind_group(0, &self.bind_group, &[]);
+                pass.set_pipeline(pipeline);
+                match gate {
+                    None => Groups::Direct(counts[kind]),
+                    Some(buffer) => Groups::Indirect(buffer, 12 * kind as u64),
+                }
+                .dispatch(pass);
+            });
         }
     }
 

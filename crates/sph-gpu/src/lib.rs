@@ -17,6 +17,12 @@
 //! buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
 //! draws without a round trip to the CPU. Emitters, sinks and hole closing are
 //! not built yet.
+//!
+//! Every compute pass can be timed on the GPU: the `_profiled` variants of
+//! [`GpuSolver::step`], [`GpuSolver::advance`] and
+//! [`GpuExtractor::encode_attached`] take a [`wgpu_profiler::GpuProfiler`]
+//! (re-exported), which records timestamps around each pass where the device
+//! has `wgpu::Features::TIMESTAMP_QUERY`.
 
 mod density;
 mod extract;
@@ -28,3 +34,6 @@ pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
 pub use solver::{GpuFrame, GpuSolver, GpuState};
+
+/// Re-export of the GPU pass profiler used by the `_profiled` methods.
+pub use wgpu_profiler;

@@ -1,5 +1,8 @@
 //! What every pass of this crate shares: bind groups of whole buffers, a
-//! compute pipeline with its bind group, workgroup counts, readback.
+//! compute pipeline with its bind group, workgroup counts, timed passes,
+//! readback.
+
+use wgpu_profiler::GpuProfiler;
 
 use crate::grid::GpuError;
 
@@ -8,6 +11,8 @@ use crate::grid::GpuError;
 pub(crate) enum Groups<'a> {
     /// This many workgroups along x.
     Direct(u32),
+    /// This many along x and y.
+    DirectXY(u32, u32),
     /// The `[x, y, z]` at this byte offset of an indirect-arguments buffer,
     /// written by an earlier pass.
     Indirect(&'a wgpu::Buffer, u64),
@@ -18,9 +23,34 @@ impl Groups<'_> {
     pub(crate) fn dispatch(self, pass: &mut wgpu::ComputePass<'_>) {
         match self {
             Groups::Direct(x) => pass.dispatch_workgroups(x, 1, 1),
+            Groups::DirectXY(x, y) => pass.dispatch_workgroups(x, y, 1),
             Groups::Indirect(buffer, offset) => pass.dispatch_workgroups_indirect(buffer, offset),
         }
     }
+}
+
+/// Records a compute pass labelled `label`, timed by `profiler` where there is
+/// one (timestamps at the pass's start and end; on a device without
+/// `wgpu::Features::TIMESTAMP_QUERY` the profiler records nothing).
+pub(crate) fn timed_pass<R>(
+    encoder: &mut wgpu::CommandEncoder,
+    profiler: Option<&GpuProfiler>,
+    label: &str,
+    record: impl FnOnce(&mut wgpu::ComputePass<'_>) -> R,
+) -> R {
+    let query = profiler.map(|p| p.begin_pass_query(label, encoder));
+    let out = record(
+        &mut encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: query
+                .as_ref()
+                .and_then(|q| q.compute_pass_timestamp_writes()),
+        }),
+    );
+    if let (Some(p), Some(q)) = (profiler, query) {
+        p.end_query(encoder, q);
+    }
+    out
 }
 
 /// Checks that `items` fit this device: one thread each in a one-dimensional

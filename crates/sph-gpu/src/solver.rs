@@ -5,10 +5,11 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use sph_core::{Boundary, FluidParams, Particles, PressureKernel, TimeStepping};
 use wgpu::util::DeviceExt;
+use wgpu_profiler::GpuProfiler;
 
 use crate::density::GpuDensity;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, Staging, compute_pass, compute_pass_with, read};
+use crate::passes::{Groups, Staging, compute_pass, compute_pass_with, read, timed_pass};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
@@ -347,6 +348,33 @@ impl GpuSolver {
         queue: &wgpu::Queue,
         dt: f32,
     ) -> Result<(), GpuError> {
+        self.step_timed(device, queue, dt, None)
+    }
+
+    /// [`step`](Self::step) with each of its compute passes timed by
+    /// `profiler` (labelled "step length: choose_dt", "grid: …", "density",
+    /// "forces", "integrate").
+    /// The caller resolves the profiler's queries and ends its frame.
+    ///
+    /// # Errors
+    /// As [`step`](Self::step).
+    pub fn step_profiled(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        dt: f32,
+        profiler: &GpuProfiler,
+    ) -> Result<(), GpuError> {
+        self.step_timed(device, queue, dt, Some(profiler))
+    }
+
+    fn step_timed(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        dt: f32,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<(), GpuError> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(GpuError::Invalid("dt must be finite and > 0"));
         }
@@ -354,7 +382,7 @@ impl GpuSolver {
         self.params.frame_dt = 0.0;
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&self.params));
         let mut encoder = device.create_command_encoder(&Default::default());
-        self.encode_step(&mut encoder, queue);
+        self.encode_step(&mut encoder, queue, profiler);
         queue.submit([encoder.finish()]);
         self.steps += 1;
         Ok(())
@@ -364,27 +392,37 @@ impl GpuSolver {
     /// largest speed and last acceleration), grid, density, forces, integrate.
     /// Every pass but `choose_dt` takes its workgroups from the gate, so a step
     /// whose length is 0 (past the frame's end, or unstable) does no work.
-    fn encode_step(&mut self, encoder: &mut wgpu::CommandEncoder, queue: &wgpu::Queue) {
+    fn encode_step(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        queue: &wgpu::Queue,
+        profiler: Option<&GpuProfiler>,
+    ) {
         let per_particle = Groups::Indirect(&self.gate, 36);
-        {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            if self.params.dt <= 0.0 {
+        if self.params.dt <= 0.0 {
+            timed_pass(encoder, profiler, "step length: reduce_max", |pass| {
                 pass.set_pipeline(&self.reduce.0);
                 pass.set_bind_group(0, &self.reduce.1, &[]);
-                per_particle.dispatch(&mut pass);
-            }
+                per_particle.dispatch(pass);
+            });
+        }
+        timed_pass(encoder, profiler, "step length: choose_dt", |pass| {
             pass.set_pipeline(&self.choose.0);
             pass.set_bind_group(0, &self.choose.1, &[]);
             pass.dispatch_workgroups(1, 1, 1);
-        }
-        self.grid.encode_build_gated(encoder, Some(&self.gate));
+        });
+        self.grid
+            .encode_build_gated(encoder, Some(&self.gate), profiler);
         self.density
-            .encode_with(queue, encoder, &self.grid, per_particle);
-        for (pipeline, bind_group) in [&self.forces, &self.integrate] {
-            let mut pass = encoder.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, bind_group, &[]);
-            per_particle.dispatch(&mut pass);
+            .encode_with(queue, encoder, &self.grid, per_particle, profiler);
+        for (label, (pipeline, bind_group)) in
+            [("forces", &self.forces), ("integrate", &self.integrate)]
+        {
+            timed_pass(encoder, profiler, label, |pass| {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, bind_group, &[]);
+                per_particle.dispatch(pass);
+            });
         }
     }
 
@@ -409,6 +447,37 @@ impl GpuSolver {
         frame_dt: f32,
         batch: u32,
     ) -> Result<GpuFrame, GpuError> {
+        self.advance_timed(device, queue, frame_dt, batch, None)
+    }
+
+    /// [`advance`](Self::advance) with every step's compute passes timed by
+    /// `profiler`, as [`step_profiled`](Self::step_profiled) times them, plus
+    /// the step length's "step length: reduce_max" and "step length:
+    /// choose_dt". Steps past the frame's end are timed too (their passes
+    /// dispatch nothing). The caller resolves the profiler's queries and ends
+    /// its frame.
+    ///
+    /// # Errors
+    /// As [`advance`](Self::advance).
+    pub fn advance_profiled(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame_dt: f32,
+        batch: u32,
+        profiler: &GpuProfiler,
+    ) -> Result<GpuFrame, GpuError> {
+        self.advance_timed(device, queue, frame_dt, batch, Some(profiler))
+    }
+
+    fn advance_timed(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame_dt: f32,
+        batch: u32,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<GpuFrame, GpuError> {
         if !(frame_dt.is_finite() && frame_dt > 0.0) || batch == 0 {
             return Err(GpuError::Invalid(
                 "frame_dt must be finite and > 0, batch > 0",
@@ -424,7 +493,7 @@ impl GpuSolver {
         loop {
             let mut encoder = device.create_command_encoder(&Default::default());
             for _ in 0..batch {
-                self.encode_step(&mut encoder, queue);
+                self.encode_step(&mut encoder, queue, profiler);
             }
             let bytes = self.state_readback.read(
                 device,

@@ -378,3 +378,97 @@ fn viscous_gpu_frame_keeps_to_the_cpu_step_limit() {
         .fold(0f32, f32::max);
     assert!(dx < 1e-3 * world.params().h, "positions differ by {dx} m");
 }
+
+/// The `_profiled` variants time every pass and change nothing: a profiled
+/// solver and a plain one of the same particles end a frame in bitwise the
+/// same state, and the profile names each pass of every recorded step with
+/// a finite, non-negative time.
+#[test]
+fn profiled_frames_time_every_pass_and_change_nothing() {
+    use sph_gpu::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
+    let (_, mut plain) = world_and_gpu_solver(ctx, &scene);
+    let (_, mut timed) = world_and_gpu_solver(ctx, &scene);
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let mut profiler = GpuProfiler::new(device, GpuProfilerSettings::default()).unwrap();
+    let frame_dt = 1.0 / 60.0;
+    let batch = 8;
+    let a = plain.advance(device, queue, frame_dt, batch).unwrap();
+    let b = timed
+        .advance_profiled(device, queue, frame_dt, batch, &profiler)
+        .unwrap();
+    assert_eq!(a, b);
+    let (sa, sb) = (
+        plain.read_state(device, queue).unwrap(),
+        timed.read_state(device, queue).unwrap(),
+    );
+    assert_eq!(sa.positions, sb.positions);
+    assert_eq!(sa.velocities, sb.velocities);
+    assert_eq!(sa.densities, sb.densities);
+
+    let mut encoder = device.create_command_encoder(&Default::default());
+    profiler.resolve_queries(&mut encoder);
+    queue.submit([encoder.finish()]);
+    profiler.end_frame().unwrap();
+    device
+        .poll(splat_render::wgpu::PollType::wait_indefinitely())
+        .unwrap();
+    let results = profiler
+        .process_finished_frame(queue.get_timestamp_period())
+        .expect("the frame's queries are resolved");
+    let passes = [
+        "step length: reduce_max",
+        "step length: choose_dt",
+        "grid: clear_counts",
+        "grid: count_cells",
+        "grid: scan_blocks",
+        "grid: scan_block_sums",
+        "grid: add_block_sums",
+        "grid: scatter",
+        "grid: sort_buckets",
+        "density",
+        "forces",
+        "integrate",
+    ];
+    // Each recorded step (the frame's, then those past its end) in order.
+    let labels: Vec<&str> = results.iter().map(|r| r.label.as_str()).collect();
+    assert_eq!(labels.len() % passes.len(), 0, "{labels:?}");
+    let steps = labels.len() / passes.len();
+    assert!(
+        steps >= b.substeps as usize && steps.is_multiple_of(batch as usize),
+        "{steps} steps recorded for {} substeps",
+        b.substeps
+    );
+    for step in labels.chunks(passes.len()) {
+        assert_eq!(step, passes);
+    }
+    let timestamps = device
+        .features()
+        .contains(splat_render::wgpu::Features::TIMESTAMP_QUERY);
+    let mut total = 0.0;
+    for r in &results {
+        match (&r.time, timestamps) {
+            (Some(t), true) => {
+                assert!(
+                    t.start.is_finite() && t.end >= t.start,
+                    "{}: {t:?}",
+                    r.label
+                );
+                total += t.end - t.start;
+            }
+            (None, false) => {}
+            (t, _) => panic!("{}: {t:?} with timestamps {timestamps}", r.label),
+        }
+    }
+    println!(
+        "{} substeps, {steps} steps recorded; timestamps: {timestamps}, GPU time of the passes {:.3} ms",
+        b.substeps,
+        total * 1e3
+    );
+    if timestamps {
+        assert!(total > 0.0, "no GPU time at all");
+    }
+}

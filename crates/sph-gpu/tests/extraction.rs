@@ -7,6 +7,7 @@
 
 use glam::Vec3;
 use sph_core::Scene;
+use sph_gpu::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
 use sph_gpu::{GpuExtractStats, GpuExtractor, GpuSolver};
 use splat_render::GpuContext;
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
@@ -256,6 +257,46 @@ fn solver_particles_are_extracted_on_the_gpu() {
     assert!(r.median < 0.01 && r.p95 < 0.05 && r.median_angle_deg < 5.0);
     let diff = (surfels.len() as f64 - cpu.surfels.len() as f64).abs();
     assert!(diff <= 0.01 * cpu.surfels.len() as f64);
+
+    // Profiled, the same extraction gives the same surfels (appended in
+    // whatever order the GPU's atomics gave) and names each pass.
+    let mut profiler = GpuProfiler::new(device, GpuProfilerSettings::default()).unwrap();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    gpu.encode_attached_profiled(queue, &mut encoder, &profiler)
+        .unwrap();
+    profiler.resolve_queries(&mut encoder);
+    queue.submit([encoder.finish()]);
+    profiler.end_frame().unwrap();
+    let (again, _) = gpu.read_surfels(device, queue).unwrap();
+    let sorted = |s: &[Surfel]| {
+        let mut v: Vec<[u32; 7]> = s
+            .iter()
+            .map(|s| {
+                let (x, n) = (s.position, s.normal);
+                [x.x, x.y, x.z, n.x, n.y, n.z, s.radius].map(f32::to_bits)
+            })
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    assert!(
+        sorted(&surfels) == sorted(&again),
+        "profiled surfels differ"
+    );
+    let results = profiler
+        .process_finished_frame(queue.get_timestamp_period())
+        .expect("resolved after the read-back");
+    let labels: Vec<&str> = results.iter().map(|q| q.label.as_str()).collect();
+    assert_eq!(labels.first(), Some(&"extract: volumes"));
+    assert_eq!(labels.last(), Some(&"extract: finish"));
+    for pass in [
+        "grid: sort_buckets",
+        "extract: guess",
+        "extract: refine 1",
+        "extract: refine 2",
+    ] {
+        assert!(labels.contains(&pass), "{pass} not in {labels:?}");
+    }
 }
 
 #[test]

@@ -60,7 +60,8 @@ impl GpuContext {
         );
         // Float32 blending lets the attribute pass accumulate in full precision;
         // without it the renderer falls back to Rgba16Float.
-        let wanted = wgpu::Features::FLOAT32_BLENDABLE;
+        // Timestamps for the passes' profiles (`wgpu_profiler`), where offered.
+        let wanted = wgpu::Features::FLOAT32_BLENDABLE | wgpu::Features::TIMESTAMP_QUERY;
         let required_features = adapter.features() & wanted;
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {

@@ -48,3 +48,5 @@ pub use splat::{Splat, alpha_mask};
 pub use textures::Environment;
 
 pub use wgpu;
+/// Re-export of the GPU pass profiler [`SplatRenderer::encode_profiled`] takes.
+pub use wgpu_profiler;

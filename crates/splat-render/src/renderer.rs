@@ -3,6 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use image::RgbaImage;
+use wgpu_profiler::{GpuProfiler, GpuProfilerQuery};
 
 use crate::camera::Camera;
 use crate::context::GpuContext;
@@ -513,6 +514,35 @@ impl SplatRenderer {
         camera: &Camera,
         shading: &Shading,
     ) -> Result<()> {
+        self.encode_timed(ctx, encoder, camera, shading, None)
+    }
+
+    /// [`encode`](Self::encode) with each pass timed by `profiler` ("visibility
+    /// pass", "attribute pass", "normalise and shade"), where the device has
+    /// `wgpu::Features::TIMESTAMP_QUERY`. The caller resolves the profiler's
+    /// queries and ends its frame.
+    ///
+    /// # Errors
+    /// As [`encode`](Self::encode).
+    pub fn encode_profiled(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        shading: &Shading,
+        profiler: &GpuProfiler,
+    ) -> Result<()> {
+        self.encode_timed(ctx, encoder, camera, shading, Some(profiler))
+    }
+
+    fn encode_timed(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        shading: &Shading,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<()> {
         camera.validate()?;
         let (width, height) = self.size();
         let view = camera.view();
@@ -551,6 +581,15 @@ impl SplatRenderer {
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
 
         let t = &self.targets;
+        let begin = |label: &str, encoder: &mut wgpu::CommandEncoder| {
+            profiler.map(|p| p.begin_pass_query(label, encoder))
+        };
+        let end = |query: Option<GpuProfilerQuery>, encoder: &mut wgpu::CommandEncoder| {
+            if let (Some(p), Some(q)) = (profiler, query) {
+                p.end_query(encoder, q);
+            }
+        };
+        let query = begin("visibility pass", encoder);
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("visibility pass"),
@@ -559,12 +598,17 @@ impl SplatRenderer {
                     &t.depth_view,
                     wgpu::LoadOp::Clear(1.0),
                 )),
+                timestamp_writes: query
+                    .as_ref()
+                    .and_then(|q| q.render_pass_timestamp_writes()),
                 ..Default::default()
             });
             pass.set_pipeline(&self.visibility);
             pass.set_bind_group(0, &self.splat_group, &[]);
             self.draw_splats(&mut pass);
         }
+        end(query, encoder);
+        let query = begin("attribute pass", encoder);
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("attribute pass"),
@@ -578,21 +622,29 @@ impl SplatRenderer {
                     },
                 })],
                 depth_stencil_attachment: Some(depth_attachment(&t.depth_view, wgpu::LoadOp::Load)),
+                timestamp_writes: query
+                    .as_ref()
+                    .and_then(|q| q.render_pass_timestamp_writes()),
                 ..Default::default()
             });
             pass.set_pipeline(&self.attribute);
             pass.set_bind_group(0, &self.splat_group, &[]);
             self.draw_splats(&mut pass);
         }
+        end(query, encoder);
+        let query = begin("normalise and shade", encoder);
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("normalise and shade"),
-                timestamp_writes: None,
+                timestamp_writes: query
+                    .as_ref()
+                    .and_then(|q| q.compute_pass_timestamp_writes()),
             });
             pass.set_pipeline(&self.shade);
             pass.set_bind_group(0, &self.shade_group, &[]);
             pass.dispatch_workgroups(width.div_ceil(8), height.div_ceil(8), 1);
         }
+        end(query, encoder);
         Ok(())
     }
 

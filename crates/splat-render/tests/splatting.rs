@@ -427,3 +427,55 @@ fn surface_blit_reproduces_the_image() {
         );
     }
 }
+
+/// `encode_profiled` draws what `encode` draws and times its three passes.
+#[test]
+fn profiled_render_times_its_passes_and_draws_the_same() {
+    use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let splats = [
+        Splat::new(Vec3::ZERO, Vec3::Z, 0.5),
+        Splat::new(
+            Vec3::new(0.3, 0.1, 0.05),
+            Vec3::new(0.3, 0.0, 1.0).normalize(),
+            0.4,
+        ),
+    ];
+    let cam = camera();
+    let shading = Shading::default();
+    let (r, _) = render(ctx, &splats, &cam, &shading);
+    let plain = r.read_image(ctx).unwrap();
+
+    let mut profiler = GpuProfiler::new(&ctx.device, GpuProfilerSettings::default()).unwrap();
+    let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    r.upload(ctx, &splats).unwrap();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    r.encode_profiled(ctx, &mut encoder, &cam, &shading, &profiler)
+        .unwrap();
+    profiler.resolve_queries(&mut encoder);
+    ctx.queue.submit([encoder.finish()]);
+    profiler.end_frame().unwrap();
+    let timed = r.read_image(ctx).unwrap();
+    assert!(plain == timed, "the profiled render differs");
+
+    let results = profiler
+        .process_finished_frame(ctx.queue.get_timestamp_period())
+        .expect("the frame's queries are resolved after the read-back");
+    let labels: Vec<&str> = results.iter().map(|q| q.label.as_str()).collect();
+    assert_eq!(
+        labels,
+        ["visibility pass", "attribute pass", "normalise and shade"]
+    );
+    let timestamps = ctx
+        .device
+        .features()
+        .contains(wgpu::Features::TIMESTAMP_QUERY);
+    for q in &results {
+        match &q.time {
+            Some(t) => assert!(timestamps && t.end >= t.start, "{}: {t:?}", q.label),
+            None => assert!(!timestamps, "{}: no time", q.label),
+        }
+    }
+}
