@@ -472,3 +472,44 @@ fn profiled_frames_time_every_pass_and_change_nothing() {
         assert!(total > 0.0, "no GPU time at all");
     }
 }
+
+/// The GPU's largest-speed reduction sees every particle: one fast particle,
+/// in turn the first and the last lane of a workgroup and the last particle,
+/// sets the step length, and the GPU takes the CPU's substeps.
+#[test]
+fn one_fast_particle_in_any_lane_sets_the_gpu_step() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
+    let n = scene.build_world().unwrap().particles.len();
+    assert!(n > 200, "{n} particles");
+    let frame_dt = 2e-3;
+    let mut baseline = None;
+    for i in [64, 127, n - 1] {
+        let (mut world, mut gpu) = world_and_gpu_solver(ctx, &scene);
+        let fast = Vec3::new(0.0, 0.0, 40.0);
+        world.particles.velocities_mut()[i] = fast;
+        queue.write_buffer(
+            gpu.velocities_buffer(),
+            16 * i as u64,
+            bytemuck::cast_slice(&[fast.x, fast.y, fast.z, 0.0]),
+        );
+        let cpu = world.advance(frame_dt).unwrap();
+        let g = gpu.advance(device, queue, frame_dt, 4).unwrap();
+        let slow = *baseline.get_or_insert_with(|| {
+            let (mut w, _) = world_and_gpu_solver(ctx, &scene);
+            w.advance(frame_dt).unwrap().substeps
+        });
+        println!(
+            "fast particle {i}: {} CPU substeps, {} GPU, {slow} with none fast",
+            cpu.substeps, g.substeps
+        );
+        assert!(
+            cpu.substeps > slow,
+            "the fast particle did not shorten the CPU step"
+        );
+        assert_eq!(g.substeps, cpu.substeps, "particle {i}");
+    }
+}

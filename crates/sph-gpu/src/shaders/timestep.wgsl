@@ -28,13 +28,37 @@ fn magnitude_bits(v: vec3<f32>) -> u32 {
     return min(bitcast<u32>(length(v)) & 0x7fffffffu, 0x7f800000u);
 }
 
+var<workgroup> v_bits: array<u32, 64>;
+var<workgroup> a_bits: array<u32, 64>;
+
+// The largest |v| and |a| of a workgroup's particles by a tree in workgroup
+// memory, then one atomicMax per workgroup: an atomic per particle on the one
+// address would serialise them. A max of bits is exact in any order.
 @compute @workgroup_size(64)
-fn reduce_max(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= f.n {
-        return;
+fn reduce_max(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    var v = 0u;
+    var a = 0u;
+    if id.x < f.n {
+        v = magnitude_bits(velocities[id.x].xyz);
+        a = magnitude_bits(accelerations[id.x].xyz);
     }
-    atomicMax(&state.v_max, magnitude_bits(velocities[id.x].xyz));
-    atomicMax(&state.a_max, magnitude_bits(accelerations[id.x].xyz));
+    v_bits[lid] = v;
+    a_bits[lid] = a;
+    workgroupBarrier();
+    for (var s = 32u; s > 0u; s = s >> 1u) {
+        if lid < s {
+            v_bits[lid] = max(v_bits[lid], v_bits[lid + s]);
+            a_bits[lid] = max(a_bits[lid], a_bits[lid + s]);
+        }
+        workgroupBarrier();
+    }
+    if lid == 0u {
+        atomicMax(&state.v_max, v_bits[0]);
+        atomicMax(&state.a_max, a_bits[0]);
+    }
 }
 
 @compute @workgroup_size(1)
