@@ -10,7 +10,9 @@ use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, Staging, bind_pairs, pipeline, read, shader, timed_pass};
+use crate::passes::{
+    Groups, PassStage, Staging, bind_pairs, pipeline, read, shader, staged_pass, timed_pass,
+};
 use crate::solver::GpuSolver;
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
@@ -119,6 +121,18 @@ pub struct GpuExtractor {
     /// The solver this extractor reads from, once [`attach`](Self::attach)ed:
     /// its positions buffer and the bind group of the volumes pass.
     attached: Option<(wgpu::Buffer, wgpu::BindGroup)>,
+}
+
+/// Records `pipeline` with its bind group, dispatched over `groups`.
+fn run<'a>(
+    (pipeline, group): &'a (wgpu::ComputePipeline, wgpu::BindGroup),
+    groups: Groups<'a>,
+) -> impl Fn(&mut wgpu::ComputePass<'_>) + 'a {
+    move |pass| {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        groups.dispatch(pass);
+    }
 }
 
 /// Workgroups of 64 for `threads`, as an (x, y) grid within the 65,535 limit.
@@ -503,33 +517,26 @@ impl GpuExtractor {
         ];
         self.grid.encode_build_gated(encoder, None, profiler);
         encoder.clear_buffer(&self.counters, 0, None);
-        let run = |encoder: &mut wgpu::CommandEncoder,
-                   label: &str,
-                   (pipeline, group): &(wgpu::ComputePipeline, wgpu::BindGroup),
-                   groups: Groups<'_>| {
-            timed_pass(encoder, profiler, label, |pass| {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                groups.dispatch(pass);
-            });
-        };
         let (x, y) = groups(self.uniform.n);
-        run(
-            encoder,
-            "extract: guess",
-            &self.guess,
-            Groups::DirectXY(x, y),
-        );
-        for (i, [prepare, refine]) in self.stages.iter().enumerate() {
-            run(encoder, PREPARE[i], prepare, Groups::Direct(1));
-            run(
-                encoder,
-                REFINE[i],
-                refine,
-                Groups::Indirect(&self.dispatch, 0),
-            );
+        let guess = run(&self.guess, Groups::DirectXY(x, y));
+        let iterations: Vec<_> = self
+            .stages
+            .iter()
+            .map(|[prepare, refine]| {
+                (
+                    run(prepare, Groups::Direct(1)),
+                    run(refine, Groups::Indirect(&self.dispatch, 0)),
+                )
+            })
+            .collect();
+        let finish = run(&self.finish, Groups::Direct(1));
+        let mut stages: Vec<PassStage<'_>> = vec![("extract: guess", &guess)];
+        for (i, (prepare, refine)) in iterations.iter().enumerate() {
+            stages.push((PREPARE[i], prepare));
+            stages.push((REFINE[i], refine));
         }
-        run(encoder, "extract: finish", &self.finish, Groups::Direct(1));
+        stages.push(("extract: finish", &finish));
+        staged_pass(encoder, profiler, "surfel extraction", &stages);
     }
 
     /// The surfels of the last extraction, [`SURFEL_BYTES`] each:

@@ -6,7 +6,7 @@ use thiserror::Error;
 
 use wgpu_profiler::GpuProfiler;
 
-use crate::passes::{Groups, bind_buffers, check_fits, read, timed_pass};
+use crate::passes::{Groups, PassStage, bind_buffers, check_fits, read, staged_pass};
 
 /// What can go wrong on the GPU path.
 #[derive(Debug, Error)]
@@ -316,7 +316,7 @@ impl GpuGrid {
     /// The build, its workgroup counts given here or, with `gate`, read from
     /// its first three `[x, y, z]` triples (in [`build_groups`](Self::build_groups)'
     /// order): a pass that writes zeros there turns the build off on the GPU.
-    /// One compute pass per stage, each timed by `profiler` where there is one.
+    /// One compute pass, or one timed pass per stage with a `profiler`.
     pub(crate) fn encode_build_gated(
         &self,
         encoder: &mut wgpu::CommandEncoder,
@@ -326,17 +326,20 @@ impl GpuGrid {
         let counts = self.build_groups();
         // Which kind each of `PASSES` is.
         const KINDS: [usize; 7] = [0, 1, 0, 2, 0, 1, 0];
-        for ((pipeline, kind), label) in self.pipelines.iter().zip(KINDS).zip(LABELS) {
-            timed_pass(encoder, profiler, label, |pass| {
+        let record = |k: usize| {
+            move |pass: &mut wgpu::ComputePass<'_>| {
                 pass.set_bind_group(0, &self.bind_group, &[]);
-                pass.set_pipeline(pipeline);
+                pass.set_pipeline(&self.pipelines[k]);
                 match gate {
-                    None => Groups::Direct(counts[kind]),
-                    Some(buffer) => Groups::Indirect(buffer, 12 * kind as u64),
+                    None => Groups::Direct(counts[KINDS[k]]),
+                    Some(buffer) => Groups::Indirect(buffer, 12 * KINDS[k] as u64),
                 }
                 .dispatch(pass);
-            });
-        }
+            }
+        };
+        let records: [_; 7] = std::array::from_fn(record);
+        let stages: [PassStage<'_>; 7] = std::array::from_fn(|k| (LABELS[k], &records[k] as _));
+        staged_pass(encoder, profiler, "grid build", &stages);
     }
 
     /// Particles in the last upload.

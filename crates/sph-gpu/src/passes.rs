@@ -53,6 +53,32 @@ pub(crate) fn timed_pass<R>(
     out
 }
 
+/// One stage of a run of compute passes: its label and what it records.
+pub(crate) type PassStage<'a> = (&'a str, &'a dyn Fn(&mut wgpu::ComputePass<'_>));
+
+/// Records `stages` in one compute pass labelled `label`, or, with a
+/// profiler, each stage in its own timed pass: timestamps bracket passes, so
+/// a profile splits the run where the plain path keeps one pass (a pass
+/// costs on the CPU and, on lavapipe, on the device too).
+pub(crate) fn staged_pass(
+    encoder: &mut wgpu::CommandEncoder,
+    profiler: Option<&GpuProfiler>,
+    label: &str,
+    stages: &[PassStage<'_>],
+) {
+    if profiler.is_some() {
+        for &(stage, record) in stages {
+            timed_pass(encoder, profiler, stage, record);
+        }
+    } else {
+        timed_pass(encoder, None, label, |pass| {
+            for (_, record) in stages {
+                record(pass);
+            }
+        });
+    }
+}
+
 /// Checks that `items` fit this device: one thread each in a one-dimensional
 /// dispatch of workgroups of `group_size`, and `bytes_each` bytes each in one
 /// storage binding.

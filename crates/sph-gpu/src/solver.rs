@@ -9,7 +9,9 @@ use wgpu_profiler::GpuProfiler;
 
 use crate::density::GpuDensity;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, Staging, compute_pass, compute_pass_with, read, timed_pass};
+use crate::passes::{
+    Groups, PassStage, Staging, compute_pass, compute_pass_with, read, staged_pass, timed_pass,
+};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
@@ -399,18 +401,27 @@ impl GpuSolver {
         profiler: Option<&GpuProfiler>,
     ) {
         let per_particle = Groups::Indirect(&self.gate, 36);
-        if self.params.dt <= 0.0 {
-            timed_pass(encoder, profiler, "step length: reduce_max", |pass| {
-                pass.set_pipeline(&self.reduce.0);
-                pass.set_bind_group(0, &self.reduce.1, &[]);
-                per_particle.dispatch(pass);
-            });
-        }
-        timed_pass(encoder, profiler, "step length: choose_dt", |pass| {
+        let reduce = |pass: &mut wgpu::ComputePass<'_>| {
+            pass.set_pipeline(&self.reduce.0);
+            pass.set_bind_group(0, &self.reduce.1, &[]);
+            per_particle.dispatch(pass);
+        };
+        let choose = |pass: &mut wgpu::ComputePass<'_>| {
             pass.set_pipeline(&self.choose.0);
             pass.set_bind_group(0, &self.choose.1, &[]);
             pass.dispatch_workgroups(1, 1, 1);
-        });
+        };
+        let adaptive: [PassStage<'_>; 2] = [
+            ("step length: reduce_max", &reduce),
+            ("step length: choose_dt", &choose),
+        ];
+        // A fixed step skips the reduction.
+        let stages = if self.params.dt <= 0.0 {
+            &adaptive[..]
+        } else {
+            &adaptive[1..]
+        };
+        staged_pass(encoder, profiler, "step length", stages);
         self.grid
             .encode_build_gated(encoder, Some(&self.gate), profiler);
         self.density
