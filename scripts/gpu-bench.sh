@@ -15,7 +15,9 @@ bench=${1:?"usage: $0 render|gpu [criterion args…]"}
 shift
 [ -x "$kit/$bench" ] || { echo "no $kit/$bench: run scripts/gpu-kit.sh first" >&2; exit 1; }
 
-if ! ldconfig -p | grep -q 'libvulkan\.so\.1'; then
+# (grep reads a process substitution: with pipefail, `ldconfig -p | grep -q`
+# fails when grep's early exit kills ldconfig with SIGPIPE.)
+if ! grep -q 'libvulkan\.so\.1' < <(ldconfig -p); then
     for f in "$kit"/deb/*.deb; do dpkg -x "$f" /; done
     ldconfig
 fi

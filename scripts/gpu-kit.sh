@@ -13,20 +13,27 @@ kit=.gpu-kit
 rm -rf "$kit"
 mkdir -p "$kit/deb"
 
-# Cargo names each bench binary on stderr: "Executable benches/gpu.rs (target/…/gpu-HASH)".
-log=$(cargo bench --bench gpu --bench render --no-run 2>&1 | tee /dev/stderr)
+# Cargo's JSON messages name each bench binary: the "executable" of the
+# artifact whose target is named after the bench.
+json=$(CARGO_TERM_COLOR=never cargo bench --bench gpu --bench render --no-run --message-format=json)
 for bench in gpu render; do
-    exe=$(printf '%s\n' "$log" | sed -n "s|.*Executable benches/$bench\.rs (\(.*\))|\1|p" | tail -1)
+    exe=$(printf '%s\n' "$json" |
+        sed -n "s|.*\"target\":{[^}]*\"name\":\"$bench\".*\"executable\":\"\([^\"]*\)\".*|\1|p" | tail -1)
     [ -n "$exe" ] || { echo "gpu-kit: no executable for bench $bench" >&2; exit 1; }
     strip -o "$kit/$bench" "$exe"
 done
 
-# The Vulkan loader, for a machine whose image has the NVIDIA driver but no
-# libvulkan.so.1; the run script unpacks it only where none is installed.
-o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/gpu-kit-apt-lists)
-mkdir -p /tmp/gpu-kit-apt-lists/partial
+# The Vulkan loader of this machine's distribution, for a machine whose image
+# has the NVIDIA driver but no libvulkan.so.1; the run script unpacks it only
+# where none is installed. apt's lists and cache go to /tmp, leaving the
+# system's alone.
+o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64
+    -oDir::State::Lists=/tmp/gpu-kit-apt/lists -oDir::Cache=/tmp/gpu-kit-apt/cache
+    -oAPT::Sandbox::User=root)
+mkdir -p /tmp/gpu-kit-apt/lists/partial /tmp/gpu-kit-apt/cache/archives/partial
 apt-get "${o[@]}" update -q >/dev/null
 (cd "$kit/deb" && apt-get "${o[@]}" download libvulkan1)
 
-git rev-parse HEAD >"$kit/COMMIT"
+# The commit the binaries were built from, marked when the tree had changes.
+{ git rev-parse HEAD; git diff --quiet HEAD || echo "with uncommitted changes"; } | paste -sd' ' >"$kit/COMMIT"
 du -sh "$kit"

@@ -18,11 +18,11 @@
 //! draws without a round trip to the CPU. Emitters, sinks and hole closing are
 //! not built yet.
 //!
-//! Every compute pass can be timed on the GPU: the `_profiled` variants of
-//! [`GpuSolver::step`], [`GpuSolver::advance`] and
-//! [`GpuExtractor::encode_attached`] take a [`wgpu_profiler::GpuProfiler`]
-//! (re-exported), which records timestamps around each pass where the device
-//! has `wgpu::Features::TIMESTAMP_QUERY`.
+//! The solver's steps and the attached extractor's passes can be timed on
+//! the GPU: the `_profiled` variants of [`GpuSolver::step`],
+//! [`GpuSolver::advance`] and [`GpuExtractor::encode_attached`] take a
+//! [`wgpu_profiler::GpuProfiler`] (re-exported), which records timestamps
+//! around each pass where the device has `wgpu::Features::TIMESTAMP_QUERY`.
 
 mod density;
 mod extract;

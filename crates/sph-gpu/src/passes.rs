@@ -31,7 +31,8 @@ impl Groups<'_> {
 
 /// Records a compute pass labelled `label`, timed by `profiler` where there is
 /// one (timestamps at the pass's start and end; on a device without
-/// `wgpu::Features::TIMESTAMP_QUERY` the profiler records nothing).
+/// `wgpu::Features::TIMESTAMP_QUERY` the profiler's result for the pass has
+/// its label and no time).
 pub(crate) fn timed_pass<R>(
     encoder: &mut wgpu::CommandEncoder,
     profiler: Option<&GpuProfiler>,

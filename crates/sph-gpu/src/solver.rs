@@ -463,9 +463,9 @@ impl GpuSolver {
 
     /// [`advance`](Self::advance) with every step's compute passes timed by
     /// `profiler`, as [`step_profiled`](Self::step_profiled) times them, plus
-    /// the step length's "step length: reduce_max" and "step length:
-    /// choose_dt". Steps past the frame's end are timed too (their passes
-    /// dispatch nothing). The caller resolves the profiler's queries and ends
+    /// the adaptive step's "step length: reduce_max" before "step length:
+    /// choose_dt". Steps recorded past the frame's end are timed too (their
+    /// passes dispatch nothing). The caller resolves the profiler's queries and ends
     /// its frame.
     ///
     /// # Errors

@@ -289,6 +289,15 @@ fn solver_particles_are_extracted_on_the_gpu() {
     let labels: Vec<&str> = results.iter().map(|q| q.label.as_str()).collect();
     assert_eq!(labels.first(), Some(&"extract: volumes"));
     assert_eq!(labels.last(), Some(&"extract: finish"));
+    let timestamps = device
+        .features()
+        .contains(splat_render::wgpu::Features::TIMESTAMP_QUERY);
+    for q in &results {
+        match &q.time {
+            Some(t) => assert!(timestamps && t.end >= t.start, "{}: {t:?}", q.label),
+            None => assert!(!timestamps, "{}: no time", q.label),
+        }
+    }
     for pass in [
         "grid: sort_buckets",
         "extract: guess",
