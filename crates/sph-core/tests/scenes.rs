@@ -184,3 +184,99 @@ fn malformed_scenes_name_the_field_and_reason() {
     let e = Scene::load("/nonexistent/scene.toml").unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
 }
+
+/// Every number in every scene file, replaced in turn by an awkward value
+/// (zero, negative, tiny, huge, NaN, ±infinity, …): the scene is an error or
+/// it builds and runs three steps, each step an error or a finite state.
+/// Nothing panics.
+#[test]
+fn any_one_number_replaced_is_an_error_or_a_running_scene() {
+    use std::panic::{AssertUnwindSafe, catch_unwind};
+    const FLOATS: [&str; 11] = [
+        "0.0", "-1.0", "1e-30", "1e-7", "0.5", "3.0e5", "1e30", "nan", "inf", "-inf", "-0.0",
+    ];
+    const INTS: [&str; 6] = ["0", "-1", "1", "7", "4294967296", "9223372036854775807"];
+    let number = |c: char| c.is_ascii_digit() || "+-.eE".contains(c);
+    let (mut cases, mut runs) = (0, 0);
+    let mut panics = Vec::new();
+    for entry in std::fs::read_dir(SCENES).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        // The numbers' spans, outside comments and strings.
+        let mut spans = Vec::new();
+        let mut offset = 0;
+        for line in text.split_inclusive('\n') {
+            let code = line.split('#').next().unwrap();
+            if !code.contains('"') {
+                let bytes: Vec<char> = code.chars().collect();
+                let mut i = 0;
+                while i < bytes.len() {
+                    let starts = bytes[i].is_ascii_digit()
+                        || (bytes[i] == '-'
+                            && bytes.get(i + 1).is_some_and(|c| c.is_ascii_digit()));
+                    let after_name =
+                        i > 0 && (bytes[i - 1].is_alphanumeric() || bytes[i - 1] == '_');
+                    if starts && !after_name {
+                        let j = (i..bytes.len())
+                            .find(|&j| !number(bytes[j]))
+                            .unwrap_or(bytes.len());
+                        spans.push((offset + i, offset + j));
+                        i = j;
+                    } else {
+                        i += 1;
+                    }
+                }
+            }
+            offset += line.len();
+        }
+        assert!(
+            spans.len() > 15,
+            "{}: {} numbers",
+            path.display(),
+            spans.len()
+        );
+        for &(a, b) in &spans {
+            let values: &[&str] = if text[a..b].contains('.') || text[a..b].contains('e') {
+                &FLOATS
+            } else {
+                &INTS
+            };
+            for value in values {
+                let mutated = format!("{}{value}{}", &text[..a], &text[b..]);
+                cases += 1;
+                let outcome = catch_unwind(AssertUnwindSafe(|| {
+                    let Ok(scene) = Scene::from_toml(&mutated) else {
+                        return false;
+                    };
+                    let Ok(mut world) = scene.build_world() else {
+                        return false;
+                    };
+                    for _ in 0..3 {
+                        if world.step().is_err() {
+                            break;
+                        }
+                        assert!(
+                            world.particles.positions().iter().all(|x| x.is_finite()),
+                            "a step returned Ok with a non-finite position"
+                        );
+                    }
+                    true
+                }));
+                match outcome {
+                    Ok(ran) => runs += usize::from(ran),
+                    Err(_) => panics.push(format!(
+                        "{}: {} -> {value}",
+                        path.file_name().unwrap().to_string_lossy(),
+                        &text[a..b]
+                    )),
+                }
+            }
+        }
+    }
+    println!("{cases} mutated scenes: {runs} built and ran, the rest were errors");
+    assert!(panics.is_empty(), "panicked: {panics:#?}");
+    assert!(runs > 0 && runs < cases, "{runs} of {cases} ran");
+}
