@@ -99,6 +99,18 @@ pub enum Mode {
     Covered,
 }
 
+/// The initial surfel radius [`ExtractParams::radius`] accepts (× h). Below
+/// it the surfels of the initial guess, one per surface particle about h/2
+/// apart, no longer overlap, and hole closing multiplies them round after
+/// round: a 491-particle sphere (`samples::jittered_lattice(6, 0.02, 0.3, 11,
+/// |x| x.length() < 0.1)`, h = 0.04) gave 1,501 surfels at 0.5 h, 47,084 at
+/// 0.001 h in 4 rounds of hole closing and 966,644 in 20 (4.8 s), in a
+/// throwaway example.
+pub const RADIUS_RANGE: std::ops::RangeInclusive<f32> = 0.05..=4.0;
+
+/// The most rounds of hole closing [`ExtractParams::fill_rounds`] accepts.
+pub const MAX_FILL_ROUNDS: u32 = 64;
+
 /// Extraction parameters. Lengths are in units of h unless marked (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ExtractParams {
@@ -122,13 +134,17 @@ pub struct ExtractParams {
     pub covariance_threshold: f32,
     /// Six or eight surfels around such particles.
     pub all_around: AllAround,
-    /// Radius of an initial surfel (× h; `Surfel::radius` is in metres).
+    /// Radius of an initial surfel (× h; `Surfel::radius` is in metres), in
+    /// [`RADIUS_RANGE`]: a surfel much smaller than the particle spacing
+    /// leaves gaps that hole closing fills with ever more surfels.
     pub radius: f32,
     /// Eye position (m) for front-facing culling; `None` keeps every surfel.
     pub camera: Option<Vec3>,
     /// Thesis as published or with hole closing.
     pub mode: Mode,
-    /// Rounds of hole closing in [`Mode::Covered`].
+    /// Rounds of hole closing in [`Mode::Covered`], at most
+    /// [`MAX_FILL_ROUNDS`]; each closes an uncovered band about a surfel
+    /// wide around every hole.
     pub fill_rounds: u32,
     /// How the first iteration's surfels split; later splits are 2×2.
     pub first_split: Split,
@@ -171,7 +187,20 @@ impl ExtractParams {
         positive("interior_step", self.interior_step)?;
         positive("discard_step", self.discard_step)?;
         positive("split_laplacian", self.split_laplacian)?;
-        positive("radius", self.radius)?;
+        if !RADIUS_RANGE.contains(&self.radius) {
+            return Err(Error::InvalidParameter {
+                name: "radius",
+                value: self.radius.to_string(),
+                reason: "must be in [0.05, 4] (× h)",
+            });
+        }
+        if self.fill_rounds > MAX_FILL_ROUNDS {
+            return Err(Error::InvalidParameter {
+                name: "fill_rounds",
+                value: self.fill_rounds.to_string(),
+                reason: "must be at most 64",
+            });
+        }
         if !(self.radius * self.h).is_finite() {
             return Err(Error::InvalidParameter {
                 name: "radius",

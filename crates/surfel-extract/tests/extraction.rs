@@ -285,13 +285,46 @@ fn bad_input_is_an_error() {
     let err = extract_points(
         &[Vec3::ZERO],
         &ExtractParams {
-            radius: 1e37,
-            ..ExtractParams::new(100.0)
+            radius: 4.0,
+            ..ExtractParams::new(1e38)
         },
     )
     .unwrap_err()
     .to_string();
-    assert!(err.contains("radius"), "{err}");
+    assert!(err.contains("radius · h"), "{err}");
+    // Radii and hole-closing rounds that would multiply surfels without end.
+    for (bad, field) in [
+        (
+            ExtractParams {
+                radius: 0.01,
+                ..params
+            },
+            "radius",
+        ),
+        (
+            ExtractParams {
+                radius: 5.0,
+                ..params
+            },
+            "radius",
+        ),
+        (
+            ExtractParams {
+                fill_rounds: 65,
+                ..params
+            },
+            "fill_rounds",
+        ),
+    ] {
+        let err = extract_points(&[Vec3::ZERO], &bad).unwrap_err().to_string();
+        assert!(err.contains(field), "{err}");
+    }
+    let edge = ExtractParams {
+        radius: 0.05,
+        fill_rounds: 64,
+        ..params
+    };
+    assert!(extract_points(&[Vec3::ZERO], &edge).is_ok());
     assert!(
         extract_ldc(
             &ColourField::from_positions(&[Vec3::ZERO], H).unwrap(),
@@ -388,4 +421,87 @@ fn extractor_reused_across_frames_matches_one_shot() {
     );
     assert_eq!(extractor.take().surfels, expected.surfels);
     assert!(extractor.surfels().surfels.is_empty());
+}
+
+/// Every parameter in turn set to an awkward value (zero, negative, tiny,
+/// huge, NaN, ±infinity and the edges of the accepted ranges), in both modes:
+/// the extraction is an error, or surfels with finite positions, unit
+/// normals and finite radii > 0. Nothing panics.
+#[test]
+fn any_one_awkward_parameter_is_an_error_or_finite_surfels() {
+    use std::panic::{AssertUnwindSafe, catch_unwind};
+    let points = lattice(5, |x| x.length() < 0.045);
+    let floats = [
+        0.0,
+        -0.0,
+        -1.0,
+        1e-30,
+        1e-7,
+        0.05,
+        0.5,
+        0.999,
+        1.0,
+        4.0,
+        1e7,
+        1e30,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    ];
+    type Set = fn(&mut ExtractParams, f32);
+    let float_fields: [(&str, Set); 8] = [
+        ("h", |p, v| p.h = v),
+        ("iso", |p, v| p.iso = v),
+        ("interior_step", |p, v| p.interior_step = v),
+        ("discard_step", |p, v| p.discard_step = v),
+        ("split_laplacian", |p, v| p.split_laplacian = v),
+        ("covariance_threshold", |p, v| p.covariance_threshold = v),
+        ("radius", |p, v| p.radius = v),
+        ("camera", |p, v| p.camera = Some(Vec3::new(v, 0.1, 1.0))),
+    ];
+    let ints = [0, 1, 2, 3, 4, 64, 65, u32::MAX];
+    type SetInt = fn(&mut ExtractParams, u32);
+    let int_fields: [(&str, SetInt); 2] = [
+        ("iterations", |p, v| p.iterations = v),
+        ("fill_rounds", |p, v| p.fill_rounds = v),
+    ];
+    let mut cases: Vec<(String, ExtractParams)> = Vec::new();
+    for base in [ExtractParams::new(H), ExtractParams::new(H).thesis()] {
+        for (name, set) in float_fields {
+            for v in floats {
+                let mut p = base;
+                set(&mut p, v);
+                cases.push((format!("{:?} {name} = {v}", base.mode), p));
+            }
+        }
+        for (name, set) in int_fields {
+            for v in ints {
+                let mut p = base;
+                set(&mut p, v);
+                cases.push((format!("{:?} {name} = {v}", base.mode), p));
+            }
+        }
+    }
+    let (mut ran, mut panics) = (0, Vec::new());
+    for (case, p) in &cases {
+        match catch_unwind(AssertUnwindSafe(|| extract_points(&points, p))) {
+            Err(_) => panics.push(case.clone()),
+            Ok(Err(_)) => {}
+            Ok(Ok(out)) => {
+                ran += 1;
+                for s in &out.surfels {
+                    assert!(s.position.is_finite(), "{case}: {s:?}");
+                    assert!((s.normal.length() - 1.0).abs() < 1e-3, "{case}: {s:?}");
+                    assert!(s.radius.is_finite() && s.radius > 0.0, "{case}: {s:?}");
+                }
+            }
+        }
+    }
+    println!(
+        "{} parameter sets on {} particles: {ran} extracted, the rest were errors",
+        cases.len(),
+        points.len()
+    );
+    assert!(panics.is_empty(), "panicked: {panics:#?}");
+    assert!(ran > 0 && ran < cases.len(), "{ran} of {}", cases.len());
 }
