@@ -70,6 +70,10 @@ pub enum RenderError {
     /// A camera that cannot be projected (non-finite, eye on target, bad clip planes).
     #[error("invalid camera: {0}")]
     InvalidCamera(&'static str),
+    /// Shading parameters that would draw garbage (non-finite, negative where
+    /// a length, weight or colour is meant).
+    #[error("invalid shading: {0}")]
+    InvalidShading(&'static str),
     /// An environment or background image that is empty or larger than the
     /// device's textures.
     #[error("invalid texture {name}: {reason}")]

@@ -506,7 +506,7 @@ impl SplatRenderer {
     /// with the second call's camera and shading. Submit between calls.
     ///
     /// # Errors
-    /// [`RenderError::InvalidCamera`].
+    /// [`RenderError::InvalidCamera`], [`RenderError::InvalidShading`].
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -544,6 +544,7 @@ impl SplatRenderer {
         profiler: Option<&GpuProfiler>,
     ) -> Result<()> {
         camera.validate()?;
+        shading.validate()?;
         let (width, height) = self.size();
         let view = camera.view();
         let proj = camera.projection(width, height);
@@ -566,7 +567,7 @@ impl SplatRenderer {
             params: [
                 shading.depth_epsilon,
                 shading.refraction,
-                shading.weight_scale.max(f32::MIN_POSITIVE),
+                shading.weight_scale,
                 shading.view.code(),
             ],
             fluid: shading.fluid_colour.extend(shading.reflectivity).to_array(),
@@ -651,7 +652,7 @@ impl SplatRenderer {
     /// Renders the uploaded splats into the internal targets and submits.
     ///
     /// # Errors
-    /// [`RenderError::InvalidCamera`].
+    /// [`RenderError::InvalidCamera`], [`RenderError::InvalidShading`].
     pub fn render(&self, ctx: &GpuContext, camera: &Camera, shading: &Shading) -> Result<()> {
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         self.encode(ctx, &mut encoder, camera, shading)?;
@@ -663,7 +664,7 @@ impl SplatRenderer {
     /// texture view of `format`), all on the GPU. The caller presents.
     ///
     /// # Errors
-    /// [`RenderError::InvalidCamera`].
+    /// [`RenderError::InvalidCamera`], [`RenderError::InvalidShading`].
     pub fn render_to_surface(
         &mut self,
         ctx: &GpuContext,

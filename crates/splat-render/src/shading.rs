@@ -72,6 +72,40 @@ impl Default for Shading {
     }
 }
 
+impl Shading {
+    /// Checks the fields the shaders compute with: with a NaN or infinite
+    /// value there, what a pass writes (a NaN depth, a NaN colour) is up to
+    /// the driver, not the thesis's shading.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidShading`](crate::RenderError::InvalidShading)
+    /// naming the field: `depth_epsilon` must be finite and ≥ 0,
+    /// `refraction` finite, `fluid_colour` finite and ≥ 0 per channel,
+    /// `weight_scale` finite and > 0, `reflectivity` finite and ≥ 0.
+    pub fn validate(&self) -> crate::Result<()> {
+        use crate::RenderError::InvalidShading;
+        let non_negative = |v: f32| v.is_finite() && v >= 0.0;
+        if !non_negative(self.depth_epsilon) {
+            return Err(InvalidShading("depth_epsilon must be finite and >= 0"));
+        }
+        if !self.refraction.is_finite() {
+            return Err(InvalidShading("refraction must be finite"));
+        }
+        if !self.fluid_colour.to_array().into_iter().all(non_negative) {
+            return Err(InvalidShading(
+                "fluid_colour must be finite and >= 0 in every channel",
+            ));
+        }
+        if !(self.weight_scale.is_finite() && self.weight_scale > 0.0) {
+            return Err(InvalidShading("weight_scale must be finite and > 0"));
+        }
+        if !non_negative(self.reflectivity) {
+            return Err(InvalidShading("reflectivity must be finite and >= 0"));
+        }
+        Ok(())
+    }
+}
+
 /// The Fresnel approximation of eq. 38, R = (0.5 + 0.5 r·l)², with `l` the unit
 /// viewing direction from the eye: 0 looking straight onto the surface, 1 at
 /// grazing incidence, as the thesis describes.
@@ -112,6 +146,98 @@ pub fn reflect(d: Vec3, n: Vec3) -> Vec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shading_that_would_draw_garbage_is_an_error_naming_the_field() {
+        let ok = Shading::default();
+        assert!(ok.validate().is_ok());
+        // The demo panel's extremes.
+        for edge in [
+            Shading {
+                depth_epsilon: 0.0,
+                refraction: 0.0,
+                reflectivity: 2.0,
+                fluid_colour: Vec3::ZERO,
+                ..ok
+            },
+            Shading {
+                fluid_colour: Vec3::ONE,
+                refraction: -0.2,
+                ..ok
+            },
+        ] {
+            assert!(edge.validate().is_ok(), "{edge:?}");
+        }
+        let cases = [
+            (
+                Shading {
+                    depth_epsilon: f32::NAN,
+                    ..ok
+                },
+                "depth_epsilon",
+            ),
+            (
+                Shading {
+                    depth_epsilon: -0.01,
+                    ..ok
+                },
+                "depth_epsilon",
+            ),
+            (
+                Shading {
+                    refraction: f32::INFINITY,
+                    ..ok
+                },
+                "refraction",
+            ),
+            (
+                Shading {
+                    fluid_colour: Vec3::new(0.5, f32::NAN, 0.5),
+                    ..ok
+                },
+                "fluid_colour",
+            ),
+            (
+                Shading {
+                    fluid_colour: Vec3::new(0.5, 0.5, -0.1),
+                    ..ok
+                },
+                "fluid_colour",
+            ),
+            (
+                Shading {
+                    weight_scale: 0.0,
+                    ..ok
+                },
+                "weight_scale",
+            ),
+            (
+                Shading {
+                    weight_scale: f32::NAN,
+                    ..ok
+                },
+                "weight_scale",
+            ),
+            (
+                Shading {
+                    reflectivity: f32::NEG_INFINITY,
+                    ..ok
+                },
+                "reflectivity",
+            ),
+            (
+                Shading {
+                    reflectivity: -1.0,
+                    ..ok
+                },
+                "reflectivity",
+            ),
+        ];
+        for (bad, field) in cases {
+            let err = bad.validate().unwrap_err().to_string();
+            assert!(err.contains(field), "{bad:?}: {err}");
+        }
+    }
 
     #[test]
     fn fresnel_limits_follow_the_thesis() {

@@ -336,6 +336,12 @@ fn bad_input_is_an_error() {
     );
     let bad_cam = Camera::looking_at(Vec3::ZERO, Vec3::ZERO);
     assert!(r.render(ctx, &bad_cam, &Shading::default()).is_err());
+    let nan_epsilon = Shading {
+        depth_epsilon: f32::NAN,
+        ..Default::default()
+    };
+    let err = r.render(ctx, &camera(), &nan_epsilon).unwrap_err();
+    assert!(err.to_string().contains("depth_epsilon"), "{err}");
 
     // GPU sources wgpu would reject (a panic without an error scope): an
     // empty splat buffer, a texture that cannot be copied from.
