@@ -147,8 +147,8 @@ impl GpuExtractor {
     /// `max_surfels` surfels per refinement level and in the result.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for parameters surfel-extract rejects,
-    /// [`Mode::Covered`] (hole closing is CPU-only: pass
+    /// [`GpuError::Params`] for parameters surfel-extract rejects (its
+    /// reason), [`GpuError::Invalid`] for [`Mode::Covered`] (hole closing is CPU-only: pass
     /// [`ExtractParams::thesis`]), a zero capacity, or buffers beyond the
     /// device's storage binding limit.
     pub fn new(
@@ -157,9 +157,7 @@ impl GpuExtractor {
         max_surfels: usize,
         params: &ExtractParams,
     ) -> Result<Self, GpuError> {
-        params
-            .validate()
-            .map_err(|_| GpuError::Invalid("extraction parameters rejected by surfel-extract"))?;
+        params.validate().map_err(GpuError::Params)?;
         if params.mode != Mode::Thesis || params.first_split != Split::TwoByTwo {
             return Err(GpuError::Invalid(
                 "the GPU extractor runs the thesis mode (hole closing and 3×3 splits are CPU-only): use ExtractParams::thesis()",

@@ -23,6 +23,9 @@ pub enum GpuError {
     /// A smoothing length that is not finite and positive, or a non-finite position.
     #[error("invalid input: {0}")]
     Invalid(&'static str),
+    /// Parameters that sph-core or surfel-extract reject, with their reason.
+    #[error("invalid parameters: {0}")]
+    Params(sph_core::Error),
     /// The adaptive step fell below its minimum or became NaN (a blow-up).
     #[error("the GPU simulation became unstable: {0}")]
     Unstable(String),

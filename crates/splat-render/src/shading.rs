@@ -81,7 +81,8 @@ impl Shading {
     /// [`RenderError::InvalidShading`](crate::RenderError::InvalidShading)
     /// naming the field: `depth_epsilon` must be finite and ≥ 0,
     /// `refraction` finite, `fluid_colour` finite and ≥ 0 per channel,
-    /// `weight_scale` finite and > 0, `reflectivity` finite and ≥ 0.
+    /// `weight_scale` finite and > 0 (not subnormal), `reflectivity` finite
+    /// and ≥ 0.
     pub fn validate(&self) -> crate::Result<()> {
         use crate::RenderError::InvalidShading;
         let non_negative = |v: f32| v.is_finite() && v >= 0.0;
@@ -96,8 +97,11 @@ impl Shading {
                 "fluid_colour must be finite and >= 0 in every channel",
             ));
         }
-        if !(self.weight_scale.is_finite() && self.weight_scale > 0.0) {
-            return Err(InvalidShading("weight_scale must be finite and > 0"));
+        // A subnormal scale flushes to 0 on GPUs, and Σw / 0 is NaN.
+        if !(self.weight_scale.is_normal() && self.weight_scale > 0.0) {
+            return Err(InvalidShading(
+                "weight_scale must be finite and > 0 (a normal float)",
+            ));
         }
         if !non_negative(self.reflectivity) {
             return Err(InvalidShading("reflectivity must be finite and >= 0"));
@@ -151,17 +155,24 @@ mod tests {
     fn shading_that_would_draw_garbage_is_an_error_naming_the_field() {
         let ok = Shading::default();
         assert!(ok.validate().is_ok());
-        // The demo panel's extremes.
+        // The ends of the demo panel's sliders (ε 0–0.1, μ 0–0.2,
+        // reflectivity 0–2, colour 0–1), and a negative μ (a mirrored offset).
         for edge in [
             Shading {
                 depth_epsilon: 0.0,
                 refraction: 0.0,
-                reflectivity: 2.0,
+                reflectivity: 0.0,
                 fluid_colour: Vec3::ZERO,
                 ..ok
             },
             Shading {
+                depth_epsilon: 0.1,
+                refraction: 0.2,
+                reflectivity: 2.0,
                 fluid_colour: Vec3::ONE,
+                ..ok
+            },
+            Shading {
                 refraction: -0.2,
                 ..ok
             },
@@ -214,6 +225,13 @@ mod tests {
             (
                 Shading {
                     weight_scale: f32::NAN,
+                    ..ok
+                },
+                "weight_scale",
+            ),
+            (
+                Shading {
+                    weight_scale: 1e-45,
                     ..ok
                 },
                 "weight_scale",
