@@ -8,7 +8,8 @@ use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressStyle};
 use sph_core::export::{FrameWriter, PointCloud};
-use splat_render::{GpuContext, SplatRenderer};
+use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
+use splat_render::{GpuContext, SplatRenderer, wgpu};
 
 use crate::cli::Args;
 use crate::error::AppError;
@@ -23,7 +24,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         BufWriter::new(File::create(&csv_path).map_err(|e| AppError::output(&csv_path, e))?);
     writeln!(
         csv,
-        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms"
+        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms"
     )
     .map_err(|e| AppError::output(&csv_path, e))?;
 
@@ -97,6 +98,21 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    // The render passes' GPU time, where the adapter has timestamp queries.
+    let mut profiler = match &gpu {
+        Some(ctx)
+            if ctx
+                .device
+                .features()
+                .contains(wgpu::Features::TIMESTAMP_QUERY) =>
+        {
+            Some(
+                GpuProfiler::new(&ctx.device, GpuProfilerSettings::default())
+                    .map_err(|e| AppError::Gpu(e.to_string()))?,
+            )
+        }
+        _ => None,
+    };
     let camera = pipeline.camera();
     let shading = pipeline.shading();
     if args.cull {
@@ -106,13 +122,24 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         let result = (|| -> Result<(), AppError> {
             pipeline.advance(frame_dt)?;
             pipeline.extract_surfels()?;
-            let mut render_ms = 0.0;
+            let (mut render_ms, mut render_gpu_ms) = (0.0, None);
             if let (Some(ctx), Some(renderer)) = (&gpu, renderer.as_mut()) {
                 let start = Instant::now();
                 pipeline.show_surfels(ctx, renderer)?;
-                renderer.render(ctx, &camera, &shading)?;
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                match profiler.as_mut() {
+                    Some(p) => {
+                        renderer.encode_profiled(ctx, &mut encoder, &camera, &shading, p)?;
+                        p.resolve_queries(&mut encoder);
+                    }
+                    None => renderer.encode(ctx, &mut encoder, &camera, &shading)?,
+                }
+                ctx.queue.submit([encoder.finish()]);
                 let image = renderer.read_image(ctx)?;
                 render_ms = start.elapsed().as_secs_f64() * 1e3;
+                if let Some(p) = profiler.as_mut() {
+                    render_gpu_ms = gpu_span_ms(ctx, p)?;
+                }
                 let path = out.join(format!("frame_{frame:05}.png"));
                 image.save(&path).map_err(|e| AppError::output(&path, e))?;
             }
@@ -126,9 +153,10 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
                 write_surfels(w, &pipeline, time)?;
             }
             let s = pipeline.stats;
+            let render_gpu = render_gpu_ms.map_or(String::new(), |ms| format!("{ms:.3}"));
             writeln!(
                 csv,
-                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3}",
+                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu}",
                 s.time, s.particles, s.surfels, s.evaluations, s.step_ms, s.extract_ms, s.render_ms
             )
             .and_then(|()| csv.flush())
@@ -160,6 +188,26 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         display(out)
     );
     Ok(())
+}
+
+/// Ends the profiler's frame and returns its GPU span, first pass start to
+/// last pass end (ms), once the device has finished it (the image read-back
+/// waited for it); `None` when its queries are not back.
+fn gpu_span_ms(ctx: &GpuContext, profiler: &mut GpuProfiler) -> Result<Option<f64>, AppError> {
+    profiler
+        .end_frame()
+        .map_err(|e| AppError::Gpu(e.to_string()))?;
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| AppError::Gpu(e.to_string()))?;
+    let Some(results) = profiler.process_finished_frame(ctx.queue.get_timestamp_period()) else {
+        return Ok(None);
+    };
+    let times = results.iter().filter_map(|r| r.time.clone());
+    let (first, last) = times.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| {
+        (a.min(t.start), b.max(t.end))
+    });
+    Ok((last >= first).then_some((last - first) * 1e3))
 }
 
 fn write_surfels(w: &mut FrameWriter, pipeline: &Pipeline, time: f64) -> Result<(), AppError> {

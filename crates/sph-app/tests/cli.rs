@@ -73,7 +73,7 @@ fn headless_frames_csv_and_exports() {
         .collect();
     assert_eq!(
         csv.lines().next().unwrap(),
-        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms"
+        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms"
     );
     assert_eq!(rows.len(), 3, "{csv}");
     for (i, row) in rows.iter().enumerate() {
@@ -83,6 +83,19 @@ fn headless_frames_csv_and_exports() {
         let particles: usize = row[2].parse().unwrap();
         let surfels: usize = row[3].parse().unwrap();
         assert!(particles > 1000 && surfels > 100, "{row:?}");
+        // The render passes' GPU time (lavapipe has timestamp queries): more
+        // than nothing, less than the frame's render with its read-back.
+        if let Ok(gpu_ms) = row[8].parse::<f64>() {
+            let render_ms: f64 = row[7].parse().unwrap();
+            assert!(gpu_ms > 0.0 && gpu_ms <= render_ms, "{row:?}");
+        } else {
+            // Empty only without an adapter or its timestamps; CI's lavapipe
+            // has both.
+            assert!(
+                row[8].is_empty() && std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1"),
+                "{row:?}"
+            );
+        }
         let p = read_ply(std::fs::File::open(out.join(format!("particles_{i:05}.ply"))).unwrap())
             .unwrap();
         assert_eq!(p.positions.len(), particles);
