@@ -13,8 +13,7 @@ use crate::error::{Error, Result, check_kernel_h};
 use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
-    Emitter, FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, TimeStepping, World,
-    nozzle_corners, nozzle_points,
+    Emitter, FluidParams, MAX_H_OVER_SPACING, TimeStepping, World, nozzle_corners, nozzle_points,
 };
 
 /// A complete scene description.
@@ -231,14 +230,6 @@ fn positive(field: &str, v: f32) -> Result<()> {
     }
 }
 
-fn non_negative(field: &str, v: f32) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(invalid(field, format!("{v} must be finite and >= 0")))
-    }
-}
-
 fn lattice_count(min: Vec3, max: Vec3, spacing: f32) -> [usize; 3] {
     let n = ((max - min) / spacing).floor();
     [n.x as usize, n.y as usize, n.z as usize]
@@ -270,30 +261,17 @@ impl Scene {
     /// Checks every value; the error names the field and the reason.
     pub fn validate(&self) -> Result<()> {
         let f = &self.fluid;
-        positive("fluid.h", f.h)?;
+        // The solver's own checks, named as the file names the fields.
+        self.fluid_params().validate().map_err(|e| match e {
+            Error::InvalidParameter {
+                name,
+                value,
+                reason,
+            } => invalid(format!("fluid.{name}"), format!("{value} {reason}")),
+            e => e,
+        })?;
         // The kernels' own check: h must keep their coefficients finite f32.
         check_kernel_h(f.h).map_err(|e| invalid("fluid.h", e.to_string()))?;
-        positive("fluid.rest_density", f.rest_density)?;
-        if f.rest_density > MAX_REST_DENSITY {
-            return Err(invalid(
-                "fluid.rest_density",
-                format!(
-                    "{} exceeds {MAX_REST_DENSITY} kg/m³: denser fluids overflow the f32 density sums",
-                    f.rest_density
-                ),
-            ));
-        }
-        positive("fluid.stiffness", f.stiffness)?;
-        non_negative("fluid.viscosity", f.viscosity)?;
-        non_negative("fluid.surface_tension", f.surface_tension)?;
-        non_negative("fluid.surface_threshold", f.surface_threshold)?;
-        finite3("fluid.gravity", f.gravity)?;
-        if !(0.0..=1.0).contains(&f.negative_pressure_scale) {
-            return Err(invalid(
-                "fluid.negative_pressure_scale",
-                format!("{} must be in [0, 1]", f.negative_pressure_scale),
-            ));
-        }
         positive("spacing", self.spacing)?;
         if self.spacing >= f.h {
             return Err(invalid(

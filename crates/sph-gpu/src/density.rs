@@ -41,7 +41,8 @@ impl GpuDensity {
     /// The pass for `grid`'s particles with these parameters and walls.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for parameters sph-core rejects, an `h` different
+    /// [`GpuError::Params`] for parameters or a boundary sph-core rejects (its
+    /// reason); [`GpuError::Invalid`] for an `h` different
     /// from the grid's, a capacity below the grid's (the pass writes one
     /// density per grid particle), or a non-finite obstacle; [`GpuError::DeviceLimit`]
     /// for a capacity beyond one dispatch or storage binding of this device.
@@ -52,12 +53,8 @@ impl GpuDensity {
         params: &FluidParams,
         boundary: &Boundary,
     ) -> Result<Self, GpuError> {
-        params
-            .validate()
-            .map_err(|_| GpuError::Invalid("fluid parameters rejected by sph-core"))?;
-        boundary
-            .validate()
-            .map_err(|_| GpuError::Invalid("boundary rejected by sph-core"))?;
+        params.validate().map_err(GpuError::Params)?;
+        boundary.validate().map_err(GpuError::Params)?;
         if params.h != grid.h() {
             return Err(GpuError::Invalid(
                 "the density's h must be the grid's cell size",

@@ -121,8 +121,9 @@ impl GpuSolver {
     /// Uploads `particles` (positions, velocities, masses) and prepares the passes.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for parameters sph-core rejects, a non-finite
-    /// obstacle, or non-finite particle data; [`GpuError::DeviceLimit`] for
+    /// [`GpuError::Params`] for particles (`Particles::validate`),
+    /// parameters or a boundary sph-core rejects (its reason);
+    /// [`GpuError::Invalid`] for a non-finite `h`; [`GpuError::DeviceLimit`] for
     /// more particles than one dispatch or storage binding of this device
     /// holds.
     pub fn new(
@@ -132,14 +133,12 @@ impl GpuSolver {
         params: &FluidParams,
         boundary: &Boundary,
     ) -> Result<Self, GpuError> {
+        particles.validate().map_err(GpuError::Params)?;
         let n = particles.len();
         let capacity = n.max(1);
         let mut grid = GpuGrid::new(device, capacity, params.h, 1)?;
         grid.upload_with_masses(queue, particles.positions(), Some(particles.masses()))?;
         let density = GpuDensity::new(device, &grid, capacity, params, boundary)?;
-        if particles.velocities().iter().any(|v| !v.is_finite()) {
-            return Err(GpuError::Invalid("a velocity is not finite"));
-        }
         let vec4s = |label, data: &[Vec3]| {
             let buffer = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -285,11 +284,9 @@ impl GpuSolver {
     /// The adaptive step's parameters (sph-core's defaults until set).
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for parameters sph-core rejects.
+    /// [`GpuError::Params`] for parameters sph-core rejects (its reason).
     pub fn set_time_stepping(&mut self, stepping: &TimeStepping) -> Result<(), GpuError> {
-        stepping
-            .validate()
-            .map_err(|_| GpuError::Invalid("time stepping rejected by sph-core"))?;
+        stepping.validate().map_err(GpuError::Params)?;
         if self.viscous_dt < stepping.min_dt {
             return Err(GpuError::Invalid(
                 "the viscous step limit 0.125 h²ρ0/μ is below min_dt: lower μ or raise h",

@@ -117,6 +117,21 @@ fn bad_input_is_an_error() {
         Ok(_) => panic!("a density pass for 1 particle on a grid of 2"),
     }
     sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &boundary).unwrap();
+    // sph-core's own checks, their reasons passed on.
+    let bad_boundary = sph_core::Boundary {
+        restitution: 2.0,
+        ..boundary.clone()
+    };
+    let err = sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &bad_boundary)
+        .err()
+        .expect("a restitution of 2");
+    assert!(err.to_string().contains("restitution"), "{err}");
+    let mut particles = sph_core::Particles::new();
+    particles.push(Vec3::ZERO, Vec3::new(f32::NAN, 0.0, 0.0), 1.0);
+    let err = sph_gpu::GpuSolver::new(&ctx.device, &ctx.queue, &particles, &params, &boundary)
+        .err()
+        .expect("a NaN velocity");
+    assert!(err.to_string().contains("velocity"), "{err}");
 }
 
 #[test]
