@@ -14,6 +14,12 @@ pub struct Args {
     #[arg(long, default_value = "dam-break")]
     pub scene: String,
 
+    /// The solver, overriding the scene's choice: `pbf` (position-based
+    /// fluids, real time; the built-in scenes' default) or `wcsph` (the
+    /// thesis's weakly compressible SPH, the reference).
+    #[arg(long, value_parser = parse_solver)]
+    pub solver: Option<sph_core::SolverKind>,
+
     /// Print the built-in scenes and exit.
     #[arg(long)]
     pub list_scenes: bool,
@@ -120,6 +126,13 @@ fn parse_in_range(s: &str, what: &str, min: Option<f64>, max: f64) -> Result<f64
     }
 }
 
+fn parse_solver(s: &str) -> Result<sph_core::SolverKind, String> {
+    sph_core::SolverKind::from_name(s).ok_or_else(|| {
+        let names: Vec<_> = sph_core::SolverKind::ALL.iter().map(|k| k.name()).collect();
+        format!("unknown solver `{s}`: one of {}", names.join(", "))
+    })
+}
+
 fn parse_seconds(s: &str) -> Result<f64, String> {
     parse_in_range(s, "seconds", None, 3600.0)
 }
@@ -157,5 +170,9 @@ mod tests {
         assert!(Args::try_parse_from(["sph-app", "--fps", "1"]).is_ok());
         assert!(Args::try_parse_from(["sph-app", "--frames", "3", "--seconds", "1"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--threads", "0"]).is_err());
+        let a = Args::try_parse_from(["sph-app", "--solver", "wcsph"]).unwrap();
+        assert_eq!(a.solver, Some(sph_core::SolverKind::Wcsph));
+        let e = Args::try_parse_from(["sph-app", "--solver", "sph"]).unwrap_err();
+        assert!(e.to_string().contains("one of wcsph, pbf"), "{e}");
     }
 }

@@ -33,7 +33,7 @@ impl GpuSim {
     ///
     /// # Errors
     /// [`AppError::Gpu`] where the GPU path does not support the scene
-    /// (emitters) or the data is invalid.
+    /// (emitters, a solver other than WCSPH) or the data is invalid.
     pub fn new(ctx: &GpuContext, world: &World, scene: &sph_core::Scene) -> Result<Self, AppError> {
         Self::on(&ctx.device, &ctx.queue, world, scene)
     }
@@ -56,6 +56,12 @@ impl GpuSim {
             return Err(AppError::Gpu(
                 "emitters are not on the GPU path (its particle count is fixed): run this scene on the CPU".into(),
             ));
+        }
+        if world.solver().kind() != sph_core::SolverKind::Wcsph {
+            return Err(AppError::Gpu(format!(
+                "the GPU path runs only the thesis's WCSPH, and this scene runs {}: pass --solver wcsph to run WCSPH on the GPU, or leave out --gpu-sim",
+                world.solver().kind()
+            )));
         }
         let mut solver = GpuSolver::new(
             device,

@@ -24,7 +24,8 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         BufWriter::new(File::create(&csv_path).map_err(|e| AppError::output(&csv_path, e))?);
     writeln!(
         csv,
-        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms"
+        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
+         solver,substeps,iterations,density_error_avg,density_error_max,clamped"
     )
     .map_err(|e| AppError::output(&csv_path, e))?;
 
@@ -73,9 +74,10 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     let frames = args.frame_count();
     let frame_dt = 1.0 / args.fps;
     println!(
-        "scene `{}`: {} particles{}{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
+        "scene `{}`: {} particles, solver {}{}{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
         pipeline.name,
         pipeline.world.particles.len(),
+        pipeline.world.solver().kind(),
         if pipeline.gpu.is_some() {
             " (SPH step on the GPU)"
         } else {
@@ -154,10 +156,30 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             }
             let s = pipeline.stats;
             let render_gpu = render_gpu_ms.map_or(String::new(), |ms| format!("{ms:.3}"));
+            // Density errors as fractions; empty where the GPU solver ran.
+            let error = |e: f32| {
+                if e.is_finite() {
+                    format!("{e:.6}")
+                } else {
+                    String::new()
+                }
+            };
             writeln!(
                 csv,
-                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu}",
-                s.time, s.particles, s.surfels, s.evaluations, s.step_ms, s.extract_ms, s.render_ms
+                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{}",
+                s.time,
+                s.particles,
+                s.surfels,
+                s.evaluations,
+                s.step_ms,
+                s.extract_ms,
+                s.render_ms,
+                s.solver,
+                s.substeps,
+                s.iterations,
+                error(s.density_error_avg),
+                error(s.density_error_max),
+                s.clamped
             )
             .and_then(|()| csv.flush())
             .map_err(|e| AppError::output(&csv_path, e))?;

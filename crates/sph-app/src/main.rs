@@ -56,7 +56,10 @@ fn run(args: &Args) -> Result<(), AppError> {
         "CPU neighbour search and sums on the {} path (SPH_SIMD lowers it)",
         sph_core::simd_level().name()
     );
-    let (name, scene) = scenes::resolve(&args.scene)?;
+    let (name, mut scene) = scenes::resolve(&args.scene)?;
+    if let Some(kind) = args.solver {
+        scene.solver.kind = kind;
+    }
     let pipeline = Pipeline::new(name, scene, args.iterations)?;
     if args.headless {
         return headless::run(args, pipeline);

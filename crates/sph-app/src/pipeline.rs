@@ -24,8 +24,20 @@ pub struct FrameStats {
     pub surfels: usize,
     /// Field evaluations of the extraction (particles + surfels).
     pub evaluations: u64,
+    /// The solver that took the frame's steps.
+    pub solver: sph_core::SolverKind,
     /// Solver substeps of the frame.
     pub substeps: u32,
+    /// Constraint iterations of the frame, all substeps (0 for WCSPH).
+    pub iterations: u32,
+    /// Average density error max(ρ/ρ0 − 1, 0) of the frame
+    /// ([`sph_core::FrameReport::density_error_avg`]); NaN where the GPU
+    /// solver stepped (it reports no densities per frame).
+    pub density_error_avg: f32,
+    /// Largest density error ρ/ρ0 − 1 of the frame; NaN on the GPU path.
+    pub density_error_max: f32,
+    /// Particles the solver's guard slowed in the frame (PBF).
+    pub clamped: u64,
     /// Simulation wall time (ms).
     pub step_ms: f64,
     /// Extraction wall time (ms).
@@ -188,21 +200,36 @@ impl Pipeline {
     /// it runs) and marks the surfels for re-extraction.
     pub fn advance(&mut self, frame_dt: f64) -> Result<(), AppError> {
         let start = Instant::now();
-        let (substeps, time) = match self.gpu.as_mut() {
+        let report = match self.gpu.as_mut() {
             Some(gpu) => {
                 let substeps = gpu.advance(&self.world, frame_dt)?;
                 self.gpu_time += frame_dt;
                 self.gpu_ahead = true;
-                (substeps, self.world.time() + self.gpu_time)
+                sph_core::FrameReport {
+                    solver: sph_core::SolverKind::Wcsph,
+                    substeps,
+                    dt_range: (f32::NAN, f32::NAN),
+                    iterations: 0,
+                    density_error_avg: f32::NAN,
+                    density_error_max: f32::NAN,
+                    clamped: 0,
+                    time: self.world.time() + self.gpu_time,
+                }
             }
             None => {
-                let report = self.world.advance(frame_dt as f32)?;
-                (report.substeps, report.time + self.gpu_time)
+                let mut report = self.world.advance(frame_dt as f32)?;
+                report.time += self.gpu_time;
+                report
             }
         };
         self.stats.step_ms = start.elapsed().as_secs_f64() * 1e3;
-        self.stats.substeps = substeps;
-        self.stats.time = time;
+        self.stats.solver = report.solver;
+        self.stats.substeps = report.substeps;
+        self.stats.iterations = report.iterations;
+        self.stats.density_error_avg = report.density_error_avg;
+        self.stats.density_error_max = report.density_error_max;
+        self.stats.clamped = report.clamped;
+        self.stats.time = report.time;
         self.stats.frame += 1;
         self.stats.particles = self.world.particles.len();
         self.extracted = false;

@@ -8,6 +8,7 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
+use sph_core::SolverKind;
 use sph_core::solver::ExternalAcceleration;
 use splat_render::{GpuContext, Shading, SplatRenderer, View, wgpu};
 use surfel_extract::Split;
@@ -159,6 +160,9 @@ struct App {
     modifiers: ModifiersState,
     last: Instant,
     sim_debt: f64,
+    /// Simulated over wall seconds, smoothed: 1 while the window keeps real
+    /// time, below 1 where the machine falls behind.
+    realtime: f64,
     fps: f64,
     render_ms: f64,
     screenshots: u32,
@@ -197,6 +201,7 @@ impl App {
             modifiers: ModifiersState::empty(),
             last: Instant::now(),
             sim_debt: 0.0,
+            realtime: 1.0,
             fps: 0.0,
             render_ms: 0.0,
             screenshots: 0,
@@ -299,6 +304,22 @@ impl App {
         }
     }
 
+    /// Runs the scene from its start with another solver; the GPU step
+    /// (WCSPH only) is switched off, with its note, for any other.
+    fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
+        self.pipeline.scene.solver.kind = kind;
+        if kind != SolverKind::Wcsph && self.pipeline.gpu.is_some() {
+            let refusal = self
+                .pipeline
+                .set_gpu_sim(None)
+                .and(Err(AppError::Gpu(format!(
+                    "the GPU path runs only WCSPH, not {kind}: back on the CPU"
+                ))));
+            self.settings.gpu_sim.settle(refusal);
+        }
+        self.reset()
+    }
+
     fn reset(&mut self) -> Result<(), AppError> {
         self.pipeline.reset()?;
         install_push(&mut self.pipeline, &self.push);
@@ -367,9 +388,16 @@ impl App {
                 advanced = true;
             }
         } else {
-            // Fixed simulated rate, independent of the frame rate; at most two
-            // frames of catch-up so a slow machine slows down instead of stalling.
-            self.sim_debt = (self.sim_debt + real).min(2.0 * frame_dt);
+            // Simulated time follows wall time at a fixed simulated rate,
+            // independent of the frame rate; at most two frames of catch-up,
+            // so a slow machine slows down instead of stalling, and the
+            // panel shows by how much (the real-time factor).
+            let owed = self.sim_debt + real;
+            self.sim_debt = owed.min(2.0 * frame_dt);
+            // The wall time dropped by the cap is time not simulated.
+            let factor = 1.0 - (owed - self.sim_debt) / real.max(1e-6);
+            // Smoothed over about a second of wall time.
+            self.realtime += real.min(1.0) * (factor.clamp(0.0, 1.0) - self.realtime);
             while self.sim_debt >= frame_dt {
                 self.pipeline.advance(frame_dt)?;
                 self.sim_debt -= frame_dt;
@@ -430,6 +458,9 @@ impl App {
         let raw = gfx.egui_state.take_egui_input(&gfx.window);
         let mut changed = false;
         let mut scene_choice = None;
+        let mut solver_choice = None;
+        let mut solver = self.pipeline.scene.solver.kind;
+        let realtime = self.realtime;
         let extract_before = self.pipeline.extract;
         let stats = self.pipeline.stats;
         let (fps, render_ms) = (self.fps, self.render_ms);
@@ -452,6 +483,36 @@ impl App {
                 ui.label(format!(
                     "simulate {:.1} ms ({} substeps), extract {:.1} ms, render {render_ms:.1} ms",
                     stats.step_ms, stats.substeps, stats.extract_ms
+                ));
+                if realtime < 0.99 {
+                    ui.colored_label(egui::Color32::from_rgb(230, 150, 60), format!(
+                        "behind real time: {realtime:.2} simulated s per wall s"
+                    ));
+                } else {
+                    ui.label("real time: simulated time keeps up with the clock");
+                }
+                ui.horizontal(|ui| {
+                    egui::ComboBox::from_label("solver (resets)")
+                        .selected_text(solver.name())
+                        .show_ui(ui, |ui| {
+                            for kind in SolverKind::ALL {
+                                if ui.selectable_value(&mut solver, kind, kind.name()).changed() {
+                                    solver_choice = Some(kind);
+                                }
+                            }
+                        });
+                });
+                ui.label(match stats.solver {
+                    SolverKind::Pbf => format!(
+                        "{} iterations per frame, {} clamped",
+                        stats.iterations, stats.clamped
+                    ),
+                    SolverKind::Wcsph => "adaptive step, no iterations".into(),
+                });
+                ui.label(format!(
+                    "density error {:.2} % avg, {:.1} % max",
+                    100.0 * stats.density_error_avg,
+                    100.0 * stats.density_error_max
                 ));
                 ui.label(format!(
                     "{} particles, {} surfels, {} evaluations",
@@ -555,6 +616,9 @@ impl App {
         }
         if let Some(i) = scene_choice {
             self.switch_scene(i)?;
+        }
+        if let Some(kind) = solver_choice {
+            self.switch_solver(kind)?;
         }
         self.sync_gpu();
         if self.args_screenshot_after == Some(self.frames_drawn) {

@@ -241,6 +241,14 @@ impl Boundary {
         }
     }
 
+    /// Moves `x` to the nearest admitted position when it is not one, as
+    /// [`Boundary::resolve`] does, without a velocity to reflect (position-based
+    /// solvers derive the velocity from the motion afterwards).
+    pub fn project(&self, x: &mut Vec3) {
+        let mut v = Vec3::ZERO;
+        self.resolve(x, &mut v);
+    }
+
     /// Calls `f(d, n)` for each wall surface within `h` of the admitted point `x`:
     /// its distance `d` and its normal `n` pointing into the fluid. Curved and
     /// box obstacles are taken locally as the plane at their nearest point.

@@ -43,10 +43,12 @@ use rayon::prelude::*;
 use crate::error::{Error, Result, check_h};
 
 mod layout;
+mod lists;
 mod pairs;
 mod scan;
 mod simd;
 mod sums;
+pub use lists::NeighbourLists;
 pub(crate) use pairs::{Centre, ForceKernels, ForceSums, SlotFluid};
 use scan::Scan;
 pub use simd::{Simd, simd_level};

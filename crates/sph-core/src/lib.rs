@@ -27,12 +27,14 @@ pub mod solver;
 pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
 pub use export::{FrameWriter, PointCloud};
-pub use grid::{NeighbourGrid, Neighbourhood, Poly6Sums, Simd, simd_level};
+pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood, Poly6Sums, Simd, simd_level};
 pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
-pub use processor::{Context, Processor, Program};
+pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;
-pub use solver::{FluidParams, PressureKernel, TimeStepping, World};
+pub use solver::{
+    FluidParams, FrameReport, PbfParams, PressureKernel, Solver, SolverKind, TimeStepping, World,
+};
 
 /// Re-export of the vector maths crate used in the public API.
 pub use glam;

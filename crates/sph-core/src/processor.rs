@@ -32,7 +32,7 @@
 //! ```
 
 use crate::error::Result;
-use crate::grid::NeighbourGrid;
+use crate::grid::{NeighbourGrid, NeighbourLists};
 use crate::particles::Particles;
 
 /// What a processor knows of the current step besides the particles.
@@ -47,8 +47,26 @@ pub struct Context {
     /// The neighbour grid over the current positions, once a grid processor has
     /// built it this step; `None` before, and after anything moved particles.
     pub grid: Option<NeighbourGrid>,
+    /// Fixed neighbour lists of the step, found on the positions a grid was
+    /// built over, once a neighbour-list processor made them
+    /// ([`crate::solver::pbf::FindNeighbours`]). Unlike the grid they stay
+    /// while a constraint projection moves particles within the step (as in
+    /// Macklin & Müller 2013); a grid build drops them, and a processor that
+    /// adds, removes or reorders particles after them must set this to `None`.
+    pub neighbours: Option<NeighbourLists>,
+    /// What the step's processors counted, summed into the frame's report.
+    pub counters: StepCounters,
     /// An outdated grid whose memory the next grid build reuses.
     recycled: Option<NeighbourGrid>,
+}
+
+/// What the processors of one step count, for [`crate::solver::FrameReport`].
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct StepCounters {
+    /// Constraint-solver iterations taken (0 for a solver without any).
+    pub iterations: u32,
+    /// Particles whose motion a guard limited (PBF's displacement guard).
+    pub clamped: u64,
 }
 
 impl Context {
@@ -59,6 +77,8 @@ impl Context {
             time: 0.0,
             step: 0,
             grid: None,
+            neighbours: None,
+            counters: StepCounters::default(),
             recycled: None,
         }
     }
@@ -70,6 +90,13 @@ impl Context {
         if let Some(grid) = self.grid.take() {
             self.recycled = Some(grid);
         }
+    }
+
+    /// Particles were added, removed or reordered: the grid and the
+    /// neighbour lists are both out of date (the grid's memory is kept).
+    pub fn invalidate_neighbours(&mut self) {
+        self.invalidate_grid();
+        self.neighbours = None;
     }
 
     /// The grid or the outdated one, to rebuild in place.
@@ -112,6 +139,12 @@ impl Program {
     /// Appends a processor.
     pub fn push(&mut self, processor: impl Processor + 'static) -> &mut Self {
         self.processors.push(Box::new(processor));
+        self
+    }
+
+    /// Puts a processor first.
+    pub fn push_front(&mut self, processor: impl Processor + 'static) -> &mut Self {
+        self.processors.insert(0, Box::new(processor));
         self
     }
 

@@ -13,7 +13,8 @@ use crate::error::{Error, Result, check_kernel_h};
 use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
-    Emitter, FluidParams, MAX_H_OVER_SPACING, TimeStepping, World, nozzle_corners, nozzle_points,
+    Emitter, FluidParams, MAX_H_OVER_SPACING, PbfParams, Solver, SolverKind, TimeStepping, World,
+    nozzle_corners, nozzle_points,
 };
 
 /// A complete scene description.
@@ -39,6 +40,9 @@ pub struct Scene {
     pub emitters: Vec<EmitterSpec>,
     /// Time stepping.
     pub time_step: TimeStepSpec,
+    /// The solver and its parameters (WCSPH when left out).
+    #[serde(default)]
+    pub solver: SolverSpec,
     /// Upper bound on the particle count (blocks and emitters together).
     #[serde(default = "default_max_particles")]
     pub max_particles: usize,
@@ -153,6 +157,41 @@ fn default_cfl() -> f32 {
 }
 fn default_force_factor() -> f32 {
     TimeStepping::default().force_factor
+}
+
+/// Which solver runs the scene, and the parameters of each: `[solver]` with
+/// `kind = "wcsph"` (the thesis's, the default) or `"pbf"`, and an optional
+/// `[solver.pbf]` table ([`PbfParams`], every field optional). The
+/// parameters of a solver not chosen are kept, so switching solver (the
+/// demo's `--solver`) finds them.
+///
+/// ```toml
+/// [solver]
+/// kind = "pbf"
+///
+/// [solver.pbf]
+/// substeps = 2
+/// iterations = 4
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    /// The solver.
+    #[serde(default)]
+    pub kind: SolverKind,
+    /// Position-based fluids' parameters.
+    #[serde(default)]
+    pub pbf: PbfParams,
+}
+
+impl SolverSpec {
+    /// The chosen solver with its parameters.
+    pub fn solver(&self) -> Solver {
+        match self.kind {
+            SolverKind::Wcsph => Solver::Wcsph,
+            SolverKind::Pbf => Solver::Pbf(self.pbf),
+        }
+    }
 }
 
 /// Hints for the renderer and the demo.
@@ -412,6 +451,16 @@ impl Scene {
                 ),
             ));
         }
+        // Every solver's parameters, chosen or not: switching must not find
+        // bad ones.
+        self.solver.pbf.validate().map_err(|e| match e {
+            Error::InvalidParameter {
+                name,
+                value,
+                reason,
+            } => invalid(format!("solver.{name}"), format!("{value} {reason}")),
+            e => e,
+        })?;
         self.render.validate()?;
         if self.max_particles > MAX_PARTICLES {
             return Err(invalid(
@@ -504,8 +553,9 @@ impl Scene {
         Ok(p)
     }
 
-    /// A ready-to-run world: particles, default program, emitters inserted
-    /// before the grid build (so new particles are in the step's grid).
+    /// A ready-to-run world: particles, the scene's solver's program,
+    /// emitters inserted at its start (so new particles are in the step's
+    /// grid).
     pub fn build_world(&self) -> Result<World> {
         self.world_with(self.particles()?)
     }
@@ -522,7 +572,13 @@ impl Scene {
             ..TimeStepping::default()
         };
         let mass = self.fluid_params().particle_mass(self.spacing)?;
-        let mut world = World::new(particles, self.fluid_params(), self.boundary(), stepping)?;
+        let mut world = World::with_solver(
+            particles,
+            self.fluid_params(),
+            self.boundary(),
+            stepping,
+            self.solver.solver(),
+        )?;
         for e in &self.emitters {
             let emitter = Emitter::new(
                 e.centre.into(),
@@ -532,7 +588,9 @@ impl Scene {
                 mass,
                 self.max_particles,
             )?;
-            world.program_mut().insert_before("grid", emitter);
+            // First of all, so new particles are in the step's grid (and,
+            // for PBF, are predicted with the others).
+            world.program_mut().push_front(emitter);
         }
         Ok(world)
     }
@@ -569,12 +627,33 @@ impl Scene {
                 frame_dt: 1.0 / 60.0,
             },
             max_particles: default_max_particles(),
+            solver: SolverSpec::default(),
             render: RenderSpec {
                 camera: [domain.x * 0.5, domain.y * 0.8, domain.x * 1.6 + domain.z],
                 look_at: [domain.x * 0.5, domain.y * 0.2, domain.z * 0.5],
                 fov_y: 45.0,
             },
         }
+    }
+
+    /// PBF's parameters for this scene: [`PbfParams::for_fall`] from the
+    /// top of its highest block, at its frame rate.
+    fn pbf_for_blocks(mut self) -> Self {
+        let top = self.blocks.iter().map(|b| b.max[1]).fold(0.0, f32::max);
+        let floor = self.domain.min[1];
+        self.solver.pbf = PbfParams::for_fall(
+            top - floor,
+            self.fluid.gravity[1],
+            self.fluid.h,
+            self.time_step.frame_dt,
+        );
+        self
+    }
+
+    /// This scene run by `kind` (its parameters from `[solver.pbf]` etc.).
+    pub fn with_solver(mut self, kind: SolverKind) -> Self {
+        self.solver.kind = kind;
+        self
     }
 
     /// The dam break: a water column of width `a` and height 2a at the left of a
@@ -588,7 +667,7 @@ impl Scene {
             max: [a, 2.0 * a, depth],
             velocity: [0.0; 3],
         });
-        s
+        s.pbf_for_blocks()
     }
 
     /// Two columns released from both ends of the tank.
@@ -605,7 +684,7 @@ impl Scene {
                 velocity: [0.0; 3],
             });
         }
-        s
+        s.pbf_for_blocks()
     }
 
     /// A cube of water of side `a` falling into a pool of depth a/2 in a tank 3a
@@ -623,6 +702,6 @@ impl Scene {
             max: [2.0 * a, 2.6 * a, 2.0 * a],
             velocity: [0.0, -1.0, 0.0],
         });
-        s
+        s.pbf_for_blocks()
     }
 }

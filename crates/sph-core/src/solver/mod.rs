@@ -1,0 +1,122 @@
+//! The solvers: each a [`Program`] of [`Processor`]s over the same particles,
+//! neighbour grid, kernels and boundaries, driven by one [`World`].
+//!
+//! - [`wcsph`]: the thesis's weakly compressible SPH (Müller, Charypar & Gross
+//!   2003, thesis eq. 4 and 15–20), the reference. Its adaptive step is bound
+//!   by the speed of sound √k ([`TimeStepping`]).
+//! - [`pbf`]: position-based fluids (Macklin & Müller 2013), the real-time
+//!   solver: a fixed number of substeps per frame and of constraint
+//!   iterations per substep ([`PbfParams`]).
+//!
+//! A scene picks one (`[solver] kind = "wcsph" | "pbf"`, see
+//! [`crate::scene::SolverSpec`]); [`Solver`] is that choice with its
+//! parameters. What they share lives once: the fluid's parameters and the
+//! step rules ([`params`]), the grid, integration, boundary, emitter and sink
+//! processors ([`stations`]), and the clock and reports ([`World`]). Users'
+//! processors plug into either program by name: both have a `forces` station
+//! after which external accelerations are added (see
+//! [`ExternalAcceleration`]).
+
+pub mod params;
+pub mod pbf;
+pub mod stations;
+pub mod wcsph;
+mod world;
+
+pub use params::{FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, PressureKernel, TimeStepping};
+pub use pbf::PbfParams;
+pub use stations::{
+    Boundaries, BuildGrid, Emitter, ExternalAcceleration, Integrate, Sink, nozzle_corners,
+    nozzle_points,
+};
+pub use wcsph::{DensityPressure, Forces};
+pub use world::{FrameReport, World};
+
+use crate::boundary::Boundary;
+use crate::error::Result;
+use crate::processor::Program;
+
+/// Which solver advances a [`World`], with the parameters of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Solver {
+    /// The thesis's weakly compressible SPH ([`wcsph`]): its stiffness and
+    /// viscosity are [`FluidParams`]'s, its step [`TimeStepping`]'s.
+    #[default]
+    Wcsph,
+    /// Position-based fluids ([`pbf`]).
+    Pbf(PbfParams),
+}
+
+/// A solver's name, as scene files and the command line give it.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    /// [`Solver::Wcsph`].
+    #[default]
+    Wcsph,
+    /// [`Solver::Pbf`].
+    Pbf,
+}
+
+impl SolverKind {
+    /// Every solver, in the order the demo lists them.
+    pub const ALL: [SolverKind; 2] = [SolverKind::Wcsph, SolverKind::Pbf];
+
+    /// The name scene files and the command line use: `wcsph`, `pbf`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Wcsph => "wcsph",
+            SolverKind::Pbf => "pbf",
+        }
+    }
+
+    /// The solver of this name, or `None`.
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|k| k.name() == name)
+    }
+}
+
+impl std::fmt::Display for SolverKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Solver {
+    /// Its name.
+    pub fn kind(&self) -> SolverKind {
+        match self {
+            Solver::Wcsph => SolverKind::Wcsph,
+            Solver::Pbf(_) => SolverKind::Pbf,
+        }
+    }
+
+    /// Checks the solver's own parameters; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            Solver::Wcsph => Ok(()),
+            Solver::Pbf(p) => p.validate(),
+        }
+    }
+
+    /// The solver's program for this fluid and these walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn program(&self, params: FluidParams, boundary: Boundary) -> Result<Program> {
+        match self {
+            Solver::Wcsph => wcsph::program(params, boundary),
+            Solver::Pbf(p) => pbf::program(params, *p, boundary),
+        }
+    }
+}
+
+/// The WCSPH program ([`wcsph::program`]), the one [`World::new`] runs.
+///
+/// # Errors
+/// Parameters or a boundary that do not validate.
+pub fn default_program(params: FluidParams, boundary: Boundary) -> Result<Program> {
+    wcsph::program(params, boundary)
+}

@@ -1,0 +1,752 @@
+//! Position-based fluids (Macklin & Müller 2013, "Position Based Fluids",
+//! SIGGRAPH): incompressibility as a density constraint per particle,
+//! C_i = ρ_i/ρ0 − 1, solved by a few Jacobi iterations on predicted positions
+//! each substep. It stays stable at steps set by the frame rate, not by a
+//! speed of sound: NVIDIA FleX runs its dam break at 1/60 s with 2 substeps
+//! and 3 iterations.
+//!
+//! The paper's Algorithm 1, station by station:
+//!
+//! | Algorithm 1 | station | processor |
+//! |---|---|---|
+//! | 1–4: v ← v + Δt f_ext, x* ← x + Δt v | `forces`, `predict` | [`BodyForces`], [`Predict`] |
+//! | 5–7: find neighbours on x* | `grid`, `neighbours` | [`BuildGrid`], [`FindNeighbours`] |
+//! | 8–19: λ_i, Δp_i (with s_corr), collision response, x* ← x* + Δp | `density` | [`SolveDensity`] |
+//! | 20–21: v ← (x* − x)/Δt | (kept true by `density`) | [`SolveDensity`] |
+//! | 22: vorticity confinement, XSPH viscosity | `viscosity` | [`VorticityXsph`] |
+//! | 23: x ← x* | `boundaries` | [`Boundaries`] |
+//!
+//! Choices the paper leaves open, and what this module does:
+//! - **Masses.** Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij (the paper
+//!   has equal masses, m_j = 1). Each pair's term is antisymmetric, so
+//!   Σ m_i Δp_i = 0: a free cluster keeps its momentum to round-off.
+//! - **One-sided constraint.** C_i = max(ρ_i/ρ0 − 1, 0), as SPlisHSPlasH's
+//!   PBF does: particles with fewer neighbours than in the bulk (the free
+//!   surface, spray) are not pulled together, which is what made the paper
+//!   need s_corr against clustering.
+//! - **Units of ε and s_corr.** The paper gives them in its own units. Here
+//!   ε = [`PbfParams::relaxation`] / h² (Σ|∇C|² is in 1/m²), and
+//!   s_corr = −k (W(r)/W(Δq h))ⁿ · ½(D_i + D_j) with D_i = 1/(Σ_k|∇_k C_i|² + ε):
+//!   the correction a density error of k·(W/W(Δq))ⁿ would make, symmetric in
+//!   i and j so momentum stays conserved.
+//! - **Walls.** The domain walls and obstacles add the analytic density of
+//!   the fluid behind them ([`crate::boundary::WallKernel`]), and that term's
+//!   gradient enters ∇_i C_i, so particles settle at rest density against a
+//!   wall instead of piling into it. Every iteration projects positions back
+//!   out of walls ([`Boundary::project`]): nothing leaks, whatever the step.
+//! - **Neighbours** are found once per substep on the predicted positions
+//!   and kept through the iterations ([`crate::NeighbourLists`]), as in the
+//!   paper; distances use the current positions.
+//! - **Velocity.** Every correction Δx of a position also adds Δx/Δt to the
+//!   velocity, so v = (x* − x)/Δt (line 21) holds throughout.
+//! - **Viscosity** is XSPH ([`PbfParams::xsph`]), not the physical μ of
+//!   [`FluidParams::viscosity`], which only WCSPH uses; so are the stiffness
+//!   and surface tension.
+//! - **Guard.** The predicted displacement per substep is limited to
+//!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
+//!   every clamped particle is counted in [`crate::StepCounters::clamped`].
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::params::FluidParams;
+use super::stations::{Boundaries, BuildGrid, grid};
+use crate::boundary::{Boundary, WallKernel};
+use crate::error::{Error, Result};
+use crate::grid::NeighbourLists;
+use crate::kernels::{Poly6, Spiky};
+use crate::particles::Particles;
+use crate::processor::{Context, Processor, Program};
+
+/// The parameters of position-based fluids. Scene files give them under
+/// `[solver.pbf]`; a field left out takes its default.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PbfParams {
+    /// Substeps per frame ([`crate::World::advance`]); more are taken only
+    /// where a frame is longer than `substeps × max_dt`. Default 2 (FleX).
+    pub substeps: u32,
+    /// Jacobi iterations of the density constraint per substep. Default 4.
+    pub iterations: u32,
+    /// The longest substep (s). Default 1/120 s: two substeps per 60 Hz frame.
+    pub max_dt: f32,
+    /// The relaxation ε of λ_i = −C_i / (Σ_k|∇_k C_i|² + ε), in units of
+    /// 1/h² (dimensionless). It keeps λ finite for particles with few
+    /// neighbours and softens the constraint. Default 0.1 (a particle in the
+    /// bulk has Σ|∇C|² ≈ 20/h² at h = 2 × spacing).
+    pub relaxation: f32,
+    /// s_corr's k: the artificial pressure against particle clustering,
+    /// the density error whose correction it equals at distance Δq
+    /// (see the module docs). Default 0.001.
+    pub scorr_k: f32,
+    /// s_corr's exponent n. Default 4 (the paper's).
+    pub scorr_n: u32,
+    /// s_corr's Δq as a fraction of h. Default 0.2 (the paper: 0.1 to 0.3).
+    pub scorr_dq: f32,
+    /// Vorticity confinement ε (m/s): the acceleration ε N × ω, with ω the
+    /// velocity's curl and N the direction towards larger |ω|. It gives back
+    /// the rotation the damped solver loses. Default 0.01; 0 turns it off.
+    pub vorticity: f32,
+    /// XSPH viscosity c in [0, 1]: each substep blends a particle's velocity
+    /// by c towards its neighbours' kernel-weighted mean,
+    /// v_i += c Σ_j (m_j/ρ0)(v_j − v_i) W_ij. Default 0.01 (the paper's).
+    pub xsph: f32,
+    /// The guard: the predicted displacement of one substep, |v| Δt, is at
+    /// most this fraction of h; faster particles are slowed to it and
+    /// counted. Default 1 (neighbours are found on the predicted
+    /// positions, so a particle may move up to h; 0.5 h clamped a fifth of
+    /// the 10,000-particle dam break's particles at 2 substeps per frame).
+    pub max_displacement: f32,
+}
+
+impl Default for PbfParams {
+    fn default() -> Self {
+        Self {
+            substeps: 2,
+            iterations: 4,
+            max_dt: 1.0 / 120.0,
+            relaxation: 0.1,
+            scorr_k: 0.001,
+            scorr_n: 4,
+            scorr_dq: 0.2,
+            vorticity: 0.01,
+            xsph: 0.01,
+            max_displacement: 1.0,
+        }
+    }
+}
+
+impl PbfParams {
+    /// The defaults with enough substeps per frame of `frame_dt` (at least
+    /// the default 2) that a particle falling freely from `height` above
+    /// the floor, √(2 g height), moves at most `max_displacement` × h per
+    /// substep: how the built-in scenes set theirs.
+    pub fn for_fall(height: f32, gravity: f32, h: f32, frame_dt: f32) -> Self {
+        let d = Self::default();
+        let speed = (2.0 * gravity.abs() * height.max(0.0)).sqrt();
+        let needed = (speed * frame_dt / (d.max_displacement * h)).ceil();
+        let substeps = if needed.is_finite() {
+            needed.clamp(d.substeps as f32, MAX_PBF_COUNT as f32) as u32
+        } else {
+            d.substeps
+        };
+        Self { substeps, ..d }
+    }
+}
+
+/// The most substeps or iterations [`PbfParams::validate`] accepts.
+pub const MAX_PBF_COUNT: u32 = 1000;
+
+/// The largest density error (ρ/ρ0 − 1) a substep may end its iterations
+/// with: beyond, the solve has failed and the run stops ([`Error::Unstable`]).
+pub const MAX_DENSITY_ERROR: f32 = 1.0;
+
+impl PbfParams {
+    /// Checks every parameter is finite and in range; the error names it
+    /// (`pbf.iterations`, ...).
+    pub fn validate(&self) -> Result<()> {
+        let check = |name: &'static str, value: f64, ok: bool, reason: &'static str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(Error::InvalidParameter {
+                    name,
+                    value: value.to_string(),
+                    reason,
+                })
+            }
+        };
+        let count = |name, n: u32| {
+            check(
+                name,
+                f64::from(n),
+                (1..=MAX_PBF_COUNT).contains(&n),
+                "must be a whole number from 1 to 1000",
+            )
+        };
+        count("pbf.substeps", self.substeps)?;
+        count("pbf.iterations", self.iterations)?;
+        let dt = self.max_dt;
+        check(
+            "pbf.max_dt",
+            dt.into(),
+            dt.is_finite() && dt >= 1e-6 && dt <= 1.0,
+            "must lie in [1e-6, 1] s",
+        )?;
+        let r = self.relaxation;
+        check(
+            "pbf.relaxation",
+            r.into(),
+            r.is_finite() && r > 0.0 && r <= 1e6,
+            "must be > 0 and at most 1e6 (in units of 1/h²)",
+        )?;
+        let k = self.scorr_k;
+        check(
+            "pbf.scorr_k",
+            k.into(),
+            (0.0..=1.0).contains(&k),
+            "must lie in [0, 1] (a density error)",
+        )?;
+        check(
+            "pbf.scorr_n",
+            self.scorr_n.into(),
+            (1..=16).contains(&self.scorr_n),
+            "must be a whole number from 1 to 16",
+        )?;
+        let dq = self.scorr_dq;
+        check(
+            "pbf.scorr_dq",
+            dq.into(),
+            dq > 0.0 && dq < 1.0,
+            "must lie in (0, 1) (a fraction of h)",
+        )?;
+        let v = self.vorticity;
+        check(
+            "pbf.vorticity",
+            v.into(),
+            v.is_finite() && (0.0..=100.0).contains(&v),
+            "must lie in [0, 100] m/s",
+        )?;
+        check(
+            "pbf.xsph",
+            self.xsph.into(),
+            (0.0..=1.0).contains(&self.xsph),
+            "must lie in [0, 1]",
+        )?;
+        let g = self.max_displacement;
+        check(
+            "pbf.max_displacement",
+            g.into(),
+            g > 0.0 && g <= 1.0,
+            "must lie in (0, 1] (a fraction of h per substep)",
+        )?;
+        Ok(())
+    }
+}
+
+/// The PBF program: forces → predict → grid → neighbours → density →
+/// viscosity → boundaries.
+///
+/// # Errors
+/// Parameters or a boundary that do not validate.
+pub fn program(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Program> {
+    let model = Model::new(params, pbf, boundary.clone())?;
+    let mut program = Program::new("pbf");
+    program
+        .push(BodyForces {
+            gravity: params.gravity,
+        })
+        .push(Predict {
+            boundary: boundary.clone(),
+            max_displacement: pbf.max_displacement * params.h,
+        })
+        .push(BuildGrid::new(params.h, 1))
+        .push(FindNeighbours { h: params.h })
+        .push(SolveDensity::new(model.clone()))
+        .push(VorticityXsph::new(model))
+        .push(Boundaries::new(boundary)?);
+    Ok(program)
+}
+
+/// Sets every particle's acceleration to gravity: the external force of
+/// Algorithm 1's line 2. Processors that add accelerations of their own go
+/// right after it (its station is named `forces`, as WCSPH's is).
+#[derive(Debug, Clone, Copy)]
+pub struct BodyForces {
+    gravity: Vec3,
+}
+
+impl BodyForces {
+    /// Gravity `gravity` (m/s²).
+    pub fn new(gravity: Vec3) -> Self {
+        Self { gravity }
+    }
+}
+
+impl Processor for BodyForces {
+    fn name(&self) -> &str {
+        "forces"
+    }
+    fn process(&mut self, particles: &mut Particles, _: &mut Context) -> Result<()> {
+        let g = self.gravity;
+        particles
+            .accelerations_mut()
+            .par_iter_mut()
+            .for_each(|a| *a = g);
+        Ok(())
+    }
+}
+
+/// Lines 1–4: v ← v + Δt a, limited to the guard's displacement, then
+/// x* ← x + Δt v, projected out of walls (which changes v to match:
+/// v = (x* − x)/Δt).
+#[derive(Debug, Clone)]
+pub struct Predict {
+    boundary: Boundary,
+    max_displacement: f32,
+}
+
+impl Predict {
+    /// Guarding a substep's displacement to `max_displacement` (m) inside
+    /// `boundary`.
+    ///
+    /// # Errors
+    /// A boundary that does not validate, or a guard that is not finite and
+    /// positive.
+    pub fn new(boundary: Boundary, max_displacement: f32) -> Result<Self> {
+        boundary.validate()?;
+        crate::error::positive("max_displacement", max_displacement)?;
+        Ok(Self {
+            boundary,
+            max_displacement,
+        })
+    }
+}
+
+impl Processor for Predict {
+    fn name(&self) -> &str {
+        "predict"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let dt = ctx.dt;
+        let max_speed = self.max_displacement / dt;
+        let b = &self.boundary;
+        let f = particles.fields_mut();
+        let clamped = (f.positions.par_iter_mut())
+            .zip(f.velocities.par_iter_mut())
+            .zip(f.accelerations.par_iter())
+            .map(|((x, v), &a)| {
+                *v += a * dt;
+                let speed = v.length();
+                let clamp = speed > max_speed;
+                if clamp {
+                    *v *= max_speed / speed;
+                }
+                let start = *x;
+                *x += *v * dt;
+                b.project(x);
+                // v = (x* − x)/Δt, the wall's push included.
+                *v = (*x - start) / dt;
+                u64::from(clamp)
+            })
+            .sum::<u64>();
+        ctx.counters.clamped += clamped;
+        ctx.invalidate_grid(); // positions moved
+        Ok(())
+    }
+}
+
+/// Lines 5–7: each particle's neighbours on the predicted positions, into
+/// [`Context::neighbours`], kept for the rest of the substep.
+#[derive(Debug, Clone, Copy)]
+pub struct FindNeighbours {
+    h: f32,
+}
+
+impl FindNeighbours {
+    /// Lists over the grid of search radius `h`.
+    pub fn new(h: f32) -> Self {
+        Self { h }
+    }
+}
+
+impl Processor for FindNeighbours {
+    fn name(&self) -> &str {
+        "neighbours"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let mut lists = ctx.neighbours.take().unwrap_or_default();
+        lists.rebuild(grid(ctx, particles, self.h, "neighbours")?);
+        ctx.neighbours = Some(lists);
+        Ok(())
+    }
+}
+
+/// The context's neighbour lists, checked to be over `particles`.
+fn lists<'a>(
+    ctx: &'a Context,
+    particles: &Particles,
+    who: &'static str,
+) -> Result<&'a NeighbourLists> {
+    let lists = ctx.neighbours.as_ref().ok_or(Error::Pipeline {
+        processor: who,
+        reason: "needs the neighbour lists: put `grid` and `neighbours` processors before it",
+    })?;
+    if lists.len() != particles.len() {
+        return Err(Error::Pipeline {
+            processor: who,
+            reason: "the neighbour lists are out of date: a processor added or removed particles after `neighbours` without calling `Context::invalidate_neighbours`",
+        });
+    }
+    Ok(lists)
+}
+
+/// What the PBF stations share: parameters, kernels, walls.
+#[derive(Debug, Clone)]
+struct Model {
+    params: FluidParams,
+    pbf: PbfParams,
+    poly6: Poly6,
+    spiky: Spiky,
+    wall: WallKernel,
+    boundary: Boundary,
+    /// ε in 1/m².
+    epsilon: f32,
+    /// 1 / W_poly6(Δq·h).
+    inv_w_dq: f32,
+    /// 1 / ρ0.
+    inv_rho0: f32,
+}
+
+impl Model {
+    fn new(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
+        params.validate()?;
+        pbf.validate()?;
+        boundary.validate()?;
+        let h = params.h;
+        let poly6 = Poly6::new(h)?;
+        let dq = pbf.scorr_dq * h;
+        Ok(Self {
+            params,
+            pbf,
+            poly6,
+            spiky: Spiky::new(h)?,
+            wall: WallKernel::new(h),
+            boundary,
+            epsilon: pbf.relaxation / (h * h),
+            inv_w_dq: 1.0 / poly6.value_r2(dq * dq),
+            inv_rho0: 1.0 / params.rest_density,
+        })
+    }
+
+    /// The walls' density term at `x` and its gradient over ρ0,
+    /// ∇(ρ_wall/ρ0).
+    ///
+    /// Where walls meet, the fluid behind them is the union of their
+    /// half-spaces. Its kernel-weighted volume is taken as
+    /// f = 1 − Π_k (1 − f_k) over the walls' own fractions f_k
+    /// ([`WallKernel::volume_fraction`]): exact for one wall, for an edge
+    /// (¾) and a corner (⅞) of perpendicular walls at distance 0 and far
+    /// from them, where WCSPH's sum Σ f_k counts the region behind two walls
+    /// twice (see [`crate::boundary`]). Pushing against that excess is what
+    /// would empty the edges of a tank.
+    #[inline]
+    fn walls(&self, x: Vec3) -> (f32, Vec3) {
+        // Up to 6 domain walls and the obstacles: (1 − f_k, ∇f_k).
+        let mut walls = [(1.0f32, Vec3::ZERO); 8];
+        let mut count = 0;
+        let (h, rho0) = (self.params.h, self.params.rest_density);
+        let mut extra = (0.0, Vec3::ZERO); // beyond 8 walls: summed
+        self.boundary.for_each_wall_within(x, h, |d, n| {
+            let (f, grad) = (
+                self.wall.volume_fraction(d),
+                -self.wall.plane_density(d) * n,
+            );
+            if count < walls.len() {
+                walls[count] = (1.0 - f, grad);
+                count += 1;
+            } else {
+                extra = (extra.0 + f, extra.1 + grad);
+            }
+        });
+        let walls = &walls[..count];
+        let outside: f32 = walls.iter().map(|w| w.0).product();
+        let mut grad = extra.1;
+        for (k, &(_, g)) in walls.iter().enumerate() {
+            let others: f32 = (walls.iter().enumerate())
+                .filter(|&(l, _)| l != k)
+                .map(|(_, w)| w.0)
+                .product();
+            grad += others * g;
+        }
+        (rho0 * (1.0 - outside + extra.0), grad)
+    }
+
+    /// Density ρ_i and the constraint's λ_i and D_i = 1/(Σ_k|∇_k C_i|² + ε)
+    /// (lines 9–11); writes each neighbour's (m_j/ρ0)∇W_ij and s_corr
+    /// weight into `pairs` (one per neighbour in `list`) for the
+    /// correction, which sees the same positions.
+    #[inline]
+    fn constraint(
+        &self,
+        i: usize,
+        x: &[Vec3],
+        m: &[f32],
+        list: &[u32],
+        pairs: &mut [Pair],
+    ) -> Constraint {
+        let xi = x[i];
+        let (mut rho, wall) = self.walls(xi);
+        let mut grad_i = wall;
+        rho += m[i] * self.poly6.value_r2(0.0);
+        let mut sum2 = 0.0;
+        let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
+        for (&j, pair) in list.iter().zip(pairs) {
+            let j = j as usize;
+            let r = xi - x[j];
+            let r2 = r.length_squared();
+            let w = self.poly6.value_r2(r2);
+            rho += m[j] * w;
+            let g = self.spiky.gradient_len(r, r2.sqrt()) * (m[j] * self.inv_rho0);
+            grad_i += g;
+            sum2 += g.length_squared();
+            let q = w * self.inv_w_dq;
+            let q2 = q * q;
+            let scorr = match n {
+                4 => q2 * q2,
+                _ => (1..n).fold(q, |p, _| p * q),
+            };
+            *pair = Pair {
+                g,
+                scorr: k * scorr,
+            };
+        }
+        let error = rho * self.inv_rho0 - 1.0;
+        let d = 1.0 / (grad_i.length_squared() + sum2 + self.epsilon);
+        Constraint {
+            rho,
+            lambda: -error.max(0.0) * d,
+            d,
+            wall,
+        }
+    }
+}
+
+/// One particle's density constraint.
+#[derive(Debug, Clone, Copy, Default)]
+struct Constraint {
+    rho: f32,
+    lambda: f32,
+    d: f32,
+    /// ∇_i(ρ_wall/ρ0).
+    wall: Vec3,
+}
+
+/// What the correction needs of a neighbour pair: (m_j/ρ0)∇W_ij and
+/// k (W_ij/W(Δq))ⁿ.
+#[derive(Debug, Clone, Copy, Default)]
+struct Pair {
+    g: Vec3,
+    scorr: f32,
+}
+
+/// Particles per parallel task of the constraint solve (fixed: results do
+/// not depend on the number of threads).
+const BLOCK: usize = 256;
+
+/// Lines 8–19 (and 21): [`PbfParams::iterations`] Jacobi iterations of the
+/// density constraint. Each computes every λ_i, then every position
+/// correction Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij plus the
+/// walls' λ_i ∇_i(ρ_wall/ρ0), moves each particle by it and back out of
+/// walls, and adds that motion over Δt to its velocity.
+///
+/// Stops the run with [`Error::Unstable`] when a substep ends its iterations
+/// with a particle above [`MAX_DENSITY_ERROR`] (twice the rest density) or
+/// with a non-finite position: the solve has failed.
+#[derive(Debug, Clone)]
+pub struct SolveDensity {
+    model: Model,
+    constraints: Vec<Constraint>,
+    pairs: Vec<Pair>,
+    corrections: Vec<Vec3>,
+}
+
+impl SolveDensity {
+    /// For this fluid, these PBF parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new_for(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
+        Model::new(params, pbf, boundary).map(Self::new)
+    }
+
+    fn new(model: Model) -> Self {
+        Self {
+            model,
+            constraints: Vec::new(),
+            pairs: Vec::new(),
+            corrections: Vec::new(),
+        }
+    }
+}
+
+impl Processor for SolveDensity {
+    fn name(&self) -> &str {
+        "density"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let lists = lists(ctx, particles, "density")?;
+        let model = &self.model;
+        let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
+        let mut worst = 0.0f32;
+        let n_particles = particles.len();
+        let starts = lists.row_starts();
+        self.pairs.resize(lists.pairs(), Pair::default());
+        self.constraints.resize(n_particles, Constraint::default());
+        for _ in 0..pbf.iterations {
+            let f = particles.fields_mut();
+            let (x, m) = (&*f.positions, &*f.masses);
+            // Blocks of BLOCK particles and their pairs, disjoint.
+            let mut blocks = Vec::with_capacity(n_particles.div_ceil(BLOCK));
+            let mut rest = &mut self.pairs[..];
+            for (b, c) in self.constraints.chunks_mut(BLOCK).enumerate() {
+                let first = b * BLOCK;
+                let len = (starts[first + c.len()] - starts[first]) as usize;
+                let (pairs, tail) = rest.split_at_mut(len);
+                rest = tail;
+                blocks.push((first, c, pairs));
+            }
+            blocks.into_par_iter().for_each(|(first, cs, pairs)| {
+                let base = starts[first];
+                for (k, c) in cs.iter_mut().enumerate() {
+                    let i = first + k;
+                    let row = (starts[i] - base) as usize..(starts[i + 1] - base) as usize;
+                    *c = model.constraint(i, x, m, lists.of(i), &mut pairs[row]);
+                }
+            });
+            let (c, pairs) = (&self.constraints, &self.pairs);
+            worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
+            (0..n_particles)
+                .into_par_iter()
+                .map(|i| {
+                    let ci = c[i];
+                    let row = &pairs[starts[i] as usize..starts[i + 1] as usize];
+                    let mut dp = ci.lambda * ci.wall;
+                    for (&j, p) in lists.of(i).iter().zip(row) {
+                        let cj = c[j as usize];
+                        let s = ci.lambda + cj.lambda - p.scorr * 0.5 * (ci.d + cj.d);
+                        dp += p.g * s;
+                    }
+                    dp
+                })
+                .collect_into_vec(&mut self.corrections);
+            let b = &model.boundary;
+            (f.positions.par_iter_mut())
+                .zip(f.velocities.par_iter_mut())
+                .zip(self.corrections.par_iter())
+                .for_each(|((x, v), &dp)| {
+                    let start = *x;
+                    *x += dp;
+                    b.project(x);
+                    *v += (*x - start) / dt;
+                });
+        }
+        (particles.densities_mut().par_iter_mut())
+            .zip(self.constraints.par_iter())
+            .for_each(|(rho, c)| *rho = c.rho);
+        ctx.counters.iterations += pbf.iterations;
+        ctx.invalidate_grid(); // positions moved; the lists stay
+        let bad = particles.positions().par_iter().any(|x| !x.is_finite());
+        if bad || !(worst <= MAX_DENSITY_ERROR) {
+            return Err(Error::Unstable {
+                step: ctx.step,
+                time: ctx.time,
+                what: if bad {
+                    "a position became non-finite in the density constraint solve".into()
+                } else {
+                    format!(
+                        "the density constraint solve failed: a density error of {:.0} % remained after {} iterations (at most {:.0} %)",
+                        worst * 100.0,
+                        pbf.iterations,
+                        MAX_DENSITY_ERROR * 100.0
+                    )
+                },
+                hint: format!(
+                    "raise solver.pbf.iterations (now {}) or solver.pbf.substeps (now {}), \
+                     or lower solver.pbf.max_dt (now {:e} s); check that no particles start on top of each other",
+                    pbf.iterations, pbf.substeps, pbf.max_dt
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+/// Line 22: vorticity confinement and XSPH viscosity, from the velocities
+/// the solve left. Also sums the density at the final positions (with the
+/// walls' term) into [`Particles::densities`], which the report's density
+/// error and the surface extraction's particle volumes read.
+///
+/// With the curl ω_i = Σ_j (m_j/ρ0)(v_j − v_i) × ∇W_ij, each velocity gains
+/// Δt ε (η_i/|η_i|) × ω_i, where
+/// η_i = Σ_j (m_j/ρ0)(|ω_j| − |ω_i|) ∇W_ij approximates ∇|ω|, and c Σ_j (m_j/ρ0)(v_j − v_i) W_ij.
+#[derive(Debug, Clone)]
+pub struct VorticityXsph {
+    model: Model,
+}
+
+impl VorticityXsph {
+    /// For this fluid, these PBF parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new_for(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
+        Model::new(params, pbf, boundary).map(Self::new)
+    }
+
+    fn new(model: Model) -> Self {
+        Self { model }
+    }
+}
+
+impl Processor for VorticityXsph {
+    fn name(&self) -> &str {
+        "viscosity"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let lists = lists(ctx, particles, "viscosity")?;
+        let model = &self.model;
+        let (rho0, dt) = (model.params.rest_density, ctx.dt);
+        let (eps, c) = (model.pbf.vorticity, model.pbf.xsph);
+        let f = particles.fields_mut();
+        let (x, v, m) = (&*f.positions, &*f.velocities, &*f.masses);
+        // Density, curl and XSPH mean at once.
+        let first: Vec<(f32, Vec3, Vec3)> = (0..x.len())
+            .into_par_iter()
+            .map(|i| {
+                let (xi, vi) = (x[i], v[i]);
+                let mut rho = model.walls(xi).0 + m[i] * model.poly6.value_r2(0.0);
+                let (mut curl, mut mean) = (Vec3::ZERO, Vec3::ZERO);
+                for &j in lists.of(i) {
+                    let j = j as usize;
+                    let r = xi - x[j];
+                    let r2 = r.length_squared();
+                    let w = model.poly6.value_r2(r2);
+                    rho += m[j] * w;
+                    let (vol, vij) = (m[j] / rho0, v[j] - vi);
+                    curl += vij.cross(model.spiky.gradient_len(r, r2.sqrt())) * vol;
+                    mean += vij * (vol * w);
+                }
+                (rho, curl, mean)
+            })
+            .collect();
+        let dv: Vec<Vec3> = (0..x.len())
+            .into_par_iter()
+            .map(|i| {
+                let (_, curl, mean) = first[i];
+                let mut dv = c * mean;
+                if eps > 0.0 {
+                    let xi = x[i];
+                    let (mut eta, wi) = (Vec3::ZERO, curl.length());
+                    for &j in lists.of(i) {
+                        let j = j as usize;
+                        let r = xi - x[j];
+                        let grad = model.spiky.gradient_len(r, r.length());
+                        eta += grad * (m[j] / rho0 * (first[j].1.length() - wi));
+                    }
+                    if let Some(n) = eta.try_normalize() {
+                        dv += dt * eps * n.cross(curl);
+                    }
+                }
+                dv
+            })
+            .collect();
+        (f.velocities.par_iter_mut())
+            .zip(dv.par_iter())
+            .for_each(|(v, &dv)| *v += dv);
+        (f.densities.par_iter_mut())
+            .zip(first.par_iter())
+            .for_each(|(rho, &(r, _, _))| *rho = r);
+        Ok(())
+    }
+}

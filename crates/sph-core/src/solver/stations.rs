@@ -1,0 +1,330 @@
+//! The processors every solver's program is built from, whatever its method:
+//! the neighbour grid, external accelerations, time integration, boundaries,
+//! and particle sources and sinks.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::boundary::Boundary;
+use crate::error::{Error, Result, positive};
+use crate::particles::Particles;
+#[cfg(doc)]
+use crate::processor::Program;
+use crate::processor::{Context, Processor};
+
+/// Builds the neighbour grid into [`Context::grid`] and stores the particles in
+/// the grid's cell order (every `sort_every` steps), so later gathers walk memory
+/// in order. Reordering keeps ids and every attribute with its particle.
+#[derive(Debug, Clone)]
+pub struct BuildGrid {
+    h: f32,
+    sort_every: u64,
+}
+
+impl BuildGrid {
+    /// Grid of cell size `h`, reordering particles every `sort_every` steps (0: never).
+    pub fn new(h: f32, sort_every: u64) -> Self {
+        Self { h, sort_every }
+    }
+}
+
+impl Processor for BuildGrid {
+    fn name(&self) -> &str {
+        "grid"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        // Reuse last step's grid memory when there is one.
+        let mut grid = match ctx.take_grid_memory() {
+            Some(mut grid) if grid.h() == self.h => {
+                grid.rebuild(particles.positions())?;
+                grid
+            }
+            _ => crate::NeighbourGrid::build(particles.positions(), self.h)?,
+        };
+        if self.sort_every > 0 && ctx.step.is_multiple_of(self.sort_every) {
+            particles.permute(grid.order())?;
+            grid.renumber_by_slot();
+        }
+        ctx.grid = Some(grid);
+        ctx.neighbours = None; // lists over the old positions or order
+        Ok(())
+    }
+}
+
+/// The context's neighbour grid, checked to be over `particles` and for the
+/// fluid's smoothing length `h`.
+pub(crate) fn grid<'a>(
+    ctx: &'a Context,
+    particles: &Particles,
+    h: f32,
+    who: &'static str,
+) -> Result<&'a crate::NeighbourGrid> {
+    let grid = ctx.grid.as_ref().ok_or(Error::Pipeline {
+        processor: who,
+        reason: "needs the neighbour grid: put a `grid` processor before it",
+    })?;
+    if grid.len() != particles.len() {
+        return Err(Error::Pipeline {
+            processor: who,
+            reason: "the neighbour grid is out of date: a processor added or removed particles after `grid` without calling `Context::invalidate_grid`",
+        });
+    }
+    if grid.h() != h {
+        return Err(Error::Pipeline {
+            processor: who,
+            reason: "the neighbour grid was built for another h than the fluid's: give `BuildGrid` the fluid's h",
+        });
+    }
+    Ok(grid)
+}
+
+/// Adds a user-defined acceleration field a(x, t) to every particle.
+pub struct ExternalAcceleration<F> {
+    name: String,
+    field: F,
+}
+
+impl<F: Fn(Vec3, f64) -> Vec3 + Send + Sync> ExternalAcceleration<F> {
+    /// A processor named `name` adding `field(position, time)`.
+    pub fn new(name: impl Into<String>, field: F) -> Self {
+        Self {
+            name: name.into(),
+            field,
+        }
+    }
+}
+
+impl<F: Fn(Vec3, f64) -> Vec3 + Send + Sync> Processor for ExternalAcceleration<F> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let f = particles.fields_mut();
+        let time = ctx.time;
+        f.accelerations
+            .par_iter_mut()
+            .zip(f.positions.par_iter())
+            .for_each(|(a, &x)| *a += (self.field)(x, time));
+        Ok(())
+    }
+}
+
+/// Semi-implicit (symplectic) Euler: v += a·dt, then x += v·dt.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Integrate;
+
+impl Processor for Integrate {
+    fn name(&self) -> &str {
+        "integrate"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let dt = ctx.dt;
+        let f = particles.fields_mut();
+        f.positions
+            .par_iter_mut()
+            .zip(f.velocities.par_iter_mut())
+            .zip(f.accelerations.par_iter())
+            .for_each(|((x, v), &a)| {
+                *v += a * dt;
+                *x += *v * dt;
+            });
+        ctx.invalidate_grid(); // positions moved
+        Ok(())
+    }
+}
+
+/// Keeps particles inside the domain and out of obstacles (see [`crate::boundary`]).
+#[derive(Debug, Clone)]
+pub struct Boundaries {
+    boundary: Boundary,
+}
+
+impl Boundaries {
+    /// Enforces `boundary`.
+    ///
+    /// # Errors
+    /// A boundary that does not validate ([`Boundary::validate`]).
+    pub fn new(boundary: Boundary) -> Result<Self> {
+        boundary.validate()?;
+        Ok(Self { boundary })
+    }
+}
+
+impl Processor for Boundaries {
+    fn name(&self) -> &str {
+        "boundaries"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let f = particles.fields_mut();
+        let b = &self.boundary;
+        f.positions
+            .par_iter_mut()
+            .zip(f.velocities.par_iter_mut())
+            .for_each(|(x, v)| b.resolve(x, v));
+        ctx.invalidate_grid();
+        Ok(())
+    }
+}
+
+/// Adds particles at a rate: square layers of `n × n` particles at `spacing`
+/// around `centre`, in the plane normal to `velocity`, one layer each time the
+/// previous one has moved `spacing` on.
+#[derive(Debug, Clone)]
+pub struct Emitter {
+    centre: Vec3,
+    velocity: Vec3,
+    n: u32,
+    spacing: f32,
+    mass: f32,
+    max_particles: usize,
+    travelled: f32,
+}
+
+impl Emitter {
+    /// An emitter; it stops adding particles once the container holds `max_particles`.
+    pub fn new(
+        centre: Vec3,
+        velocity: Vec3,
+        n: u32,
+        spacing: f32,
+        mass: f32,
+        max_particles: usize,
+    ) -> Result<Self> {
+        positive("emitter.spacing", spacing)?;
+        positive("emitter.speed", velocity.length())?;
+        positive("emitter.mass", mass)?;
+        Ok(Self {
+            centre,
+            velocity,
+            n,
+            spacing,
+            mass,
+            max_particles,
+            travelled: spacing, // emit a layer on the first step
+        })
+    }
+}
+
+impl Processor for Emitter {
+    fn name(&self) -> &str {
+        "emitter"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        self.travelled += self.velocity.length() * ctx.dt;
+        let dir = self.velocity.normalize();
+        while self.travelled >= self.spacing {
+            self.travelled -= self.spacing;
+            let offset = dir * self.travelled; // where this layer is now
+            let layer = nozzle_points(self.centre + offset, self.velocity, self.n, self.spacing);
+            ctx.invalidate_neighbours();
+            for x in layer {
+                if particles.len() >= self.max_particles {
+                    return Ok(());
+                }
+                particles.push(x, self.velocity, self.mass);
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The lattice of a square nozzle `n` particles wide at `spacing`, centred
+/// on `centre`, in the plane across `velocity`: point (a, b), 0 ≤ a, b < n.
+fn nozzle_lattice(
+    centre: Vec3,
+    velocity: Vec3,
+    n: u32,
+    spacing: f32,
+) -> impl Fn(u32, u32) -> Vec3 + Copy {
+    let (u, w) = velocity.normalize().any_orthonormal_pair();
+    let half = (n as f32 - 1.0) / 2.0;
+    move |a, b| centre + (u * (a as f32 - half) + w * (b as f32 - half)) * spacing
+}
+
+/// Every particle position of one layer of an [`Emitter`]'s nozzle.
+pub fn nozzle_points(
+    centre: Vec3,
+    velocity: Vec3,
+    n: u32,
+    spacing: f32,
+) -> impl Iterator<Item = Vec3> {
+    let at = nozzle_lattice(centre, velocity, n, spacing);
+    (0..n).flat_map(move |b| (0..n).map(move |a| at(a, b)))
+}
+
+/// The four corner particles of an [`Emitter`]'s nozzle (see [`Emitter::new`]).
+pub fn nozzle_corners(centre: Vec3, velocity: Vec3, n: u32, spacing: f32) -> [Vec3; 4] {
+    let at = nozzle_lattice(centre, velocity, n, spacing);
+    let last = n.saturating_sub(1);
+    [(0, 0), (last, 0), (0, last), (last, last)].map(|(a, b)| at(a, b))
+}
+
+/// Removes the particles inside a box.
+///
+/// Once the sink is in a [`Program`], read its count through
+/// [`Sink::counter`], taken before:
+///
+/// ```
+/// use std::sync::atomic::Ordering;
+/// use sph_core::{Aabb, Scene, glam::Vec3, solver::Sink};
+///
+/// let mut world = Scene::dam_break(0.1, 0.04, 0.02).build_world()?;
+/// let start = world.particles.len() as u64;
+/// // Over the foot of the column.
+/// let sink = Sink::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.05)));
+/// let removed = sink.counter();
+/// world.program_mut().push(sink);
+/// world.advance(0.01)?;
+/// let removed = removed.load(Ordering::Relaxed);
+/// assert!(removed > 0);
+/// assert_eq!(world.particles.len() as u64 + removed, start);
+/// # Ok::<(), sph_core::Error>(())
+/// ```
+#[derive(Debug, Clone)]
+pub struct Sink {
+    region: crate::boundary::Aabb,
+    removed: Arc<AtomicU64>,
+}
+
+impl Sink {
+    /// A sink over `region`.
+    pub fn new(region: crate::boundary::Aabb) -> Self {
+        Self {
+            region,
+            removed: Default::default(),
+        }
+    }
+
+    /// Particles removed so far.
+    pub fn removed(&self) -> u64 {
+        self.removed.load(Ordering::Relaxed)
+    }
+
+    /// A handle on the count of removed particles that stays readable after
+    /// the sink moved into a program.
+    pub fn counter(&self) -> Arc<AtomicU64> {
+        self.removed.clone()
+    }
+}
+
+impl Processor for Sink {
+    fn name(&self) -> &str {
+        "sink"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let keep: Vec<bool> = particles
+            .positions()
+            .iter()
+            .map(|&x| !self.region.contains(x))
+            .collect();
+        let removed = particles.retain(&keep)?;
+        if removed > 0 {
+            self.removed.fetch_add(removed as u64, Ordering::Relaxed);
+            ctx.invalidate_neighbours();
+        }
+        Ok(())
+    }
+}

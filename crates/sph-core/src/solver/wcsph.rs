@@ -1,0 +1,212 @@
+//! The thesis's weakly compressible SPH (Müller, Charypar & Gross 2003, thesis
+//! section 3.1): density by summation (eq. 4), pressure from the equation of
+//! state p = k(ρ − ρ0) (eq. 16), then the symmetric pressure force (eq. 15),
+//! viscosity (eq. 17) and surface tension (eq. 18–20), integrated explicitly
+//! with a step bound by the speed of sound (see [`super::TimeStepping`]).
+//!
+//! Per step: [`BuildGrid`] → [`DensityPressure`] → [`Forces`] →
+//! [`Integrate`] (semi-implicit Euler) → [`Boundaries`].
+
+use rayon::prelude::*;
+
+use super::params::{FluidParams, PressureKernel};
+use super::stations::{Boundaries, BuildGrid, Integrate, grid};
+use crate::boundary::{Boundary, WallKernel};
+use crate::error::Result;
+use crate::grid::{Centre, ForceKernels, ForceSums, SlotFluid};
+use crate::kernels::Kernels;
+use crate::particles::Particles;
+use crate::processor::{Context, Processor, Program};
+
+/// Density by poly6 summation (eq. 4) and pressure by the equation of state
+/// p = k(ρ − ρ0) (eq. 16), negative values scaled by
+/// [`FluidParams::negative_pressure_scale`].
+/// Walls within h add the density of the fluid "behind" them (see
+/// [`crate::boundary`]).
+#[derive(Debug, Clone)]
+pub struct DensityPressure(FluidModel);
+
+impl DensityPressure {
+    /// For these parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
+        FluidModel::new(params, boundary).map(Self)
+    }
+}
+
+/// What the density and force processors share: parameters, kernels, walls.
+#[derive(Debug, Clone)]
+struct FluidModel {
+    params: FluidParams,
+    kernels: Kernels,
+    wall: WallKernel,
+    boundary: Boundary,
+}
+
+impl FluidModel {
+    fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
+        params.validate()?;
+        boundary.validate()?;
+        Ok(Self {
+            params,
+            kernels: Kernels::new(params.h)?,
+            wall: WallKernel::new(params.h),
+            boundary,
+        })
+    }
+}
+
+impl Processor for DensityPressure {
+    fn name(&self) -> &str {
+        "density"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let grid = grid(ctx, particles, self.0.params.h, "density")?;
+        let masses = particles.masses();
+        let FluidModel {
+            params,
+            kernels,
+            wall,
+            boundary: b,
+        } = &self.0;
+        let (poly6, rho0, h) = (kernels.poly6, params.rest_density, params.h);
+        let masses = grid.to_slot_order(masses);
+        let rho = grid.par_map(|_, nb| {
+            let mut rho = nb.poly6_sums(&poly6, &masses).value;
+            b.for_each_wall_within(nb.centre(), h, |d, _| rho += rho0 * wall.volume_fraction(d));
+            rho
+        });
+        let (k, suction) = (params.stiffness, params.negative_pressure_scale);
+        let f = particles.fields_mut();
+        f.densities.copy_from_slice(&rho);
+        f.pressures
+            .par_iter_mut()
+            .zip(rho.par_iter())
+            .for_each(|(p, &r)| {
+                let eos = k * (r - rho0);
+                *p = if eos < 0.0 { suction * eos } else { eos };
+            });
+        Ok(())
+    }
+}
+
+/// Accelerations from the symmetric pressure force (eq. 15, with the gradient of
+/// [`FluidParams::pressure_kernel`]),
+/// viscosity (eq. 17, viscosity laplacian), surface tension from the colour field
+/// (eq. 18–20, where |n| > threshold) and gravity. Also stores the colour-field
+/// gradient and laplacian. Overwrites accelerations: processors adding external
+/// forces go after it.
+///
+/// Walls within h push back with the gradient of their density term's pressure
+/// energy (see [`crate::boundary`]).
+#[derive(Debug, Clone)]
+pub struct Forces(FluidModel);
+
+impl Forces {
+    /// For these parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
+        FluidModel::new(params, boundary).map(Self)
+    }
+}
+
+impl Processor for Forces {
+    fn name(&self) -> &str {
+        "forces"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let grid = grid(ctx, particles, self.0.params.h, "forces")?;
+        let v = particles.velocities();
+        let (m, rho, p) = (
+            particles.masses(),
+            particles.densities(),
+            particles.pressures(),
+        );
+        let Kernels {
+            poly6,
+            spiky,
+            viscosity,
+        } = self.0.kernels;
+        let (prm, wall, b) = (self.0.params, self.0.wall, &self.0.boundary);
+        // Per-particle factors, so the pair loop has no division but the spiky
+        // kernel's 1/r: volume m/ρ and pressure term p/ρ² (eq. 15).
+        let (vol, pr): (Vec<f32>, Vec<f32>) = (m.par_iter().zip(rho).zip(p))
+            .map(|((&m, &rho), &p)| (m / rho, p / (rho * rho)))
+            .unzip();
+        // The pair sums read their neighbours' data in slot order (cell by
+        // cell), like the grid's coordinates.
+        let velocity: [Vec<f32>; 3] = std::array::from_fn(|a| {
+            let order = grid.order().par_iter();
+            order.map(|&i| v[i as usize][a]).collect()
+        });
+        let (volume, mass, pressure) = (
+            grid.to_slot_order(&vol),
+            grid.to_slot_order(m),
+            grid.to_slot_order(&pr),
+        );
+        let fluid = SlotFluid {
+            v: [&velocity[0], &velocity[1], &velocity[2]],
+            volume: &volume,
+            mass: &mass,
+            pressure: &pressure,
+        };
+        let kernels = ForceKernels {
+            poly6_grad: poly6.coefficients().1,
+            visc_lap: viscosity.coefficient(),
+            spiky_grad: match prm.pressure_kernel {
+                PressureKernel::Poly6 => None,
+                PressureKernel::Spiky => Some(spiky.coefficient()),
+            },
+        };
+        let out = grid.par_map(|i, nb| {
+            let pi = pr[i];
+            let centre = Centre {
+                pressure: pi,
+                velocity: v[i],
+            };
+            let ForceSums {
+                pressure: mut a_p,
+                viscosity: a_v,
+                normal: n,
+                laplacian: lap_c,
+            } = nb.force_sums(centre, &kernels, &fluid);
+            b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
+                // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
+                a_p += pi * prm.rest_density * wall.plane_density(d) * normal;
+            });
+            let mut a = a_p + (prm.viscosity / rho[i]) * a_v + prm.gravity;
+            let n_len = n.length();
+            if prm.surface_tension > 0.0 && n_len > prm.surface_threshold {
+                // eq. 20: f = −σ ∇²c n/|n| per unit volume; a = f/ρ.
+                a -= prm.surface_tension * lap_c * n / (n_len * rho[i]);
+            }
+            (a, n, lap_c)
+        });
+        let f = particles.fields_mut();
+        (f.accelerations.par_iter_mut())
+            .zip(f.colour_gradients.par_iter_mut())
+            .zip(f.colour_laplacians.par_iter_mut())
+            .zip(out.par_iter())
+            .for_each(|(((a, n), l), &(a_i, n_i, l_i))| (*a, *n, *l) = (a_i, n_i, l_i));
+        Ok(())
+    }
+}
+
+/// The WCSPH program: grid → density → forces → integrate → boundaries.
+///
+/// # Errors
+/// Parameters or a boundary that do not validate.
+pub fn program(params: FluidParams, boundary: Boundary) -> Result<Program> {
+    let mut program = Program::new("sph");
+    program
+        .push(BuildGrid::new(params.h, 1))
+        .push(DensityPressure::new(params, boundary.clone())?)
+        .push(Forces::new(params, boundary.clone())?)
+        .push(Integrate)
+        .push(Boundaries::new(boundary)?);
+    Ok(program)
+}

@@ -1,0 +1,352 @@
+//! [`World`]: particles, the solver's program and the clock.
+
+use rayon::prelude::*;
+
+use super::params::{FluidParams, TimeStepping, check_viscous_dt};
+use super::{Solver, SolverKind};
+use crate::boundary::Boundary;
+use crate::error::{Error, Result, positive};
+use crate::particles::Particles;
+use crate::processor::{Context, Processor, Program, StepCounters};
+
+/// A simulation: particles, the program that advances them, and the clock.
+pub struct World {
+    /// The particles.
+    pub particles: Particles,
+    params: FluidParams,
+    stepping: TimeStepping,
+    solver: Solver,
+    program: Program,
+    time: f64,
+    step: u64,
+    /// Last step's grid, rebuilt in place by the next step's grid processor.
+    recycled_grid: Option<crate::NeighbourGrid>,
+    /// Last step's neighbour lists, rebuilt in place.
+    recycled_lists: Option<crate::NeighbourLists>,
+}
+
+/// What one call of [`World::advance`] did.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameReport {
+    /// The solver that took the steps.
+    pub solver: SolverKind,
+    /// Substeps taken.
+    pub substeps: u32,
+    /// Smallest and largest substep (s).
+    pub dt_range: (f32, f32),
+    /// Constraint iterations over all substeps (0 for WCSPH, which has none).
+    pub iterations: u32,
+    /// The density error (compression) max(ρ/ρ0 − 1, 0) averaged over the
+    /// particles, then over the frame's substeps: each substep's densities
+    /// as the solver left them (WCSPH: at the start of the substep, the ones
+    /// its pressure used; PBF: at its end, after the constraint solve).
+    /// Particles below rest density (the free surface) count as 0.
+    pub density_error_avg: f32,
+    /// The largest density error ρ/ρ0 − 1 of any particle in any substep.
+    pub density_error_max: f32,
+    /// Particles whose motion a guard limited, summed over the substeps
+    /// (PBF's displacement guard; 0 for WCSPH).
+    pub clamped: u64,
+    /// Simulated time after the frame (s).
+    pub time: f64,
+}
+
+/// Particles per chunk of the density-error reduction: fixed, so the sum's
+/// order does not depend on the number of threads.
+const ERROR_CHUNK: usize = 4096;
+
+/// One step's density error: (Σ max(ρ/ρ0 − 1, 0) / n, max ρ/ρ0 − 1), summed
+/// in fixed chunks in a fixed order.
+fn density_error(densities: &[f32], rest: f32) -> (f64, f32) {
+    if densities.is_empty() {
+        return (0.0, 0.0);
+    }
+    let chunks: Vec<(f64, f32)> = densities
+        .par_chunks(ERROR_CHUNK)
+        .map(|c| {
+            c.iter()
+                .fold((0.0f64, f32::NEG_INFINITY), |(sum, max), &rho| {
+                    let e = rho / rest - 1.0;
+                    (sum + f64::from(e.max(0.0)), max.max(e))
+                })
+        })
+        .collect();
+    let (sum, max) = chunks
+        .iter()
+        .fold((0.0f64, f32::NEG_INFINITY), |(s, m), &(cs, cm)| {
+            (s + cs, m.max(cm))
+        });
+    (sum / densities.len() as f64, max)
+}
+
+impl World {
+    /// A world running the thesis's WCSPH ([`super::wcsph::program`]).
+    ///
+    /// # Errors
+    /// Invalid parameters, boundary ([`Boundary::validate`]) or particles
+    /// ([`Particles::validate`]).
+    pub fn new(
+        particles: Particles,
+        params: FluidParams,
+        boundary: Boundary,
+        stepping: TimeStepping,
+    ) -> Result<Self> {
+        Self::with_solver(particles, params, boundary, stepping, Solver::Wcsph)
+    }
+
+    /// A world running `solver`'s program. `stepping` is the adaptive step
+    /// of WCSPH; PBF steps by its own [`super::PbfParams`].
+    ///
+    /// # Errors
+    /// Invalid parameters (the fluid's, the time stepping's or the
+    /// solver's), boundary ([`Boundary::validate`]) or particles
+    /// ([`Particles::validate`]).
+    pub fn with_solver(
+        particles: Particles,
+        params: FluidParams,
+        boundary: Boundary,
+        stepping: TimeStepping,
+        solver: Solver,
+    ) -> Result<Self> {
+        params.validate()?;
+        stepping.validate()?;
+        solver.validate()?;
+        if solver == Solver::Wcsph {
+            check_viscous_dt(&params, &stepping)?;
+        }
+        particles.validate()?;
+        let program = solver.program(params, boundary)?;
+        Ok(Self {
+            particles,
+            params,
+            stepping,
+            solver,
+            program,
+            time: 0.0,
+            step: 0,
+            recycled_grid: None,
+            recycled_lists: None,
+        })
+    }
+
+    /// The program, to add, insert or remove processors.
+    pub fn program_mut(&mut self) -> &mut Program {
+        &mut self.program
+    }
+
+    /// The fluid parameters.
+    pub fn params(&self) -> &FluidParams {
+        &self.params
+    }
+
+    /// The solver and its parameters.
+    pub fn solver(&self) -> &Solver {
+        &self.solver
+    }
+
+    /// Simulated time (s).
+    pub fn time(&self) -> f64 {
+        self.time
+    }
+
+    /// Steps taken.
+    pub fn steps(&self) -> u64 {
+        self.step
+    }
+
+    /// The adaptive time-stepping parameters (WCSPH's).
+    pub fn time_stepping(&self) -> &TimeStepping {
+        &self.stepping
+    }
+
+    /// The next step's length. WCSPH: from the viscous, CFL and force
+    /// conditions. PBF: its longest substep, [`super::PbfParams::max_dt`].
+    pub fn stable_dt(&self) -> f32 {
+        if let Solver::Pbf(pbf) = self.solver {
+            return pbf.max_dt;
+        }
+        let (v_max, a_max) = self
+            .particles
+            .velocities()
+            .par_iter()
+            .zip(self.particles.accelerations().par_iter())
+            .map(|(v, a)| (v.length(), a.length()))
+            .reduce(|| (0.0, 0.0), |x, y| (x.0.max(y.0), x.1.max(y.1)));
+        let h = self.params.h;
+        let s = &self.stepping;
+        let mut dt = s
+            .max_dt
+            .min(self.params.viscous_dt())
+            .min(s.cfl * h / (self.params.sound_speed() + v_max));
+        if a_max > 0.0 {
+            dt = dt.min(s.force_factor * (h / a_max).sqrt());
+        }
+        dt
+    }
+
+    /// Takes one step of the stable length; returns it.
+    pub fn step(&mut self) -> Result<f32> {
+        let dt = self.checked_stable_dt()?;
+        self.step_by(dt)?;
+        Ok(dt)
+    }
+
+    /// [`stable_dt`](Self::stable_dt), or the blow-up error when it is NaN or
+    /// below `min_dt`.
+    fn checked_stable_dt(&self) -> Result<f32> {
+        let dt = self.stable_dt();
+        if dt.is_nan() || dt < self.stepping.min_dt {
+            return Err(self.unstable(format!(
+                "the stable step fell to {dt:e} s, below min_dt = {:e} s",
+                self.stepping.min_dt
+            )));
+        }
+        Ok(dt)
+    }
+
+    /// Advances by `frame_dt`. WCSPH takes stable substeps, the last one
+    /// shortened to land on the frame time; PBF takes
+    /// [`super::PbfParams::substeps`] equal substeps, more only where they
+    /// would be longer than its `max_dt`.
+    pub fn advance(&mut self, frame_dt: f32) -> Result<FrameReport> {
+        positive("frame_dt", frame_dt)?;
+        let end = self.time + frame_dt as f64;
+        let mut report = FrameReport {
+            solver: self.solver.kind(),
+            substeps: 0,
+            dt_range: (f32::INFINITY, 0.0),
+            iterations: 0,
+            density_error_avg: 0.0,
+            density_error_max: 0.0,
+            clamped: 0,
+            time: self.time,
+        };
+        let mut error_sum = 0.0f64;
+        let mut take = |world: &mut Self, dt: f32, last: bool| -> Result<()> {
+            let (counters, (avg, max)) = world.step_by(dt)?;
+            if last {
+                world.time = end;
+            }
+            report.substeps += 1;
+            report.dt_range = (report.dt_range.0.min(dt), report.dt_range.1.max(dt));
+            report.iterations += counters.iterations;
+            report.clamped += counters.clamped;
+            error_sum += avg;
+            report.density_error_max = report.density_error_max.max(max);
+            Ok(())
+        };
+        if let Solver::Pbf(pbf) = self.solver {
+            let n = (frame_dt / pbf.max_dt).ceil().max(pbf.substeps as f32) as u32;
+            let dt = frame_dt / n as f32;
+            for k in 0..n {
+                take(self, dt, k + 1 == n)?;
+            }
+        } else {
+            while self.time < end {
+                let stable = self.checked_stable_dt()?;
+                let remaining = (end - self.time) as f32;
+                // Land on the frame time without a sliver step: the last two steps
+                // share what is left when it is under two stable steps.
+                let last = remaining <= stable;
+                let dt = if last {
+                    remaining
+                } else if remaining < 2.0 * stable {
+                    0.5 * remaining
+                } else {
+                    stable
+                };
+                take(self, dt, last)?;
+            }
+        }
+        report.density_error_avg = (error_sum / f64::from(report.substeps.max(1))) as f32;
+        report.time = self.time;
+        Ok(report)
+    }
+
+    /// One step of `dt`: what its processors counted and its density error.
+    fn step_by(&mut self, dt: f32) -> Result<(StepCounters, (f64, f32))> {
+        let mut ctx = Context::new(dt);
+        (ctx.time, ctx.step) = (self.time, self.step);
+        ctx.recycle(self.recycled_grid.take());
+        ctx.neighbours = self.recycled_lists.take();
+        self.program.process(&mut self.particles, &mut ctx)?;
+        self.recycled_grid = ctx.take_grid_memory();
+        self.recycled_lists = ctx.neighbours.take();
+        self.time += dt as f64;
+        self.step += 1;
+        self.check()?;
+        let error = density_error(self.particles.densities(), self.params.rest_density);
+        Ok((ctx.counters, error))
+    }
+    /// NaN, infinities and speeds above 5 × the speed of sound end the run,
+    /// WCSPH only: there is no speed of sound in PBF, whose guard and
+    /// density solve check themselves.
+    fn check(&self) -> Result<()> {
+        let limit = match self.solver {
+            Solver::Wcsph => 5.0 * self.params.sound_speed(),
+            Solver::Pbf(_) => f32::INFINITY,
+        };
+        let bad = self
+            .particles
+            .positions()
+            .par_iter()
+            .zip(self.particles.velocities().par_iter())
+            .position_first(|(x, v)| !x.is_finite() || !v.is_finite() || v.length() > limit);
+        match bad {
+            None => Ok(()),
+            Some(i) => {
+                let (x, v) = (
+                    self.particles.positions()[i],
+                    self.particles.velocities()[i],
+                );
+                let what = if !x.is_finite() || !v.is_finite() {
+                    format!("particle {i} became non-finite (x = {x}, v = {v})")
+                } else {
+                    format!(
+                        "particle {i} moves at {:.3} m/s, above 5 × the speed of sound √k = {:.3} m/s",
+                        v.length(),
+                        self.params.sound_speed()
+                    )
+                };
+                Err(self.unstable(what))
+            }
+        }
+    }
+
+    fn unstable(&self, what: String) -> Error {
+        let hint = match self.solver {
+            Solver::Pbf(pbf) => format!(
+                "raise solver.pbf.substeps (now {}) or solver.pbf.iterations (now {}), \
+                 or lower solver.pbf.max_dt (now {:e} s)",
+                pbf.substeps, pbf.iterations, pbf.max_dt
+            ),
+            Solver::Wcsph => format!(
+                "lower time_step.max_dt (now {:e} s) or time_step.cfl (now {}), \
+                 or check viscosity μ (now {} Pa·s), stiffness k (now {} m²/s²) and h (now {} m)",
+                self.stepping.max_dt,
+                self.stepping.cfl,
+                self.params.viscosity,
+                self.params.stiffness,
+                self.params.h
+            ),
+        };
+        Error::Unstable {
+            step: self.step,
+            time: self.time,
+            what,
+            hint,
+        }
+    }
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("particles", &self.particles.len())
+            .field("time", &self.time)
+            .field("step", &self.step)
+            .field("solver", &self.solver)
+            .field("program", &self.program)
+            .finish()
+    }
+}
