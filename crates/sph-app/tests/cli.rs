@@ -73,7 +73,8 @@ fn headless_frames_csv_and_exports() {
         .collect();
     assert_eq!(
         csv.lines().next().unwrap(),
-        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms"
+        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
+         solver,substeps,iterations,density_error_avg,density_error_max,clamped"
     );
     assert_eq!(rows.len(), 3, "{csv}");
     for (i, row) in rows.iter().enumerate() {
@@ -83,6 +84,12 @@ fn headless_frames_csv_and_exports() {
         let particles: usize = row[2].parse().unwrap();
         let surfels: usize = row[3].parse().unwrap();
         assert!(particles > 1000 && surfels > 100, "{row:?}");
+        // The built-in scenes run PBF: 3 substeps of 3 iterations per
+        // frame, but none longer than 1/120 s: 4 per 1/30 s frame here.
+        assert_eq!(&row[9..12], ["pbf", "4", "12"], "{row:?}");
+        let (avg, max): (f32, f32) = (row[12].parse().unwrap(), row[13].parse().unwrap());
+        assert!((0.0..0.05).contains(&avg) && avg <= max && max < 0.5, "{row:?}");
+        assert_eq!(row[14], "0", "no particle clamped: {row:?}");
         // The render passes' GPU time (lavapipe has timestamp queries): more
         // than nothing, less than the frame's render with its read-back.
         if let Ok(gpu_ms) = row[8].parse::<f64>() {
@@ -155,7 +162,8 @@ fn list_scenes_names_the_built_ins() {
         text.contains(&format!("slab dam break, {} particles", slab.len())),
         "{text}"
     );
-    assert_eq!(text.matches(" particles\n").count(), 5, "{text}");
+    // Each with its solver.
+    assert_eq!(text.matches(" particles, pbf\n").count(), 5, "{text}");
 }
 
 /// Runs a failing command: non-zero exit, a message containing `expected`, no panic.
@@ -275,6 +283,8 @@ fn gpu_sim_follows_the_cpu_solver() {
             "--out",
             out.to_str().unwrap(),
         ];
+        // The GPU runs WCSPH only: both paths run it.
+        args.extend(["--solver", "wcsph"]);
         if gpu {
             args.push("--gpu-sim");
         }
@@ -334,7 +344,7 @@ fn gpu_paths_without_an_adapter_are_a_clear_error() {
 fn gpu_extract_draws_and_exports_the_gpu_surfels() {
     for (name, extra) in [
         ("gpu-extract", None),
-        ("gpu-sim-and-extract", Some("--gpu-sim")),
+        ("gpu-sim-and-extract", Some(["--gpu-sim", "--solver", "wcsph"])),
     ] {
         let out = scratch(name);
         let mut args = vec![
@@ -353,7 +363,7 @@ fn gpu_extract_draws_and_exports_the_gpu_surfels() {
             "--out",
             out.to_str().unwrap(),
         ];
-        args.extend(extra);
+        args.extend(extra.into_iter().flatten());
         let o = app(&args);
         if skipped_without_adapter(&o) {
             return;
@@ -432,4 +442,67 @@ fn cull_extracts_only_front_facing_surfels() {
     };
     let (all, front) = (surfels(false), surfels(true));
     assert!(0 < front && front < 3 * all / 4, "{front} of {all} surfels");
+}
+
+/// The GPU path runs WCSPH only: `--gpu-sim` on a PBF scene is refused with
+/// the way out, not switched silently; `--solver wcsph` runs it.
+#[test]
+fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
+    let out = scratch("gpu-sim-pbf");
+    let args = [
+        "--headless",
+        "--frames",
+        "1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--gpu-sim",
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let o = app(&args);
+    assert!(!o.status.success());
+    if skipped_without_adapter(&o) {
+        return;
+    }
+    let err = stderr(&o);
+    assert!(
+        err.contains("the GPU path runs only the thesis's WCSPH, and this scene runs pbf")
+            && err.contains("--solver wcsph"),
+        "{err}"
+    );
+    let o = app(&[&args[..], &["--solver", "wcsph"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("solver wcsph (SPH step on the GPU)"), "{stdout}");
+}
+
+/// `--solver` overrides the scene's choice, and a wrong name lists the
+/// solvers.
+#[test]
+fn solver_flag_chooses_and_bad_names_are_errors() {
+    let out = scratch("solver-flag");
+    let o = app(&[
+        "--headless",
+        "--frames",
+        "1",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--solver",
+        "wcsph",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(row[9], "wcsph", "{csv}");
+    assert_eq!(row[11], "0", "WCSPH has no iterations: {csv}");
+    assert!(row[10].parse::<u32>().unwrap() > 10, "WCSPH's small steps: {csv}");
+    let o = app(&["--headless", "--solver", "flip"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("one of wcsph, pbf"), "{}", stderr(&o));
 }
