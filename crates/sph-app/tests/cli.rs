@@ -88,7 +88,10 @@ fn headless_frames_csv_and_exports() {
         // frame, but none longer than 1/120 s: 4 per 1/30 s frame here.
         assert_eq!(&row[9..12], ["pbf", "4", "12"], "{row:?}");
         let (avg, max): (f32, f32) = (row[12].parse().unwrap(), row[13].parse().unwrap());
-        assert!((0.0..0.05).contains(&avg) && avg <= max && max < 0.5, "{row:?}");
+        assert!(
+            (0.0..0.05).contains(&avg) && avg <= max && max < 0.5,
+            "{row:?}"
+        );
         assert_eq!(row[14], "0", "no particle clamped: {row:?}");
         // The render passes' GPU time (lavapipe has timestamp queries): more
         // than nothing, less than the frame's render with its read-back.
@@ -344,7 +347,10 @@ fn gpu_paths_without_an_adapter_are_a_clear_error() {
 fn gpu_extract_draws_and_exports_the_gpu_surfels() {
     for (name, extra) in [
         ("gpu-extract", None),
-        ("gpu-sim-and-extract", Some(["--gpu-sim", "--solver", "wcsph"])),
+        (
+            "gpu-sim-and-extract",
+            Some(["--gpu-sim", "--solver", "wcsph"]),
+        ),
     ] {
         let out = scratch(name);
         let mut args = vec![
@@ -451,6 +457,8 @@ fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
     let out = scratch("gpu-sim-pbf");
     let args = [
         "--headless",
+        "--scene",
+        "dam-break",
         "--frames",
         "1",
         "--width",
@@ -475,7 +483,10 @@ fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
     let o = app(&[&args[..], &["--solver", "wcsph"]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(stdout.contains("solver wcsph (SPH step on the GPU)"), "{stdout}");
+    assert!(
+        stdout.contains("solver wcsph (SPH step on the GPU)"),
+        "{stdout}"
+    );
 }
 
 /// `--solver` overrides the scene's choice, and a wrong name lists the
@@ -501,7 +512,10 @@ fn solver_flag_chooses_and_bad_names_are_errors() {
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
     assert_eq!(row[9], "wcsph", "{csv}");
     assert_eq!(row[11], "0", "WCSPH has no iterations: {csv}");
-    assert!(row[10].parse::<u32>().unwrap() > 10, "WCSPH's small steps: {csv}");
+    assert!(
+        row[10].parse::<u32>().unwrap() > 10,
+        "WCSPH's small steps: {csv}"
+    );
     let o = app(&["--headless", "--solver", "flip"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("one of wcsph, pbf"), "{}", stderr(&o));

@@ -324,6 +324,22 @@ impl WallKernel {
         (315.0 / (256.0 * h.powi(9)) * (f(h) - f(d))) as f32
     }
 
+    /// [`Self::volume_fraction`] and [`Self::plane_density`] at once, in
+    /// f32 from the dimensionless form u = d/h (a few ulps from the f64
+    /// evaluation): what a solver that needs them every iteration uses.
+    #[inline]
+    pub fn fraction_and_density(&self, d: f32) -> (f32, f32) {
+        let u = (d / self.h).clamp(0.0, 1.0);
+        let u2 = u * u;
+        // ∫_u^1 (1 − z²)⁴ dz = F(1) − F(u), F(z) = z − 4z³/3 + 6z⁵/5 − 4z⁷/7 + z⁹/9.
+        let f = u * (1.0 + u2 * (-4.0 / 3.0 + u2 * (6.0 / 5.0 + u2 * (-4.0 / 7.0 + u2 / 9.0))));
+        const F1: f32 = 1.0 - 4.0 / 3.0 + 6.0 / 5.0 - 4.0 / 7.0 + 1.0 / 9.0;
+        const C: f32 = 315.0 / 256.0;
+        let w = 1.0 - u2;
+        let w2 = w * w;
+        (C * (F1 - f), C / self.h * w2 * w2)
+    }
+
     /// −d/dd of [`Self::volume_fraction`]: ∫ W_poly6 over the plane at distance
     /// `d`, 315/(256 h⁹)·(h² − d²)⁴. The wall force that conserves energy with the
     /// wall density term is m (p/ρ²) ρ0 times this, along the wall normal.
@@ -383,6 +399,11 @@ mod tests {
                 "d={d}: {}",
                 vol * dv
             );
+            // The f32 form agrees.
+            let (f, p) = w.fraction_and_density(d);
+            assert!((f - w.volume_fraction(d)).abs() < 1e-6, "d={d}: {f}");
+            let rel = (p - w.plane_density(d)).abs() / w.plane_density(0.0);
+            assert!(rel < 1e-6, "d={d}: {p}");
             // The wall force's factor is the derivative of the wall density.
             let e = 1e-3f32;
             let fd =

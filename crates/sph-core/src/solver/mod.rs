@@ -1,4 +1,4 @@
-//! The solvers: each a [`Program`] of [`Processor`]s over the same particles,
+//! The solvers: each a [`Program`] of [`Processor`](crate::Processor)s over the same particles,
 //! neighbour grid, kernels and boundaries, driven by one [`World`].
 //!
 //! - [`wcsph`]: the thesis's weakly compressible SPH (Müller, Charypar & Gross

@@ -54,9 +54,14 @@ use super::stations::{Boundaries, BuildGrid, grid};
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::grid::NeighbourLists;
+#[cfg(target_arch = "x86_64")]
+use crate::grid::{Simd, simd_level};
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
+
+mod lanes;
+use lanes::{Chunk, LANES, LaneKernels, total};
 
 /// The parameters of position-based fluids. Scene files give them under
 /// `[solver.pbf]`; a field left out takes its default.
@@ -182,7 +187,7 @@ impl PbfParams {
         check(
             "pbf.max_dt",
             dt.into(),
-            dt.is_finite() && dt >= 1e-6 && dt <= 1.0,
+            (1e-6..=1.0).contains(&dt),
             "must lie in [1e-6, 1] s",
         )?;
         let r = self.relaxation;
@@ -400,8 +405,6 @@ fn lists<'a>(
 struct Model {
     params: FluidParams,
     pbf: PbfParams,
-    poly6: Poly6,
-    spiky: Spiky,
     wall: WallKernel,
     boundary: Boundary,
     /// ε in 1/m².
@@ -410,6 +413,12 @@ struct Model {
     inv_w_dq: f32,
     /// 1 / ρ0.
     inv_rho0: f32,
+    /// The kernels lane by lane.
+    lanes: LaneKernels,
+    /// W_poly6(0).
+    w0: f32,
+    /// An offset beyond the kernels' support, for unused lanes.
+    far: f32,
 }
 
 impl Model {
@@ -418,18 +427,19 @@ impl Model {
         pbf.validate()?;
         boundary.validate()?;
         let h = params.h;
-        let poly6 = Poly6::new(h)?;
+        let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
         let dq = pbf.scorr_dq * h;
         Ok(Self {
             params,
             pbf,
-            poly6,
-            spiky: Spiky::new(h)?,
             wall: WallKernel::new(h),
             boundary,
             epsilon: pbf.relaxation / (h * h),
             inv_w_dq: 1.0 / poly6.value_r2(dq * dq),
             inv_rho0: 1.0 / params.rest_density,
+            lanes: LaneKernels::new(&poly6, &spiky, h),
+            w0: poly6.value_r2(0.0),
+            far: 2.0 * h,
         })
     }
 
@@ -452,10 +462,8 @@ impl Model {
         let (h, rho0) = (self.params.h, self.params.rest_density);
         let mut extra = (0.0, Vec3::ZERO); // beyond 8 walls: summed
         self.boundary.for_each_wall_within(x, h, |d, n| {
-            let (f, grad) = (
-                self.wall.volume_fraction(d),
-                -self.wall.plane_density(d) * n,
-            );
+            let (f, density) = self.wall.fraction_and_density(d);
+            let grad = -density * n;
             if count < walls.len() {
                 walls[count] = (1.0 - f, grad);
                 count += 1;
@@ -480,6 +488,8 @@ impl Model {
     /// (lines 9–11); writes each neighbour's (m_j/ρ0)∇W_ij and s_corr
     /// weight into `pairs` (one per neighbour in `list`) for the
     /// correction, which sees the same positions.
+    /// [`Model::constraint_lanes`] compiled for AVX2 where the CPU has it
+    /// (the same operations lane by lane, so the same result).
     #[inline]
     fn constraint(
         &self,
@@ -489,39 +499,168 @@ impl Model {
         list: &[u32],
         pairs: &mut [Pair],
     ) -> Constraint {
-        let xi = x[i];
-        let (mut rho, wall) = self.walls(xi);
-        let mut grad_i = wall;
-        rho += m[i] * self.poly6.value_r2(0.0);
-        let mut sum2 = 0.0;
-        let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
-        for (&j, pair) in list.iter().zip(pairs) {
-            let j = j as usize;
-            let r = xi - x[j];
-            let r2 = r.length_squared();
-            let w = self.poly6.value_r2(r2);
-            rho += m[j] * w;
-            let g = self.spiky.gradient_len(r, r2.sqrt()) * (m[j] * self.inv_rho0);
-            grad_i += g;
-            sum2 += g.length_squared();
-            let q = w * self.inv_w_dq;
-            let q2 = q * q;
-            let scorr = match n {
-                4 => q2 * q2,
-                _ => (1..n).fold(q, |p, _| p * q),
-            };
-            *pair = Pair {
-                g,
-                scorr: k * scorr,
-            };
+        #[cfg(target_arch = "x86_64")]
+        if simd_level() != Simd::Baseline {
+            // SAFETY: `simd_level` never exceeds what the CPU supports, and
+            // both levels above the baseline have AVX2.
+            return unsafe { self.constraint_avx2(i, x, m, list, pairs) };
         }
+        self.constraint_lanes(i, x, m, list, pairs)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn constraint_avx2(
+        &self,
+        i: usize,
+        x: &[Vec3],
+        m: &[f32],
+        list: &[u32],
+        pairs: &mut [Pair],
+    ) -> Constraint {
+        self.constraint_lanes(i, x, m, list, pairs)
+    }
+
+    #[inline(always)]
+    fn constraint_lanes(
+        &self,
+        i: usize,
+        x: &[Vec3],
+        m: &[f32],
+        list: &[u32],
+        pairs: &mut [Pair],
+    ) -> Constraint {
+        let xi = x[i];
+        let (rho_wall, wall) = self.walls(xi);
+        // Per lane: ρ, ∇_i C_i by axis, Σ|∇_j C_i|².
+        let mut acc = [[0.0f32; LANES]; 5];
+        let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
+        for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
+            let c = Chunk::gather(xi, x, m, js, self.far);
+            let (w, s) = self.lanes.eval(&c.r2());
+            let mut g = [[0.0f32; LANES]; 3];
+            for l in 0..LANES {
+                let f = s[l] * c.m[l] * self.inv_rho0;
+                for a in 0..3 {
+                    g[a][l] = c.d[a][l] * f;
+                    acc[1 + a][l] += g[a][l];
+                }
+                acc[0][l] += c.m[l] * w[l];
+                acc[4][l] += g[0][l] * g[0][l] + g[1][l] * g[1][l] + g[2][l] * g[2][l];
+            }
+            for (l, pair) in out.iter_mut().enumerate() {
+                let q = w[l] * self.inv_w_dq;
+                *pair = Pair {
+                    g: Vec3::new(g[0][l], g[1][l], g[2][l]),
+                    scorr: if k > 0.0 {
+                        k * (1..n).fold(q, |p, _| p * q)
+                    } else {
+                        0.0
+                    },
+                };
+            }
+        }
+        let rho = rho_wall + m[i] * self.w0 + total(&acc[0]);
+        let grad_i = wall + Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
         let error = rho * self.inv_rho0 - 1.0;
-        let d = 1.0 / (grad_i.length_squared() + sum2 + self.epsilon);
+        let d = 1.0 / (grad_i.length_squared() + total(&acc[4]) + self.epsilon);
         Constraint {
             rho,
             lambda: -error.max(0.0) * d,
             d,
             wall,
+        }
+    }
+}
+
+impl Model {
+    /// The viscosity station's sums for particle i at the current positions:
+    /// density (with the walls), curl ω_i = Σ_j (m_j/ρ0)(v_j − v_i) × ∇W_ij
+    /// and XSPH mean Σ_j (m_j/ρ0)(v_j − v_i) W_ij; writes each neighbour's
+    /// (m_j/ρ0)∇W_ij into `grads`.
+    #[inline]
+    fn curl_and_mean(
+        &self,
+        i: usize,
+        x: &[Vec3],
+        v: &[Vec3],
+        m: &[f32],
+        list: &[u32],
+        grads: &mut [Vec3],
+    ) -> Sums {
+        #[cfg(target_arch = "x86_64")]
+        if simd_level() != Simd::Baseline {
+            // SAFETY: as in `Model::constraint`.
+            return unsafe { self.curl_and_mean_avx2(i, x, v, m, list, grads) };
+        }
+        self.curl_and_mean_lanes(i, x, v, m, list, grads)
+    }
+
+    /// # Safety
+    /// The CPU must support AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn curl_and_mean_avx2(
+        &self,
+        i: usize,
+        x: &[Vec3],
+        v: &[Vec3],
+        m: &[f32],
+        list: &[u32],
+        grads: &mut [Vec3],
+    ) -> Sums {
+        self.curl_and_mean_lanes(i, x, v, m, list, grads)
+    }
+
+    #[inline(always)]
+    fn curl_and_mean_lanes(
+        &self,
+        i: usize,
+        x: &[Vec3],
+        v: &[Vec3],
+        m: &[f32],
+        list: &[u32],
+        grads: &mut [Vec3],
+    ) -> Sums {
+        let (xi, vi) = (x[i], v[i]);
+        // Per lane: ρ, curl by axis, mean by axis.
+        let mut acc = [[0.0f32; LANES]; 7];
+        for (js, out) in list.chunks(LANES).zip(grads.chunks_mut(LANES)) {
+            let c = Chunk::gather(xi, x, m, js, self.far);
+            let (w, s) = self.lanes.eval(&c.r2());
+            let mut u = [[0.0f32; LANES]; 3];
+            for (l, &j) in js.iter().enumerate() {
+                let vij = v[j as usize] - vi;
+                (u[0][l], u[1][l], u[2][l]) = (vij.x, vij.y, vij.z);
+            }
+            let mut g = [[0.0f32; LANES]; 3];
+            for l in 0..LANES {
+                let vol = c.m[l] * self.inv_rho0;
+                let f = s[l] * vol;
+                for (g, d) in g.iter_mut().zip(&c.d) {
+                    g[l] = d[l] * f;
+                }
+                acc[0][l] += c.m[l] * w[l];
+                // v_ij × (m_j/ρ0)∇W_ij
+                acc[1][l] += u[1][l] * g[2][l] - u[2][l] * g[1][l];
+                acc[2][l] += u[2][l] * g[0][l] - u[0][l] * g[2][l];
+                acc[3][l] += u[0][l] * g[1][l] - u[1][l] * g[0][l];
+                for a in 0..3 {
+                    acc[4 + a][l] += u[a][l] * (vol * w[l]);
+                }
+            }
+            for (l, o) in out.iter_mut().enumerate() {
+                *o = Vec3::new(g[0][l], g[1][l], g[2][l]);
+            }
+        }
+        let curl = Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
+        Sums {
+            rho: self.walls(xi).0 + m[i] * self.w0 + total(&acc[0]),
+            curl,
+            curl_len: curl.length(),
+            mean: Vec3::new(total(&acc[4]), total(&acc[5]), total(&acc[6])),
         }
     }
 }
@@ -651,7 +790,7 @@ impl Processor for SolveDensity {
         ctx.counters.iterations += pbf.iterations;
         ctx.invalidate_grid(); // positions moved; the lists stay
         let bad = particles.positions().par_iter().any(|x| !x.is_finite());
-        if bad || !(worst <= MAX_DENSITY_ERROR) {
+        if bad || worst.is_nan() || worst > MAX_DENSITY_ERROR {
             return Err(Error::Unstable {
                 step: ctx.step,
                 time: ctx.time,
@@ -687,6 +826,17 @@ impl Processor for SolveDensity {
 #[derive(Debug, Clone)]
 pub struct VorticityXsph {
     model: Model,
+    first: Vec<Sums>,
+    grads: Vec<Vec3>,
+}
+
+/// A particle's sums of the viscosity station's first pass.
+#[derive(Debug, Clone, Copy, Default)]
+struct Sums {
+    rho: f32,
+    curl: Vec3,
+    curl_len: f32,
+    mean: Vec3,
 }
 
 impl VorticityXsph {
@@ -699,7 +849,11 @@ impl VorticityXsph {
     }
 
     fn new(model: Model) -> Self {
-        Self { model }
+        Self {
+            model,
+            first: Vec::new(),
+            grads: Vec::new(),
+        }
     }
 }
 
@@ -710,43 +864,44 @@ impl Processor for VorticityXsph {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "viscosity")?;
         let model = &self.model;
-        let (rho0, dt) = (model.params.rest_density, ctx.dt);
+        let dt = ctx.dt;
         let (eps, c) = (model.pbf.vorticity, model.pbf.xsph);
         let f = particles.fields_mut();
         let (x, v, m) = (&*f.positions, &*f.velocities, &*f.masses);
-        // Density, curl and XSPH mean at once.
-        let first: Vec<(f32, Vec3, Vec3)> = (0..x.len())
-            .into_par_iter()
-            .map(|i| {
-                let (xi, vi) = (x[i], v[i]);
-                let mut rho = model.walls(xi).0 + m[i] * model.poly6.value_r2(0.0);
-                let (mut curl, mut mean) = (Vec3::ZERO, Vec3::ZERO);
-                for &j in lists.of(i) {
-                    let j = j as usize;
-                    let r = xi - x[j];
-                    let r2 = r.length_squared();
-                    let w = model.poly6.value_r2(r2);
-                    rho += m[j] * w;
-                    let (vol, vij) = (m[j] / rho0, v[j] - vi);
-                    curl += vij.cross(model.spiky.gradient_len(r, r2.sqrt())) * vol;
-                    mean += vij * (vol * w);
-                }
-                (rho, curl, mean)
-            })
-            .collect();
+        // Density, curl and XSPH mean at once; each pair's (m_j/ρ0)∇W_ij
+        // kept for the vorticity's gradient of |ω|.
+        let starts = lists.row_starts();
+        self.grads.resize(lists.pairs(), Vec3::ZERO);
+        self.first.resize(x.len(), Default::default());
+        let mut blocks = Vec::with_capacity(x.len().div_ceil(BLOCK));
+        let mut rest = &mut self.grads[..];
+        for (b, out) in self.first.chunks_mut(BLOCK).enumerate() {
+            let first = b * BLOCK;
+            let len = (starts[first + out.len()] - starts[first]) as usize;
+            let (grads, tail) = rest.split_at_mut(len);
+            rest = tail;
+            blocks.push((first, out, grads));
+        }
+        blocks.into_par_iter().for_each(|(first, out, grads)| {
+            let base = starts[first];
+            for (k, o) in out.iter_mut().enumerate() {
+                let i = first + k;
+                let row = (starts[i] - base) as usize..(starts[i + 1] - base) as usize;
+                *o = model.curl_and_mean(i, x, v, m, lists.of(i), &mut grads[row]);
+            }
+        });
+        let (first, grads) = (&self.first, &self.grads);
         let dv: Vec<Vec3> = (0..x.len())
             .into_par_iter()
             .map(|i| {
-                let (_, curl, mean) = first[i];
+                let Sums { curl, mean, .. } = first[i];
                 let mut dv = c * mean;
                 if eps > 0.0 {
-                    let xi = x[i];
-                    let (mut eta, wi) = (Vec3::ZERO, curl.length());
-                    for &j in lists.of(i) {
-                        let j = j as usize;
-                        let r = xi - x[j];
-                        let grad = model.spiky.gradient_len(r, r.length());
-                        eta += grad * (m[j] / rho0 * (first[j].1.length() - wi));
+                    let row = &grads[starts[i] as usize..starts[i + 1] as usize];
+                    let wi = first[i].curl_len;
+                    let mut eta = Vec3::ZERO;
+                    for (&j, &g) in lists.of(i).iter().zip(row) {
+                        eta += g * (first[j as usize].curl_len - wi);
                     }
                     if let Some(n) = eta.try_normalize() {
                         dv += dt * eps * n.cross(curl);
@@ -760,7 +915,7 @@ impl Processor for VorticityXsph {
             .for_each(|(v, &dv)| *v += dv);
         (f.densities.par_iter_mut())
             .zip(first.par_iter())
-            .for_each(|(rho, &(r, _, _))| *rho = r);
+            .for_each(|(rho, s)| *rho = s.rho);
         Ok(())
     }
 }
