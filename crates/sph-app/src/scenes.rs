@@ -81,4 +81,18 @@ mod tests {
             Err(AppError::UnknownScene(_))
         ));
     }
+
+    /// Every built-in scene runs a frame with each solver, PBF by default.
+    #[test]
+    fn built_ins_run_with_both_solvers() {
+        for (name, _, make) in BUILT_IN {
+            assert_eq!(make().solver.kind, SolverKind::Pbf, "{name}");
+            for kind in SolverKind::ALL {
+                let mut world = make().with_solver(kind).build_world().unwrap();
+                let r = world.advance(1.0 / 60.0).unwrap();
+                assert_eq!(r.solver, kind, "{name}");
+                assert!(r.density_error_avg.is_finite(), "{name} {kind}: {r:?}");
+            }
+        }
+    }
 }
