@@ -121,6 +121,17 @@ pub trait Processor: Send {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()>;
 }
 
+/// A boxed processor is one: lists of `Box<dyn Processor>` can be wrapped
+/// and pushed like any other.
+impl<P: Processor + ?Sized> Processor for Box<P> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        (**self).process(particles, ctx)
+    }
+}
+
 /// An ordered list of processors, itself a processor.
 pub struct Program {
     name: String,

@@ -61,8 +61,6 @@ use super::stations::{Boundaries, BuildGrid, grid};
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::grid::NeighbourLists;
-#[cfg(target_arch = "x86_64")]
-use crate::grid::{Simd, simd_level};
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
@@ -496,43 +494,8 @@ impl Model {
     /// (lines 9–11); writes each neighbour's (m_j/ρ0)∇W_ij and s_corr
     /// weight into `pairs` (one per neighbour in `list`) for the
     /// correction, which sees the same positions.
-    /// [`Model::constraint_lanes`] compiled for AVX2 where the CPU has it
-    /// (the same operations lane by lane, so the same result).
     #[inline]
     fn constraint(
-        &self,
-        i: usize,
-        x: &[Vec3],
-        m: &[f32],
-        list: &[u32],
-        pairs: &mut [Pair],
-    ) -> Constraint {
-        #[cfg(target_arch = "x86_64")]
-        if simd_level() != Simd::Baseline {
-            // SAFETY: `simd_level` never exceeds what the CPU supports, and
-            // both levels above the baseline have AVX2.
-            return unsafe { self.constraint_avx2(i, x, m, list, pairs) };
-        }
-        self.constraint_lanes(i, x, m, list, pairs)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn constraint_avx2(
-        &self,
-        i: usize,
-        x: &[Vec3],
-        m: &[f32],
-        list: &[u32],
-        pairs: &mut [Pair],
-    ) -> Constraint {
-        self.constraint_lanes(i, x, m, list, pairs)
-    }
-
-    #[inline(always)]
-    fn constraint_lanes(
         &self,
         i: usize,
         x: &[Vec3],
@@ -590,40 +553,6 @@ impl Model {
     /// (m_j/ρ0)∇W_ij into `grads`.
     #[inline]
     fn curl_and_mean(
-        &self,
-        i: usize,
-        x: &[Vec3],
-        v: &[Vec3],
-        m: &[f32],
-        list: &[u32],
-        grads: &mut [Vec3],
-    ) -> Sums {
-        #[cfg(target_arch = "x86_64")]
-        if simd_level() != Simd::Baseline {
-            // SAFETY: as in `Model::constraint`.
-            return unsafe { self.curl_and_mean_avx2(i, x, v, m, list, grads) };
-        }
-        self.curl_and_mean_lanes(i, x, v, m, list, grads)
-    }
-
-    /// # Safety
-    /// The CPU must support AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn curl_and_mean_avx2(
-        &self,
-        i: usize,
-        x: &[Vec3],
-        v: &[Vec3],
-        m: &[f32],
-        list: &[u32],
-        grads: &mut [Vec3],
-    ) -> Sums {
-        self.curl_and_mean_lanes(i, x, v, m, list, grads)
-    }
-
-    #[inline(always)]
-    fn curl_and_mean_lanes(
         &self,
         i: usize,
         x: &[Vec3],
