@@ -85,8 +85,8 @@ fn headless_frames_csv_and_exports() {
         let surfels: usize = row[3].parse().unwrap();
         assert!(particles > 1000 && surfels > 100, "{row:?}");
         // The built-in scenes run PBF: 3 substeps of 3 iterations per
-        // frame, but none longer than 1/120 s: 4 per 1/30 s frame here.
-        assert_eq!(&row[9..12], ["pbf", "4", "12"], "{row:?}");
+        // 60 Hz frame, none longer: 6 per 1/30 s frame here.
+        assert_eq!(&row[9..12], ["pbf", "6", "18"], "{row:?}");
         let (avg, max): (f32, f32) = (row[12].parse().unwrap(), row[13].parse().unwrap());
         assert!(
             (0.0..0.05).contains(&avg) && avg <= max && max < 0.5,
