@@ -44,8 +44,8 @@ fn main() -> Result<()> {
         )?),
         Box::new(BuildGrid::new(params.h, 1)),
         Box::new(FindNeighbours::new(params.h)),
-        Box::new(SolveDensity::new_for(params, pbf, boundary.clone())?),
-        Box::new(VorticityXsph::new_for(params, pbf, boundary.clone())?),
+        Box::new(SolveDensity::new(params, pbf, boundary.clone())?),
+        Box::new(VorticityXsph::new(params, pbf, boundary.clone())?),
         Box::new(Boundaries::new(boundary)?),
     ];
     let names: Vec<String> = world.program_mut().names().map(str::to_owned).collect();

@@ -283,8 +283,8 @@ pub fn program(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Resul
         })
         .push(BuildGrid::new(params.h, 1))
         .push(FindNeighbours { h: params.h })
-        .push(SolveDensity::new(model.clone()))
-        .push(VorticityXsph::new(model))
+        .push(SolveDensity::with_model(model.clone()))
+        .push(VorticityXsph::with_model(model))
         .push(Boundaries::new(boundary)?);
     Ok(program)
 }
@@ -667,11 +667,11 @@ impl SolveDensity {
     ///
     /// # Errors
     /// Parameters or a boundary that do not validate.
-    pub fn new_for(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
-        Model::new(params, pbf, boundary).map(Self::new)
+    pub fn new(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
+        Model::new(params, pbf, boundary).map(Self::with_model)
     }
 
-    fn new(model: Model) -> Self {
+    fn with_model(model: Model) -> Self {
         Self {
             model,
             constraints: Vec::new(),
@@ -806,11 +806,11 @@ impl VorticityXsph {
     ///
     /// # Errors
     /// Parameters or a boundary that do not validate.
-    pub fn new_for(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
-        Model::new(params, pbf, boundary).map(Self::new)
+    pub fn new(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
+        Model::new(params, pbf, boundary).map(Self::with_model)
     }
 
-    fn new(model: Model) -> Self {
+    fn with_model(model: Model) -> Self {
         Self {
             model,
             first: Vec::new(),
