@@ -5,16 +5,21 @@
 //! A "temperature" attribute starts hot in the dam-break column and diffuses
 //! between neighbours (an SPH laplacian, gathered like the solver's own forces);
 //! a second processor adds buoyancy from it (Boussinesq: a = −β (T − T₀) g).
-//! Both are inserted into the default program after the built-in force
-//! processor.
+//! The same two processors run in both solvers' programs: the diffusion
+//! after the `grid` station, the buoyancy after the `forces` station (both
+//! programs have them: WCSPH computes its forces there, PBF sets gravity
+//! before it predicts positions).
 
 use sph_core::glam::Vec3;
 use sph_core::processor::{Context, Processor};
-use sph_core::{Kernels, Particles, Result, Scene};
+use sph_core::{Kernels, Particles, Result, Scene, SolverKind};
 
-/// Heat diffusion: dT_i/dt = α Σ_j m_j/ρ_j (T_j − T_i) ∇²W_visc(r_ij).
+/// Heat diffusion: dT_i/dt = α Σ_j m_j/ρ0 (T_j − T_i) ∇²W_visc(r_ij), with
+/// the rest volumes m_j/ρ0 (right after the grid the step's densities are
+/// not summed yet).
 struct Diffuse {
     alpha: f32,
+    rest_density: f32,
     kernels: Kernels,
 }
 
@@ -29,12 +34,12 @@ impl Processor for Diffuse {
             reason: "needs the neighbour grid: insert it after `grid`",
         })?;
         let t = particles.attribute::<f32>("temperature")?;
-        let (m, rho) = (particles.masses(), particles.densities());
+        let (m, rho0) = (particles.masses(), self.rest_density);
         let visc = self.kernels.viscosity;
         let rate = grid.par_map(|i, nb| {
             let mut s = 0.0f32;
             nb.for_each(|j, _, r2| {
-                s += m[j] / rho[j] * (t[j] - t[i]) * visc.laplacian_len(r2.sqrt())
+                s += m[j] / rho0 * (t[j] - t[i]) * visc.laplacian_len(r2.sqrt())
             });
             self.alpha * s
         });
@@ -75,7 +80,14 @@ impl Processor for Buoyancy {
 }
 
 fn main() -> Result<()> {
-    let scene = Scene::dam_break(0.2, 0.06, 0.02);
+    for kind in SolverKind::ALL {
+        run(kind)?;
+    }
+    Ok(())
+}
+
+fn run(kind: SolverKind) -> Result<()> {
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(kind);
     let mut world = scene.build_world()?;
     world.particles.add_attribute("temperature", 20.0f32)?;
     // The upper half of the column starts hot.
@@ -95,18 +107,19 @@ fn main() -> Result<()> {
             *t = 80.0;
         }
     }
-    let h = world.params().h;
+    let (h, rest_density) = (world.params().h, world.params().rest_density);
     world.program_mut().insert_after(
-        "forces",
+        "grid",
         Diffuse {
             alpha: 1e-3,
+            rest_density,
             kernels: Kernels::new(h)?,
         },
     );
     // β ten times water's (2.1e-4 /K), so that the effect shows in a second.
     let gravity = world.params().gravity;
     world.program_mut().insert_after(
-        "diffuse-heat",
+        "forces",
         Buoyancy {
             beta: 2e-3,
             reference: 20.0,
@@ -114,7 +127,7 @@ fn main() -> Result<()> {
         },
     );
     println!(
-        "program: {:?}",
+        "{kind}: {:?}",
         world.program_mut().names().collect::<Vec<_>>()
     );
     for frame in 0..30 {

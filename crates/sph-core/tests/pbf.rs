@@ -492,3 +492,54 @@ fn a_failed_constraint_solve_stops_the_run() {
         other => panic!("{other:?}"),
     }
 }
+
+/// A user's processor plugs into the PBF program at the same station as into
+/// WCSPH's (after `forces`): a uniform push of 1 m/s² on a weightless free
+/// cluster adds exactly M a t of momentum, since the solve's corrections
+/// add none.
+#[test]
+fn a_user_processor_after_forces_acts_in_pbf() {
+    let spacing = 0.02;
+    let mut params = FluidParams::water(2.0 * spacing);
+    params.gravity = Vec3::ZERO;
+    let mass = params.particle_mass(spacing).unwrap();
+    let mut particles = Particles::new();
+    for k in 0..5 {
+        for j in 0..5 {
+            for i in 0..5 {
+                particles.push(
+                    Vec3::new(i as f32, j as f32, k as f32) * spacing,
+                    Vec3::ZERO,
+                    mass,
+                );
+            }
+        }
+    }
+    let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
+    let pbf = PbfParams {
+        vorticity: 0.0,
+        ..PbfParams::default()
+    };
+    let mut world = World::with_solver(
+        particles,
+        params,
+        boundary,
+        TimeStepping::default(),
+        Solver::Pbf(pbf),
+    )
+    .unwrap();
+    let push = sph_core::solver::ExternalAcceleration::new("push", |_, _| Vec3::X);
+    assert!(world.program_mut().insert_after("forces", push));
+    for _ in 0..30 {
+        world.advance(1.0 / 60.0).unwrap();
+    }
+    let p = &world.particles;
+    let momentum: f64 = (p.masses().iter().zip(p.velocities()))
+        .map(|(&m, v)| f64::from(m) * f64::from(v.x))
+        .sum();
+    let expected = p.total_mass() * world.time();
+    assert!(
+        (momentum - expected).abs() < 1e-4 * expected,
+        "{momentum} vs {expected}"
+    );
+}
