@@ -17,6 +17,33 @@ fn noise(seed: &mut u64) -> f32 {
     ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
 }
 
+/// `particles` in a domain far larger than they reach, run by PBF.
+fn unbounded(particles: Particles, params: FluidParams, pbf: PbfParams) -> World {
+    let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
+    World::with_solver(
+        particles,
+        params,
+        boundary,
+        TimeStepping::default(),
+        Solver::Pbf(pbf),
+    )
+    .unwrap()
+}
+
+/// An n × n × n lattice of particles of `mass`, `step` apart from `origin`.
+fn lattice(n: i32, step: f32, origin: Vec3, mass: f32) -> Particles {
+    let mut particles = Particles::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let x = origin + Vec3::new(i as f32, j as f32, k as f32) * step;
+                particles.push(x, Vec3::ZERO, mass);
+            }
+        }
+    }
+    particles
+}
+
 fn rms_speed(p: &Particles) -> f32 {
     let sum: f64 = p
         .velocities()
@@ -123,30 +150,14 @@ fn free_fall_for_ten_thousand_substeps() {
     let spacing = 0.02;
     let params = FluidParams::water(2.0 * spacing);
     let mass = params.particle_mass(spacing).unwrap();
-    let mut particles = Particles::new();
-    for k in 0..6 {
-        for j in 0..6 {
-            for i in 0..6 {
-                let x = Vec3::new(i as f32, j as f32, k as f32) * spacing;
-                particles.push(x, Vec3::ZERO, mass);
-            }
-        }
-    }
+    let particles = lattice(6, spacing, Vec3::ZERO, mass);
     let start = particles.positions().to_vec();
-    let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
     let pbf = PbfParams {
         substeps: 1_000,
         max_dt: 1e-4,
         ..PbfParams::default()
     };
-    let mut world = World::with_solver(
-        particles,
-        params,
-        boundary,
-        TimeStepping::default(),
-        Solver::Pbf(pbf),
-    )
-    .unwrap();
+    let mut world = unbounded(particles, params, pbf);
     let mut substeps = 0;
     for _ in 0..10 {
         substeps += world.advance(0.1).unwrap().substeps;
@@ -208,19 +219,11 @@ fn free_cluster_keeps_its_momentum() {
             })
     };
     let before = momentum(&particles);
-    let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
     let pbf = PbfParams {
         vorticity: 0.0,
         ..PbfParams::default()
     };
-    let mut world = World::with_solver(
-        particles,
-        params,
-        boundary,
-        TimeStepping::default(),
-        Solver::Pbf(pbf),
-    )
-    .unwrap();
+    let mut world = unbounded(particles, params, pbf);
     let mut moved = 0.0f32;
     for _ in 0..30 {
         let r = world.advance(1.0 / 60.0).unwrap();
@@ -462,28 +465,12 @@ fn a_failed_constraint_solve_stops_the_run() {
     let spacing = 0.02;
     let params = FluidParams::water(2.0 * spacing);
     let mass = params.particle_mass(spacing).unwrap();
-    let mut particles = Particles::new();
-    for k in 0..6 {
-        for j in 0..6 {
-            for i in 0..6 {
-                let x = Vec3::new(i as f32, j as f32, k as f32) * spacing / 3.0 + Vec3::splat(0.2);
-                particles.push(x, Vec3::ZERO, mass);
-            }
-        }
-    }
-    let boundary = Boundary::new(Aabb::new(Vec3::ZERO, Vec3::splat(1.0)));
     let pbf = PbfParams {
         iterations: 1,
         ..PbfParams::default()
     };
-    let mut world = World::with_solver(
-        particles,
-        params,
-        boundary,
-        TimeStepping::default(),
-        Solver::Pbf(pbf),
-    )
-    .unwrap();
+    let particles = lattice(6, spacing / 3.0, Vec3::splat(0.2), mass);
+    let mut world = unbounded(particles, params, pbf);
     match world.advance(1.0 / 60.0) {
         Err(Error::Unstable { what, hint, .. }) => {
             assert!(what.contains("density constraint solve diverged"), "{what}");
@@ -503,31 +490,11 @@ fn a_user_processor_after_forces_acts_in_pbf() {
     let mut params = FluidParams::water(2.0 * spacing);
     params.gravity = Vec3::ZERO;
     let mass = params.particle_mass(spacing).unwrap();
-    let mut particles = Particles::new();
-    for k in 0..5 {
-        for j in 0..5 {
-            for i in 0..5 {
-                particles.push(
-                    Vec3::new(i as f32, j as f32, k as f32) * spacing,
-                    Vec3::ZERO,
-                    mass,
-                );
-            }
-        }
-    }
-    let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
     let pbf = PbfParams {
         vorticity: 0.0,
         ..PbfParams::default()
     };
-    let mut world = World::with_solver(
-        particles,
-        params,
-        boundary,
-        TimeStepping::default(),
-        Solver::Pbf(pbf),
-    )
-    .unwrap();
+    let mut world = unbounded(lattice(5, spacing, Vec3::ZERO, mass), params, pbf);
     let push = sph_core::solver::ExternalAcceleration::new("push", |_, _| Vec3::X);
     assert!(world.program_mut().insert_after("forces", push));
     for _ in 0..30 {

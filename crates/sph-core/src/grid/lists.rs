@@ -78,6 +78,54 @@ impl NeighbourLists {
         }
     }
 
+    /// Sets `out[i] = f(i, neighbours of i, row i of pairs)` for every
+    /// particle in parallel, where `pairs` holds one value per neighbour
+    /// laid out as the rows are, row by row (see [`NeighbourLists::row`]): a pass that
+    /// computes a value per particle and one per pair at once. The work is
+    /// split in blocks of a fixed size, so the result does not depend on
+    /// the number of threads.
+    ///
+    /// # Panics
+    /// If `out` does not hold one value per particle or `pairs` one per
+    /// neighbour pair.
+    pub fn par_map_rows<T: Send, P: Send>(
+        &self,
+        out: &mut [T],
+        pairs: &mut [P],
+        f: impl Fn(usize, &[u32], &mut [P]) -> T + Sync,
+    ) {
+        assert_eq!(out.len(), self.len(), "one value per particle");
+        assert_eq!(pairs.len(), self.pairs(), "one value per neighbour pair");
+        let start = &self.start;
+        let mut blocks = Vec::with_capacity(out.len().div_ceil(CHUNK));
+        let mut rest = pairs;
+        for (b, values) in out.chunks_mut(CHUNK).enumerate() {
+            let first = b * CHUNK;
+            let len = (start[first + values.len()] - start[first]) as usize;
+            let (rows, tail) = rest.split_at_mut(len);
+            rest = tail;
+            blocks.push((first, values, rows));
+        }
+        blocks.into_par_iter().for_each(|(first, values, rows)| {
+            let base = start[first];
+            for (k, value) in values.iter_mut().enumerate() {
+                let i = first + k;
+                let row = (start[i] - base) as usize..(start[i + 1] - base) as usize;
+                *value = f(i, self.of(i), &mut rows[row]);
+            }
+        });
+    }
+
+    /// Particle `i`'s part of per-pair data laid out as the rows are (see
+    /// [`NeighbourLists::par_map_rows`]).
+    ///
+    /// # Panics
+    /// If `i >= self.len()` or `pairs` is shorter than the rows.
+    #[inline]
+    pub fn row<'p, P>(&self, i: usize, pairs: &'p [P]) -> &'p [P] {
+        &pairs[self.start[i] as usize..self.start[i + 1] as usize]
+    }
+
     /// Number of particles.
     pub fn len(&self) -> usize {
         self.start.len().saturating_sub(1)
@@ -97,15 +145,55 @@ impl NeighbourLists {
         &self.neighbours[self.start[i] as usize..self.start[i + 1] as usize]
     }
 
-    /// Where each row starts in the concatenation of all rows, and, last,
-    /// [`NeighbourLists::pairs`]: `of(i)` is rows `row_starts()[i]..row_starts()[i + 1]`.
-    /// Per-pair data laid out the same way can then be split by particle.
-    pub fn row_starts(&self) -> &[u32] {
-        &self.start
-    }
-
     /// Number of (ordered) neighbour pairs: the sum of every list's length.
     pub fn pairs(&self) -> usize {
         self.neighbours.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    /// The lists are the brute-force neighbour sets in the grid's order, and
+    /// `par_map_rows` hands each particle its own row of per-pair data.
+    #[test]
+    fn lists_match_brute_force_and_rows_line_up() {
+        let positions: Vec<Vec3> = (0..2000)
+            .map(|i| {
+                let f = |k: u32| ((i * 7919 + k * 104_729) % 1000) as f32 / 1000.0;
+                Vec3::new(f(1), f(2), f(3)) * 0.3
+            })
+            .collect();
+        let h = 0.04;
+        let grid = NeighbourGrid::build(&positions, h).unwrap();
+        let lists = NeighbourLists::build(&grid);
+        assert_eq!(lists.len(), positions.len());
+        for (i, &x) in positions.iter().enumerate() {
+            let mut brute: Vec<u32> = (0..positions.len() as u32)
+                .filter(|&j| {
+                    j as usize != i && (x - positions[j as usize]).length_squared() <= h * h
+                })
+                .collect();
+            let mut found = lists.of(i).to_vec();
+            brute.sort_unstable();
+            found.sort_unstable();
+            assert_eq!(found, brute, "particle {i}");
+        }
+        // Each row's pair data is (i, j) of its own pairs.
+        let mut pairs = vec![(0u32, 0u32); lists.pairs()];
+        let mut counts = vec![0usize; lists.len()];
+        lists.par_map_rows(&mut counts, &mut pairs, |i, list, row| {
+            for (p, &j) in row.iter_mut().zip(list) {
+                *p = (i as u32, j);
+            }
+            row.len()
+        });
+        for (i, &count) in counts.iter().enumerate() {
+            assert_eq!(count, lists.of(i).len());
+            let expected: Vec<_> = lists.of(i).iter().map(|&j| (i as u32, j)).collect();
+            assert_eq!(lists.row(i, &pairs), expected);
+        }
     }
 }

@@ -644,10 +644,6 @@ struct Pair {
     scorr: f32,
 }
 
-/// Particles per parallel task of the constraint solve (fixed: results do
-/// not depend on the number of threads).
-const BLOCK: usize = 256;
-
 /// Lines 8–19 (and 21): [`PbfParams::iterations`] Jacobi iterations of the
 /// density constraint. Each computes every λ_i, then every position
 /// correction Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij plus the
@@ -697,29 +693,13 @@ impl Processor for SolveDensity {
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
         let (mut first, mut worst) = (None, 0.0f32);
         let n_particles = particles.len();
-        let starts = lists.row_starts();
         self.pairs.resize(lists.pairs(), Pair::default());
         self.constraints.resize(n_particles, Constraint::default());
         for _ in 0..pbf.iterations {
             let f = particles.fields_mut();
             let (x, m) = (&*f.positions, &*f.masses);
-            // Blocks of BLOCK particles and their pairs, disjoint.
-            let mut blocks = Vec::with_capacity(n_particles.div_ceil(BLOCK));
-            let mut rest = &mut self.pairs[..];
-            for (b, c) in self.constraints.chunks_mut(BLOCK).enumerate() {
-                let first = b * BLOCK;
-                let len = (starts[first + c.len()] - starts[first]) as usize;
-                let (pairs, tail) = rest.split_at_mut(len);
-                rest = tail;
-                blocks.push((first, c, pairs));
-            }
-            blocks.into_par_iter().for_each(|(first, cs, pairs)| {
-                let base = starts[first];
-                for (k, c) in cs.iter_mut().enumerate() {
-                    let i = first + k;
-                    let row = (starts[i] - base) as usize..(starts[i + 1] - base) as usize;
-                    *c = model.constraint(i, x, m, lists.of(i), &mut pairs[row]);
-                }
+            lists.par_map_rows(&mut self.constraints, &mut self.pairs, |i, list, pairs| {
+                model.constraint(i, x, m, list, pairs)
             });
             let (c, pairs) = (&self.constraints, &self.pairs);
             worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
@@ -728,7 +708,7 @@ impl Processor for SolveDensity {
                 .into_par_iter()
                 .map(|i| {
                     let ci = c[i];
-                    let row = &pairs[starts[i] as usize..starts[i + 1] as usize];
+                    let row = lists.row(i, pairs);
                     let mut dp = ci.lambda * ci.wall;
                     for (&j, p) in lists.of(i).iter().zip(row) {
                         let cj = c[j as usize];
@@ -838,25 +818,10 @@ impl Processor for VorticityXsph {
         let (x, v, m) = (&*f.positions, &*f.velocities, &*f.masses);
         // Density, curl and XSPH mean at once; each pair's (m_j/ρ0)∇W_ij
         // kept for the vorticity's gradient of |ω|.
-        let starts = lists.row_starts();
         self.grads.resize(lists.pairs(), Vec3::ZERO);
         self.first.resize(x.len(), Default::default());
-        let mut blocks = Vec::with_capacity(x.len().div_ceil(BLOCK));
-        let mut rest = &mut self.grads[..];
-        for (b, out) in self.first.chunks_mut(BLOCK).enumerate() {
-            let first = b * BLOCK;
-            let len = (starts[first + out.len()] - starts[first]) as usize;
-            let (grads, tail) = rest.split_at_mut(len);
-            rest = tail;
-            blocks.push((first, out, grads));
-        }
-        blocks.into_par_iter().for_each(|(first, out, grads)| {
-            let base = starts[first];
-            for (k, o) in out.iter_mut().enumerate() {
-                let i = first + k;
-                let row = (starts[i] - base) as usize..(starts[i + 1] - base) as usize;
-                *o = model.curl_and_mean(i, x, v, m, lists.of(i), &mut grads[row]);
-            }
+        lists.par_map_rows(&mut self.first, &mut self.grads, |i, list, grads| {
+            model.curl_and_mean(i, x, v, m, list, grads)
         });
         let (first, grads) = (&self.first, &self.grads);
         let dv: Vec<Vec3> = (0..x.len())
@@ -865,7 +830,7 @@ impl Processor for VorticityXsph {
                 let Sums { curl, mean, .. } = first[i];
                 let mut dv = c * mean;
                 if eps > 0.0 {
-                    let row = &grads[starts[i] as usize..starts[i + 1] as usize];
+                    let row = lists.row(i, grads);
                     let wi = first[i].curl_len;
                     let mut eta = Vec3::ZERO;
                     for (&j, &g) in lists.of(i).iter().zip(row) {
