@@ -13,7 +13,7 @@ pub struct Args {
     /// A built-in scene name (see --list-scenes) or a scene file (.toml).
     /// The default, `drop` (5,400 particles), is the largest built-in scene
     /// that PBF simulates and extracts in real time on two cores.
-    #[arg(long, default_value = "drop")]
+    #[arg(long, default_value = crate::scenes::DEFAULT)]
     pub scene: String,
 
     /// The solver, overriding the scene's choice: `pbf` (position-based

@@ -6,6 +6,10 @@ use sph_core::{Scene, SolverKind};
 
 use crate::error::AppError;
 
+/// The scene the demo opens without `--scene`: the largest built-in scene
+/// that PBF simulates and extracts in real time on two cores.
+pub const DEFAULT: &str = "drop";
+
 /// A built-in scene: name, description, constructor.
 pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
@@ -61,7 +65,15 @@ pub fn listing() -> String {
             Ok(p) => format!("{} particles, {}", p.len(), scene.solver.kind),
             Err(e) => format!("invalid: {e}"),
         };
-        out.push_str(&format!("  {}  {name:<18} {what}, {count}\n", i + 1));
+        let default = if *name == DEFAULT {
+            " (the default)"
+        } else {
+            ""
+        };
+        out.push_str(&format!(
+            "  {}  {name:<18} {what}, {count}{default}\n",
+            i + 1
+        ));
     }
     out.push_str("or a scene file: --scene assets/scenes/dam_break_3d.toml\n");
     out

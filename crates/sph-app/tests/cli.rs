@@ -165,8 +165,12 @@ fn list_scenes_names_the_built_ins() {
         text.contains(&format!("slab dam break, {} particles", slab.len())),
         "{text}"
     );
-    // Each with its solver.
-    assert_eq!(text.matches(" particles, pbf\n").count(), 5, "{text}");
+    // Each with its solver, the default marked.
+    assert_eq!(text.matches(" particles, pbf").count(), 5, "{text}");
+    assert!(
+        text.contains("5400 particles, pbf (the default)\n"),
+        "{text}"
+    );
 }
 
 /// Runs a failing command: non-zero exit, a message containing `expected`, no panic.
