@@ -46,7 +46,7 @@ fn run(
 ) -> Result<Row, Box<dyn std::error::Error>> {
     let mut scene = Scene::dam_break(0.25, 0.08, spacing).with_solver(kind);
     if let Some(pbf) = pbf {
-        scene.solver.pbf = *pbf;
+        scene.solver.pbf = Some(*pbf);
     }
     let mut world = scene.build_world()?;
     let mut extractor = Extractor::new();

@@ -14,10 +14,10 @@ pub const DEFAULT: &str = "drop";
 pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
 /// Built-in scenes, in key order (keys 1–5). Each runs PBF, the real-time
-/// solver, with the parameters `Scene`'s constructors give it
-/// (`PbfParams::for_fall`: 3 iterations, and 3 substeps per 60 Hz frame,
-/// 6 for `dam-break-fine`, so that a fall through the fluid's height moves
-/// at most h/2 per substep); `--solver wcsph` runs the thesis's.
+/// solver, with the parameters `Scene::pbf_params` derives (3 iterations,
+/// and 3 substeps per 60 Hz frame, 6 for `dam-break-fine`, so that a fall
+/// through the fluid's height moves at most h/2 per substep); `--solver
+/// wcsph` runs the thesis's.
 pub const BUILT_IN: [BuiltIn; 5] = [
     ("dam-break", "thin-slab dam break", || {
         Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Pbf)

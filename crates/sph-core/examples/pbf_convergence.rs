@@ -19,12 +19,12 @@ fn main() -> sph_core::Result<()> {
             let mut scene = Scene::dam_break(0.3, 0.08, 0.02).with_solver(SolverKind::Pbf);
             scene.domain.max = [0.3, depth + 0.1, 0.08];
             scene.blocks[0].max = [0.3, depth, 0.08];
-            scene.solver.pbf = PbfParams {
+            scene.solver.pbf = Some(PbfParams {
                 substeps,
                 iterations,
                 max_dt: 1.0,
                 ..PbfParams::default()
-            };
+            });
             let mut world = scene.build_world()?;
             let (mut error, mut frames) = (0.0f64, 0);
             let start = Instant::now();

@@ -35,7 +35,7 @@ impl<P: Processor> Processor for Timed<P> {
 fn main() -> Result<()> {
     let scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf);
     let mut world = scene.build_world()?;
-    let (params, pbf, boundary) = (*world.params(), scene.solver.pbf, scene.boundary());
+    let (params, pbf, boundary) = (*world.params(), scene.pbf_params(), scene.boundary());
     let stations: Vec<Box<dyn Processor>> = vec![
         Box::new(BodyForces::new(params.gravity)),
         Box::new(Predict::new(

@@ -161,9 +161,10 @@ fn default_force_factor() -> f32 {
 
 /// Which solver runs the scene, and the parameters of each: `[solver]` with
 /// `kind = "wcsph"` (the thesis's, the default) or `"pbf"`, and an optional
-/// `[solver.pbf]` table ([`PbfParams`], every field optional). The
-/// parameters of a solver not chosen are kept, so switching solver (the
-/// demo's `--solver`) finds them.
+/// `[solver.pbf]` table ([`PbfParams`], every field optional). Without the
+/// table PBF takes [`Scene::pbf_params`]: enough substeps for the scene's
+/// fluid height and particle size. The parameters of a solver not chosen
+/// are kept, so switching solver (the demo's `--solver`) finds them.
 ///
 /// ```toml
 /// [solver]
@@ -179,19 +180,10 @@ pub struct SolverSpec {
     /// The solver.
     #[serde(default)]
     pub kind: SolverKind,
-    /// Position-based fluids' parameters.
-    #[serde(default)]
-    pub pbf: PbfParams,
-}
-
-impl SolverSpec {
-    /// The chosen solver with its parameters.
-    pub fn solver(&self) -> Solver {
-        match self.kind {
-            SolverKind::Wcsph => Solver::Wcsph,
-            SolverKind::Pbf => Solver::Pbf(self.pbf),
-        }
-    }
+    /// Position-based fluids' parameters; `None` (no `[solver.pbf]`
+    /// table): [`Scene::pbf_params`] derives them.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pbf: Option<PbfParams>,
 }
 
 /// Hints for the renderer and the demo.
@@ -453,7 +445,7 @@ impl Scene {
         }
         // Every solver's parameters, chosen or not: switching must not find
         // bad ones.
-        self.solver.pbf.validate().map_err(|e| match e {
+        self.pbf_params().validate().map_err(|e| match e {
             Error::InvalidParameter {
                 name,
                 value,
@@ -577,7 +569,7 @@ impl Scene {
             self.fluid_params(),
             self.boundary(),
             stepping,
-            self.solver.solver(),
+            self.solver(),
         )?;
         for e in &self.emitters {
             let emitter = Emitter::new(
@@ -636,18 +628,31 @@ impl Scene {
         }
     }
 
-    /// PBF's parameters for this scene: [`PbfParams::for_fall`] from the
-    /// top of its highest block, at its frame rate.
-    fn pbf_for_blocks(mut self) -> Self {
-        let top = self.blocks.iter().map(|b| b.max[1]).fold(0.0, f32::max);
-        let floor = self.domain.min[1];
-        self.solver.pbf = PbfParams::for_fall(
-            top - floor,
-            self.fluid.gravity[1],
-            self.fluid.h,
-            self.time_step.frame_dt,
-        );
-        self
+    /// The chosen solver with its parameters.
+    pub fn solver(&self) -> Solver {
+        match self.solver.kind {
+            SolverKind::Wcsph => Solver::Wcsph,
+            SolverKind::Pbf => Solver::Pbf(self.pbf_params()),
+        }
+    }
+
+    /// PBF's parameters: the `[solver.pbf]` table's, or without one
+    /// [`PbfParams::for_fall`] from the highest block top or emitter
+    /// above the floor, at the scene's frame rate (what the built-in scenes
+    /// run: 3 substeps per 60 Hz frame at h = 0.04 m, 6 for
+    /// `dam-break-fine`'s 0.02 m).
+    pub fn pbf_params(&self) -> PbfParams {
+        self.solver.pbf.unwrap_or_else(|| {
+            let tops = self.blocks.iter().map(|b| b.max[1]);
+            let emitters = self.emitters.iter().map(|e| e.centre[1]);
+            let top = tops.chain(emitters).fold(self.domain.min[1], f32::max);
+            PbfParams::for_fall(
+                top - self.domain.min[1],
+                self.fluid.gravity[1],
+                self.fluid.h,
+                self.time_step.frame_dt,
+            )
+        })
     }
 
     /// This scene run by `kind` (its parameters from `[solver.pbf]` etc.).
@@ -667,7 +672,7 @@ impl Scene {
             max: [a, 2.0 * a, depth],
             velocity: [0.0; 3],
         });
-        s.pbf_for_blocks()
+        s
     }
 
     /// Two columns released from both ends of the tank.
@@ -684,7 +689,7 @@ impl Scene {
                 velocity: [0.0; 3],
             });
         }
-        s.pbf_for_blocks()
+        s
     }
 
     /// A cube of water of side `a` falling into a pool of depth a/2 in a tank 3a
@@ -702,6 +707,6 @@ impl Scene {
             max: [2.0 * a, 2.6 * a, 2.0 * a],
             velocity: [0.0, -1.0, 0.0],
         });
-        s.pbf_for_blocks()
+        s
     }
 }

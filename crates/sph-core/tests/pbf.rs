@@ -59,7 +59,7 @@ fn tank(w: f32, depth: f32, pbf: PbfParams) -> Scene {
     let mut scene = Scene::dam_break(w, 0.08, spacing).with_solver(SolverKind::Pbf);
     scene.domain.max = [w, depth + 0.1, 0.08];
     scene.blocks[0].max = [w, depth, 0.08];
-    scene.solver.pbf = pbf;
+    scene.solver.pbf = Some(pbf);
     scene
 }
 
@@ -430,14 +430,14 @@ fn bad_parameters_are_errors_naming_the_field() {
         }
         // The same through World and a scene.
         let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Pbf);
-        scene.solver.pbf = p;
+        scene.solver.pbf = Some(p);
         let e = scene.build_world().unwrap_err().to_string();
         assert!(e.contains(&format!("solver.{name}")), "{e}");
     }
     // In a file.
-    let mut text = Scene::dam_break(0.1, 0.04, 0.02)
-        .with_solver(SolverKind::Pbf)
-        .to_toml();
+    let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Pbf);
+    scene.solver.pbf = Some(PbfParams::default());
+    let mut text = scene.to_toml();
     text = text.replace("iterations = 3", "iterations = 0");
     let e = Scene::from_toml(&text).unwrap_err().to_string();
     assert!(e.contains("solver.pbf.iterations"), "{e}");
@@ -509,4 +509,33 @@ fn a_user_processor_after_forces_acts_in_pbf() {
         (momentum - expected).abs() < 1e-4 * expected,
         "{momentum} vs {expected}"
     );
+}
+
+/// Without a `[solver.pbf]` table a scene derives PBF's substeps from its
+/// fluid's height and particle size: 3 per 60 Hz frame for the demo's dam
+/// break (h = 0.04 m), 6 for `dam-break-fine` (h = 0.02 m), every substep
+/// at most h/2 of a fall from the column's top.
+#[test]
+fn scenes_without_a_pbf_table_derive_their_substeps() {
+    for (spacing, substeps) in [(0.02, 3), (0.01, 6)] {
+        let scene = Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Pbf);
+        assert_eq!(scene.solver.pbf, None);
+        let p = scene.pbf_params();
+        assert_eq!(p.substeps, substeps, "spacing {spacing}");
+        assert!((p.max_dt - scene.time_step.frame_dt / substeps as f32).abs() < 1e-9);
+        let fall = (2.0 * 9.81f32 * 0.5).sqrt() * p.max_dt;
+        assert!(
+            fall <= sph_core::solver::pbf::FALL_CFL * scene.fluid.h,
+            "{fall}"
+        );
+        assert_eq!(scene.solver(), Solver::Pbf(p));
+        // A table, even a partial one, is taken as it stands.
+        let text = format!("{}\n[solver.pbf]\niterations = 5\n", scene.to_toml());
+        let loaded = Scene::from_toml(&text).unwrap();
+        let expected = PbfParams {
+            iterations: 5,
+            ..PbfParams::default()
+        };
+        assert_eq!(loaded.pbf_params(), expected);
+    }
 }
