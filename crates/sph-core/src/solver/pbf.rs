@@ -152,8 +152,8 @@ impl PbfParams {
     /// The defaults with enough substeps per frame of `frame_dt` (at least
     /// the default 3, and `max_dt` the frame over them) that a particle
     /// falling freely from `height` above the floor, at √(2 g height),
-    /// moves at most [`FALL_CFL`] × h per substep: how the built-in scenes
-    /// set theirs.
+    /// moves at most [`FALL_CFL`] × h per substep: what a scene without a
+    /// `[solver.pbf]` table runs ([`crate::Scene::pbf_params`]).
     pub fn for_fall(height: f32, gravity: f32, h: f32, frame_dt: f32) -> Self {
         let d = Self::default();
         let speed = (2.0 * gravity.abs() * height.max(0.0)).sqrt();
