@@ -58,6 +58,8 @@ pub(super) struct LaneKernels {
     h2: f32,
     poly6: f32,
     spiky: f32,
+    /// The smallest |r| divided by: 1e-6 h.
+    tiny: f32,
 }
 
 impl LaneKernels {
@@ -67,6 +69,7 @@ impl LaneKernels {
             h2: h * h,
             poly6: poly6.coefficients().0,
             spiky: spiky.coefficient(),
+            tiny: h * 1e-6,
         }
     }
 
@@ -75,14 +78,15 @@ impl LaneKernels {
     pub(super) fn eval(&self, r2: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
         let mut w = [0.0; LANES];
         let mut s = [0.0; LANES];
+        // Without branches, so that the loop is one vector operation per
+        // step: beyond h both kernels are 0 through the `max`es, and a
+        // coincident pair (r = 0) has a finite s times a zero offset.
         for l in 0..LANES {
-            let inside = r2[l] <= self.h2;
-            let d = if inside { self.h2 - r2[l] } else { 0.0 };
+            let d = (self.h2 - r2[l]).max(0.0);
             w[l] = self.poly6 * d * d * d;
             let len = r2[l].sqrt();
-            let t = if inside { self.h - len } else { 0.0 };
-            let inv = if len > 0.0 { 1.0 / len } else { 0.0 };
-            s[l] = -self.spiky * t * t * inv;
+            let t = (self.h - len).max(0.0);
+            s[l] = -self.spiky * t * t / len.max(self.tiny);
         }
         (w, s)
     }
