@@ -58,6 +58,8 @@ pub struct Context {
     pub counters: StepCounters,
     /// An outdated grid whose memory the next grid build reuses.
     recycled: Option<NeighbourGrid>,
+    /// Outdated neighbour lists whose memory the next build reuses.
+    recycled_lists: Option<NeighbourLists>,
 }
 
 /// What the processors of one step count, for [`crate::solver::FrameReport`].
@@ -80,6 +82,7 @@ impl Context {
             neighbours: None,
             counters: StepCounters::default(),
             recycled: None,
+            recycled_lists: None,
         }
     }
 
@@ -93,10 +96,20 @@ impl Context {
     }
 
     /// Particles were added, removed or reordered: the grid and the
-    /// neighbour lists are both out of date (the grid's memory is kept).
+    /// neighbour lists are both out of date (their memory is kept for the
+    /// next builds).
     pub fn invalidate_neighbours(&mut self) {
         self.invalidate_grid();
-        self.neighbours = None;
+        if let Some(lists) = self.neighbours.take() {
+            self.recycled_lists = Some(lists);
+        }
+    }
+
+    /// The lists or outdated ones, to rebuild in place.
+    pub(crate) fn take_lists_memory(&mut self) -> Option<NeighbourLists> {
+        self.neighbours
+            .take()
+            .or_else(|| self.recycled_lists.take())
     }
 
     /// The grid or the outdated one, to rebuild in place.
@@ -104,9 +117,11 @@ impl Context {
         self.grid.take().or_else(|| self.recycled.take())
     }
 
-    /// Hands an outdated grid's memory to this context (from a previous step).
-    pub(crate) fn recycle(&mut self, grid: Option<NeighbourGrid>) {
+    /// Hands an outdated grid's and neighbour lists' memory to this context
+    /// (from a previous step).
+    pub(crate) fn recycle(&mut self, grid: Option<NeighbourGrid>, lists: Option<NeighbourLists>) {
         self.recycled = grid;
+        self.recycled_lists = lists;
     }
 }
 

@@ -539,3 +539,32 @@ fn scenes_without_a_pbf_table_derive_their_substeps() {
         assert_eq!(loaded.pbf_params(), expected);
     }
 }
+
+/// The neighbour lists a processor sees are the step's own: none before the
+/// `neighbours` station (last step's lists are kept only as memory), one
+/// list per particle after it.
+#[test]
+fn processors_see_only_this_steps_neighbour_lists() {
+    use sph_core::{Context, Processor, Result};
+    struct Expect(&'static str, bool);
+    impl Processor for Expect {
+        fn name(&self) -> &str {
+            self.0
+        }
+        fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+            match &ctx.neighbours {
+                Some(lists) => assert!(self.1 && lists.len() == particles.len(), "{}", self.0),
+                None => assert!(!self.1, "{}: no lists", self.0),
+            }
+            Ok(())
+        }
+    }
+    let scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Pbf);
+    let mut world = scene.build_world().unwrap();
+    let program = world.program_mut();
+    assert!(program.insert_after("predict", Expect("before", false)));
+    assert!(program.insert_after("neighbours", Expect("after", true)));
+    for _ in 0..3 {
+        world.advance(1.0 / 60.0).unwrap();
+    }
+}

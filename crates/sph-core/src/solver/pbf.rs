@@ -404,7 +404,7 @@ impl Processor for FindNeighbours {
         "neighbours"
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let mut lists = ctx.neighbours.take().unwrap_or_default();
+        let mut lists = ctx.take_lists_memory().unwrap_or_default();
         lists.rebuild(grid(ctx, particles, self.h, "neighbours")?);
         ctx.neighbours = Some(lists);
         Ok(())

@@ -48,8 +48,10 @@ impl Processor for BuildGrid {
             particles.permute(grid.order())?;
             grid.renumber_by_slot();
         }
+        // Lists over the old positions or order are out of date (their
+        // memory is kept); the grid was taken above.
+        ctx.invalidate_neighbours();
         ctx.grid = Some(grid);
-        ctx.neighbours = None; // lists over the old positions or order
         Ok(())
     }
 }

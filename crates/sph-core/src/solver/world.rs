@@ -270,11 +270,10 @@ impl World {
     fn step_by(&mut self, dt: f32) -> Result<(StepCounters, (f64, f32))> {
         let mut ctx = Context::new(dt);
         (ctx.time, ctx.step) = (self.time, self.step);
-        ctx.recycle(self.recycled_grid.take());
-        ctx.neighbours = self.recycled_lists.take();
+        ctx.recycle(self.recycled_grid.take(), self.recycled_lists.take());
         self.program.process(&mut self.particles, &mut ctx)?;
         self.recycled_grid = ctx.take_grid_memory();
-        self.recycled_lists = ctx.neighbours.take();
+        self.recycled_lists = ctx.take_lists_memory();
         self.time += dt as f64;
         self.step += 1;
         self.check()?;
