@@ -281,7 +281,7 @@ fn identical_for_1_2_and_4_threads() {
 
 /// The dam-break surge never runs ahead of Ritter's dry-bed front 2√(gH),
 /// everything stays in the tank, and the front does run out: measured at
-/// 0.42 of Ritter's speed (WCSPH: 0.73; `tests/solver.rs`), so PBF's front is
+/// 0.41 of Ritter's speed (WCSPH: 0.73; `tests/solver.rs`), so PBF's front is
 /// the slower, damped by XSPH and by iterations that leave the flow a little
 /// compressed.
 #[test]

@@ -174,9 +174,11 @@ impl PbfParams {
 /// The Courant number of [`PbfParams::for_fall`]: a substep's largest
 /// expected displacement over h. Looked at in rendered frames of
 /// `dam-break-fine` (10,000 particles, h = 0.02 m): at 1 (3 substeps per
-/// 60 Hz frame) the flow burst into spray where it met the far wall, as
-/// compression that 3 iterations could not undo within a substep came back
-/// as velocity; at 0.75 (4 substeps) it still threw spray there; at 0.5 (6
+/// 60 Hz frame) the flow boiled into spray over the collapsing column and
+/// where it met the far wall (neither vorticity confinement off nor a
+/// clamp on the solve's velocity change helped: the 2.4 % compression that
+/// 3 iterations leave in a column 50 particles deep is the likely cause);
+/// at 0.75 (4 substeps) it still threw spray at the wall; at 0.5 (6
 /// substeps) it ran up the wall and fell back as one sheet, as WCSPH's does.
 pub const FALL_CFL: f32 = 0.5;
 
