@@ -9,7 +9,8 @@
 //!   expect) and one per scalar; the time is in a `comment time <seconds>` line.
 //! - VTK: legacy `DATASET UNSTRUCTURED_GRID`, big-endian (as the format
 //!   requires), `POINTS`, one vertex cell per point, `POINT_DATA` with `VECTORS` and
-//!   `SCALARS`; the time is a `TIME` field, which ParaView shows as the frame time.
+//!   `SCALARS`; the time is in the title line (and in the frame index CSV):
+//!   no dataset `FIELD` block, which splashsurf's reader rejects.
 //!
 //! [`read_ply`] and [`read_vtk`] read back what these writers write (not arbitrary
 //! files), for tests and tools.
@@ -182,7 +183,15 @@ pub fn write_ply(w: impl Write, cloud: &PointCloud, time: f64) -> Result<()> {
 /// The legacy VTK cell type of a single point.
 const VTK_VERTEX: i32 = 1;
 
-/// Writes `cloud` as a legacy binary VTK unstructured grid of vertex cells with a `TIME` field.
+/// The start of a VTK file's title line, the frame time following it.
+const VTK_TITLE: &str = "sph-core frame, time ";
+
+/// Writes `cloud` as a legacy binary VTK unstructured grid of vertex cells,
+/// the frame time in the title line (`sph-core frame, time 0.25`).
+///
+/// No dataset `FIELD` block: splashsurf's reader (vtkio) rejects one before
+/// the points ("Parse error: Tag"); the frame time is also in the
+/// [`FrameWriter`]'s index CSV.
 pub fn write_vtk(w: impl Write, cloud: &PointCloud, time: f64) -> Result<()> {
     cloud.check()?;
     let n = cloud.len();
@@ -205,11 +214,9 @@ pub fn write_vtk(w: impl Write, cloud: &PointCloud, time: f64) -> Result<()> {
             Ok(())
         };
         writeln!(w, "# vtk DataFile Version 3.0")?;
-        writeln!(w, "sph-core frame, time {time:?}")?;
+        writeln!(w, "{VTK_TITLE}{time:?}")?;
         writeln!(w, "BINARY\nDATASET UNSTRUCTURED_GRID")?;
-        writeln!(w, "FIELD FieldData 1\nTIME 1 1 double")?;
-        w.write_all(&time.to_be_bytes())?;
-        writeln!(w, "\nPOINTS {n} float")?;
+        writeln!(w, "POINTS {n} float")?;
         for &x in cloud.positions {
             be3(&mut w, x)?;
         }
@@ -406,11 +413,19 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
     if !header_line(&mut r, what)?.starts_with("# vtk DataFile") {
         return Err(bad(what, "missing `# vtk DataFile` magic"));
     }
-    header_line(&mut r, what)?; // title
+    let title = header_line(&mut r, what)?;
     if header_line(&mut r, what)? != "BINARY" {
         return Err(bad(what, "only BINARY files are supported"));
     }
     let mut cloud = LoadedCloud::default();
+    // The frame time, from the title `write_vtk` writes (files of earlier
+    // versions carry a TIME field as well, read below).
+    if let Some(t) = title.strip_prefix(VTK_TITLE) {
+        cloud.time = t
+            .trim()
+            .parse()
+            .map_err(|_| bad(what, format!("bad time in the title `{title}`")))?;
+    }
     // The point count, once POINTS has been read: the attributes need it.
     let mut points = None;
     let need_points = |points: Option<usize>, line: &str| {
