@@ -47,6 +47,13 @@ pub struct Args {
     #[arg(long, default_value = "frames")]
     pub out: PathBuf,
 
+    /// Also write the frames as an animated GIF at PATH (looping, one frame
+    /// per --fps of simulated time; headless, needs a GPU adapter). The file
+    /// is created before the run starts, so a path that cannot be written is
+    /// an error at once.
+    #[arg(long, value_name = "PATH")]
+    pub gif: Option<PathBuf>,
+
     /// Also write each frame's particles (PLY or VTK).
     #[arg(long, value_enum)]
     pub export_particles: Option<ExportFormat>,

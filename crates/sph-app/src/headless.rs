@@ -6,6 +6,8 @@ use std::io::{BufWriter, Write};
 use std::path::Path;
 use std::time::Instant;
 
+use image::codecs::gif::{GifEncoder, Repeat};
+use image::{Delay, Frame};
 use indicatif::{ProgressBar, ProgressStyle};
 use sph_core::export::{FrameWriter, PointCloud};
 use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
@@ -17,6 +19,11 @@ use crate::pipeline::Pipeline;
 
 /// Runs `args.frame_count()` frames of `pipeline` and writes them to `args.out`.
 pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
+    // First of all, so that a GIF path that cannot be written stops the run
+    // before anything is written.
+    let gif_file = (args.gif.as_ref())
+        .map(|path| File::create(path).map_err(|e| AppError::output(path, e)))
+        .transpose()?;
     let out = &args.out;
     std::fs::create_dir_all(out).map_err(|e| AppError::output(out, e))?;
     let csv_path = out.join("frames.csv");
@@ -67,6 +74,13 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         format
             .map(|f| FrameWriter::new(out, prefix, f.into()).map_err(|e| AppError::output(out, e)))
             .transpose()
+    };
+    let mut gif = match (&args.gif, gif_file) {
+        (Some(path), Some(file)) => {
+            adapter("--gif")?;
+            Some(GifWriter::new(path, file, args.fps)?)
+        }
+        _ => None,
     };
     let mut particles_out = export("particles", args.export_particles)?;
     let mut surfels_out = export("surfels", args.export_surfels)?;
@@ -144,6 +158,9 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
                 }
                 let path = out.join(format!("frame_{frame:05}.png"));
                 image.save(&path).map_err(|e| AppError::output(&path, e))?;
+                if let Some(gif) = gif.as_mut() {
+                    gif.push(image)?;
+                }
             }
             pipeline.stats.render_ms = render_ms;
             let time = pipeline.stats.time;
@@ -194,7 +211,11 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         })?;
     }
     bar.finish_and_clear();
-    let what = if gpu.is_some() { "PNG frames, " } else { "" };
+    let what = match (&gpu, &args.gif) {
+        (Some(_), Some(_)) => "PNG frames, the GIF, ",
+        (Some(_), None) => "PNG frames, ",
+        _ => "",
+    };
     println!(
         "wrote {frames} frames ({what}frames.csv{}{}) to {}",
         if particles_out.is_some() {
@@ -210,6 +231,38 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         display(out)
     );
     Ok(())
+}
+
+/// An animated GIF of the rendered frames, written frame by frame.
+struct GifWriter {
+    path: std::path::PathBuf,
+    encoder: GifEncoder<BufWriter<File>>,
+    delay: Delay,
+}
+
+impl GifWriter {
+    /// A looping GIF of frames `fps` per second into `file`, created at
+    /// `path`.
+    fn new(path: &Path, file: File, fps: f64) -> Result<Self, AppError> {
+        let mut encoder = GifEncoder::new_with_speed(BufWriter::new(file), 10);
+        encoder
+            .set_repeat(Repeat::Infinite)
+            .map_err(|e| AppError::output(path, e))?;
+        // GIF delays are whole hundredths of a second.
+        let delay = Delay::from_numer_denom_ms((1000.0 / fps).round().max(10.0) as u32, 1);
+        Ok(Self {
+            path: path.to_path_buf(),
+            encoder,
+            delay,
+        })
+    }
+
+    fn push(&mut self, image: image::RgbaImage) -> Result<(), AppError> {
+        let frame = Frame::from_parts(image, 0, 0, self.delay);
+        self.encoder
+            .encode_frame(frame)
+            .map_err(|e| AppError::output(&self.path, e))
+    }
 }
 
 /// Ends the profiler's frame and returns its GPU span, first pass start to

@@ -68,6 +68,12 @@ fn run(args: &Args) -> Result<(), AppError> {
         println!("no display found (DISPLAY and WAYLAND_DISPLAY are unset): rendering headless");
         return headless::run(args, pipeline);
     }
+    if let Some(path) = &args.gif {
+        return Err(AppError::output(
+            path,
+            "--gif records headless runs: add --headless",
+        ));
+    }
     window::run(args, pipeline)
 }
 

@@ -524,3 +524,62 @@ fn solver_flag_chooses_and_bad_names_are_errors() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("one of wcsph, pbf"), "{}", stderr(&o));
 }
+
+/// `--gif` writes the run as a looping animated GIF that decodes, one frame
+/// per rendered frame; a GIF path that cannot be written stops the run
+/// before anything is written.
+#[test]
+fn gif_clip_decodes_and_a_bad_path_fails_first() {
+    use image::AnimationDecoder;
+    let out = scratch("gif");
+    let gif = out.join("clip.gif");
+    std::fs::create_dir_all(&out).unwrap();
+    let o = app(&[
+        "--headless",
+        "--scene",
+        "dam-break",
+        "--frames",
+        "4",
+        "--width",
+        "80",
+        "--height",
+        "48",
+        "--gif",
+        gif.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    if skipped_without_adapter(&o) {
+        return;
+    }
+    assert!(o.status.success(), "{}", stderr(&o));
+    let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
+    let frames = image::codecs::gif::GifDecoder::new(file)
+        .unwrap()
+        .into_frames()
+        .collect_frames()
+        .unwrap();
+    assert_eq!(frames.len(), 4);
+    for f in &frames {
+        assert_eq!(f.buffer().dimensions(), (80, 48));
+        // 30 fps: 33 ms, stored in whole hundredths.
+        assert_eq!(f.delay().numer_denom_ms(), (30, 1));
+    }
+    let bad = scratch("gif-bad");
+    let o = app(&[
+        "--headless",
+        "--frames",
+        "2",
+        "--gif",
+        "/nonexistent/folder/clip.gif",
+        "--out",
+        bad.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("cannot write to /nonexistent/folder/clip.gif"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!bad.exists(), "the run started before the GIF failed");
+}
