@@ -826,9 +826,12 @@ impl Processor for VorticityXsph {
             model.curl_and_mean(i, x, v, m, list, grads)
         });
         let (first, grads) = (&self.first, &self.grads);
-        let dv: Vec<Vec3> = (0..x.len())
-            .into_par_iter()
-            .map(|i| {
+        // Each particle's velocity change reads only the first pass's sums,
+        // so it is added in place, with the density.
+        (f.velocities.par_iter_mut())
+            .zip(f.densities.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (v, rho))| {
                 let Sums { curl, mean, .. } = first[i];
                 let mut dv = c * mean;
                 if eps > 0.0 {
@@ -842,15 +845,9 @@ impl Processor for VorticityXsph {
                         dv += dt * eps * n.cross(curl);
                     }
                 }
-                dv
-            })
-            .collect();
-        (f.velocities.par_iter_mut())
-            .zip(dv.par_iter())
-            .for_each(|(v, &dv)| *v += dv);
-        (f.densities.par_iter_mut())
-            .zip(first.par_iter())
-            .for_each(|(rho, s)| *rho = s.rho);
+                *v += dv;
+                *rho = first[i].rho;
+            });
         Ok(())
     }
 }
