@@ -244,6 +244,19 @@ fn invalid(field: impl Into<String>, reason: impl Into<String>) -> Error {
     }
 }
 
+/// A parameter error of the library named as the scene file names the
+/// field, under `table` (`fluid.h`, `solver.pbf.iterations`).
+fn in_table(table: &'static str) -> impl Fn(Error) -> Error {
+    move |e| match e {
+        Error::InvalidParameter {
+            name,
+            value,
+            reason,
+        } => invalid(format!("{table}.{name}"), format!("{value} {reason}")),
+        e => e,
+    }
+}
+
 fn finite3(field: &str, v: [f32; 3]) -> Result<Vec3> {
     let v = Vec3::from(v);
     if v.is_finite() {
@@ -293,14 +306,7 @@ impl Scene {
     pub fn validate(&self) -> Result<()> {
         let f = &self.fluid;
         // The solver's own checks, named as the file names the fields.
-        self.fluid_params().validate().map_err(|e| match e {
-            Error::InvalidParameter {
-                name,
-                value,
-                reason,
-            } => invalid(format!("fluid.{name}"), format!("{value} {reason}")),
-            e => e,
-        })?;
+        (self.fluid_params().validate()).map_err(in_table("fluid"))?;
         // The kernels' own check: h must keep their coefficients finite f32.
         check_kernel_h(f.h).map_err(|e| invalid("fluid.h", e.to_string()))?;
         positive("spacing", self.spacing)?;
@@ -445,14 +451,7 @@ impl Scene {
         }
         // Every solver's parameters, chosen or not: switching must not find
         // bad ones.
-        self.pbf_params().validate().map_err(|e| match e {
-            Error::InvalidParameter {
-                name,
-                value,
-                reason,
-            } => invalid(format!("solver.{name}"), format!("{value} {reason}")),
-            e => e,
-        })?;
+        (self.pbf_params().validate()).map_err(in_table("solver"))?;
         self.render.validate()?;
         if self.max_particles > MAX_PARTICLES {
             return Err(invalid(
