@@ -49,7 +49,7 @@ pub struct Context {
     pub grid: Option<NeighbourGrid>,
     /// Fixed neighbour lists of the step, found on the positions a grid was
     /// built over, once a neighbour-list processor made them
-    /// ([`crate::solver::pbf::FindNeighbours`]). Unlike the grid they stay
+    /// ([`crate::solver::FindNeighbours`]). Unlike the grid they stay
     /// while a constraint projection moves particles within the step (as in
     /// Macklin & Müller 2013); a grid build drops them, and a processor that
     /// adds, removes or reorders particles after them must set this to `None`.
@@ -65,8 +65,14 @@ pub struct Context {
 /// What the processors of one step count, for [`crate::solver::FrameReport`].
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct StepCounters {
-    /// Constraint-solver iterations taken (0 for a solver without any).
+    /// Constraint-solver iterations taken (0 for a solver without any):
+    /// PBF's density constraint, DFSPH's constant-density solve.
     pub iterations: u32,
+    /// DFSPH's divergence-free solve's iterations (0 for other solvers).
+    pub divergence_iterations: u32,
+    /// Solves that stopped at their iteration limit above their tolerance
+    /// (DFSPH's; 0 for other solvers).
+    pub unconverged: u32,
     /// Particles whose motion a guard limited (PBF's displacement guard).
     pub clamped: u64,
 }

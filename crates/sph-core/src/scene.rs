@@ -13,8 +13,8 @@ use crate::error::{Error, Result, check_kernel_h};
 use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
-    Emitter, FluidParams, MAX_H_OVER_SPACING, PbfParams, Solver, SolverKind, TimeStepping, World,
-    nozzle_corners, nozzle_points,
+    DfsphParams, Emitter, FluidParams, MAX_H_OVER_SPACING, PbfParams, Solver, SolverKind,
+    TimeStepping, World, nozzle_corners, nozzle_points,
 };
 
 /// A complete scene description.
@@ -160,10 +160,11 @@ fn default_force_factor() -> f32 {
 }
 
 /// Which solver runs the scene, and the parameters of each: `[solver]` with
-/// `kind = "wcsph"` (the thesis's, the default) or `"pbf"`, and an optional
-/// `[solver.pbf]` table ([`PbfParams`], every field optional). Without the
-/// table PBF takes [`Scene::pbf_params`]: enough substeps for the scene's
-/// fluid height and particle size. The parameters of a solver not chosen
+/// `kind = "wcsph"` (the thesis's, the default), `"pbf"` or `"dfsph"`, and
+/// optional `[solver.pbf]` and `[solver.dfsph]` tables ([`PbfParams`],
+/// [`DfsphParams`], every field optional). Without its table PBF takes
+/// [`Scene::pbf_params`]: enough substeps for the scene's fluid height and
+/// particle size; DFSPH takes [`DfsphParams::default`]. The parameters of a solver not chosen
 /// are kept, so switching solver (the demo's `--solver`) finds them.
 ///
 /// ```toml
@@ -184,6 +185,10 @@ pub struct SolverSpec {
     /// table): [`Scene::pbf_params`] derives them.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pbf: Option<PbfParams>,
+    /// DFSPH's parameters; `None` (no `[solver.dfsph]` table): the
+    /// defaults.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dfsph: Option<DfsphParams>,
 }
 
 /// Hints for the renderer and the demo.
@@ -452,6 +457,7 @@ impl Scene {
         // Every solver's parameters, chosen or not: switching must not find
         // bad ones.
         (self.pbf_params().validate()).map_err(in_table("solver"))?;
+        (self.dfsph_params().validate()).map_err(in_table("solver"))?;
         self.render.validate()?;
         if self.max_particles > MAX_PARTICLES {
             return Err(invalid(
@@ -632,7 +638,13 @@ impl Scene {
         match self.solver.kind {
             SolverKind::Wcsph => Solver::Wcsph,
             SolverKind::Pbf => Solver::Pbf(self.pbf_params()),
+            SolverKind::Dfsph => Solver::Dfsph(self.dfsph_params()),
         }
+    }
+
+    /// DFSPH's parameters: the `[solver.dfsph]` table's, or the defaults.
+    pub fn dfsph_params(&self) -> DfsphParams {
+        self.solver.dfsph.unwrap_or_default()
     }
 
     /// PBF's parameters: the `[solver.pbf]` table's, or without one

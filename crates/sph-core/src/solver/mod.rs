@@ -7,8 +7,11 @@
 //! - [`pbf`]: position-based fluids (Macklin & Müller 2013), the real-time
 //!   solver: a fixed number of substeps per frame and of constraint
 //!   iterations per substep ([`PbfParams`]).
+//! - [`dfsph`]: divergence-free SPH (Bender & Koschier 2015, 2017), the
+//!   accurate incompressible solver: two pressure solves per step to a
+//!   tolerance, at a step set by the flow's speed ([`DfsphParams`]).
 //!
-//! A scene picks one (`[solver] kind = "wcsph" | "pbf"`, see
+//! A scene picks one (`[solver] kind = "wcsph" | "pbf" | "dfsph"`, see
 //! [`crate::scene::SolverSpec`]); [`Solver`] is that choice with its
 //! parameters. What they share lives once: the fluid's parameters and the
 //! step rules ([`params`]), the grid, integration, boundary, emitter and sink
@@ -17,17 +20,21 @@
 //! after which external accelerations are added (see
 //! [`ExternalAcceleration`]).
 
+pub mod dfsph;
+mod lanes;
 pub mod params;
 pub mod pbf;
 pub mod stations;
+mod walls;
 pub mod wcsph;
 mod world;
 
+pub use dfsph::DfsphParams;
 pub use params::{FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, PressureKernel, TimeStepping};
 pub use pbf::PbfParams;
 pub use stations::{
-    Boundaries, BuildGrid, Emitter, ExternalAcceleration, Integrate, Sink, nozzle_corners,
-    nozzle_points,
+    BodyForces, Boundaries, BuildGrid, Emitter, ExternalAcceleration, FindNeighbours, Integrate,
+    Sink, nozzle_corners, nozzle_points,
 };
 pub use wcsph::{DensityPressure, Forces};
 pub use world::{FrameReport, World};
@@ -45,6 +52,9 @@ pub enum Solver {
     Wcsph,
     /// Position-based fluids ([`pbf`]).
     Pbf(PbfParams),
+    /// Divergence-free SPH ([`dfsph`]): its step by [`DfsphParams::cfl`],
+    /// its viscosity [`FluidParams`]'s μ.
+    Dfsph(DfsphParams),
 }
 
 /// A solver's name, as scene files and the command line give it.
@@ -58,17 +68,21 @@ pub enum SolverKind {
     Wcsph,
     /// [`Solver::Pbf`].
     Pbf,
+    /// [`Solver::Dfsph`].
+    Dfsph,
 }
 
 impl SolverKind {
     /// Every solver, in the order the demo lists them.
-    pub const ALL: [SolverKind; 2] = [SolverKind::Wcsph, SolverKind::Pbf];
+    pub const ALL: [SolverKind; 3] = [SolverKind::Wcsph, SolverKind::Pbf, SolverKind::Dfsph];
 
-    /// The name scene files and the command line use: `wcsph`, `pbf`.
+    /// The name scene files and the command line use: `wcsph`, `pbf`,
+    /// `dfsph`.
     pub fn name(self) -> &'static str {
         match self {
             SolverKind::Wcsph => "wcsph",
             SolverKind::Pbf => "pbf",
+            SolverKind::Dfsph => "dfsph",
         }
     }
 
@@ -90,6 +104,7 @@ impl Solver {
         match self {
             Solver::Wcsph => SolverKind::Wcsph,
             Solver::Pbf(_) => SolverKind::Pbf,
+            Solver::Dfsph(_) => SolverKind::Dfsph,
         }
     }
 
@@ -98,6 +113,7 @@ impl Solver {
         match self {
             Solver::Wcsph => Ok(()),
             Solver::Pbf(p) => p.validate(),
+            Solver::Dfsph(p) => p.validate(),
         }
     }
 
@@ -109,6 +125,7 @@ impl Solver {
         match self {
             Solver::Wcsph => wcsph::program(params, boundary),
             Solver::Pbf(p) => pbf::program(params, *p, boundary),
+            Solver::Dfsph(p) => dfsph::program(params, *p, boundary),
         }
     }
 }

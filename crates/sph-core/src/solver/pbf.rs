@@ -34,7 +34,7 @@
 //!   the fluid behind them ([`crate::boundary::WallKernel`]), and that term's
 //!   gradient enters ∇_i C_i, so particles settle at rest density against a
 //!   wall instead of piling into it. Where walls meet, their half-spaces
-//!   are united, not added (`Model::walls`). Every iteration projects
+//!   are united, not added (`Walls::at`). Every iteration projects
 //!   positions back out of walls ([`Boundary::project`]): nothing leaks,
 //!   whatever the step.
 //! - **Gradient.** ∇W_spiky, as the paper. The exact gradient of the poly6
@@ -63,16 +63,17 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::params::FluidParams;
-use super::stations::{Boundaries, BuildGrid, grid};
-use crate::boundary::{Boundary, WallKernel};
+use super::stations::{Boundaries, BuildGrid};
+use crate::boundary::Boundary;
 use crate::error::{Error, Result};
-use crate::grid::NeighbourLists;
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
-mod lanes;
-use lanes::{Chunk, LANES, LaneKernels, total};
+use super::lanes::{Chunk, LANES, LaneKernels, total};
+use super::stations::lists;
+pub use super::stations::{BodyForces, FindNeighbours};
+use super::walls::Walls;
 
 /// The parameters of position-based fluids. Scene files give them under
 /// `[solver.pbf]`; a field left out takes its default.
@@ -282,48 +283,17 @@ pub fn program(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Resul
     let model = Model::new(params, pbf, boundary.clone())?;
     let mut program = Program::new("pbf");
     program
-        .push(BodyForces {
-            gravity: params.gravity,
-        })
+        .push(BodyForces::new(params.gravity))
         .push(Predict {
             boundary: boundary.clone(),
             max_displacement: pbf.max_displacement * params.h,
         })
         .push(BuildGrid::new(params.h, 1))
-        .push(FindNeighbours { h: params.h })
+        .push(FindNeighbours::new(params.h))
         .push(SolveDensity::with_model(model.clone()))
         .push(VorticityXsph::with_model(model))
         .push(Boundaries::new(boundary)?);
     Ok(program)
-}
-
-/// Sets every particle's acceleration to gravity: the external force of
-/// Algorithm 1's line 2. Processors that add accelerations of their own go
-/// right after it (its station is named `forces`, as WCSPH's is).
-#[derive(Debug, Clone, Copy)]
-pub struct BodyForces {
-    gravity: Vec3,
-}
-
-impl BodyForces {
-    /// Gravity `gravity` (m/s²).
-    pub fn new(gravity: Vec3) -> Self {
-        Self { gravity }
-    }
-}
-
-impl Processor for BodyForces {
-    fn name(&self) -> &str {
-        "forces"
-    }
-    fn process(&mut self, particles: &mut Particles, _: &mut Context) -> Result<()> {
-        let g = self.gravity;
-        particles
-            .accelerations_mut()
-            .par_iter_mut()
-            .for_each(|a| *a = g);
-        Ok(())
-    }
 }
 
 /// Lines 1–4: v ← v + Δt a, limited to the guard's displacement, then
@@ -387,58 +357,12 @@ impl Processor for Predict {
     }
 }
 
-/// Lines 5–7: each particle's neighbours on the predicted positions, into
-/// [`Context::neighbours`], kept for the rest of the substep.
-#[derive(Debug, Clone, Copy)]
-pub struct FindNeighbours {
-    h: f32,
-}
-
-impl FindNeighbours {
-    /// Lists over the grid of search radius `h`.
-    pub fn new(h: f32) -> Self {
-        Self { h }
-    }
-}
-
-impl Processor for FindNeighbours {
-    fn name(&self) -> &str {
-        "neighbours"
-    }
-    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let mut lists = ctx.take_lists_memory().unwrap_or_default();
-        lists.rebuild(grid(ctx, particles, self.h, "neighbours")?);
-        ctx.neighbours = Some(lists);
-        Ok(())
-    }
-}
-
-/// The context's neighbour lists, checked to be over `particles`.
-fn lists<'a>(
-    ctx: &'a Context,
-    particles: &Particles,
-    who: &'static str,
-) -> Result<&'a NeighbourLists> {
-    let lists = ctx.neighbours.as_ref().ok_or(Error::Pipeline {
-        processor: who,
-        reason: "needs the neighbour lists: put `grid` and `neighbours` processors before it",
-    })?;
-    if lists.len() != particles.len() {
-        return Err(Error::Pipeline {
-            processor: who,
-            reason: "the neighbour lists are out of date: a processor added or removed particles after `neighbours` without calling `Context::invalidate_neighbours`",
-        });
-    }
-    Ok(lists)
-}
-
 /// What the PBF stations share: parameters, kernels, walls.
 #[derive(Debug, Clone)]
 struct Model {
     params: FluidParams,
     pbf: PbfParams,
-    wall: WallKernel,
-    boundary: Boundary,
+    walls: Walls,
     /// ε in 1/m².
     epsilon: f32,
     /// 1 / W_poly6(Δq·h).
@@ -464,8 +388,7 @@ impl Model {
         Ok(Self {
             params,
             pbf,
-            wall: WallKernel::new(h),
-            boundary,
+            walls: Walls::new(boundary, h, params.rest_density),
             epsilon: pbf.relaxation / (h * h),
             inv_w_dq: 1.0 / poly6.value_r2(dq * dq),
             inv_rho0: 1.0 / params.rest_density,
@@ -473,47 +396,6 @@ impl Model {
             w0: poly6.value_r2(0.0),
             far: 2.0 * h,
         })
-    }
-
-    /// The walls' density term at `x` and its gradient over ρ0,
-    /// ∇(ρ_wall/ρ0).
-    ///
-    /// Where walls meet, the fluid behind them is the union of their
-    /// half-spaces. Its kernel-weighted volume is taken as
-    /// f = 1 − Π_k (1 − f_k) over the walls' own fractions f_k
-    /// ([`WallKernel::volume_fraction`]): exact for one wall, for an edge
-    /// (¾) and a corner (⅞) of perpendicular walls at distance 0 and far
-    /// from them, where WCSPH's sum Σ f_k counts the region behind two walls
-    /// twice (see [`crate::boundary`]). Pushing against that excess is what
-    /// would empty the edges of a tank.
-    #[inline]
-    fn walls(&self, x: Vec3) -> (f32, Vec3) {
-        // Up to 6 domain walls and the obstacles: (1 − f_k, ∇f_k).
-        let mut walls = [(1.0f32, Vec3::ZERO); 8];
-        let mut count = 0;
-        let (h, rho0) = (self.params.h, self.params.rest_density);
-        let mut extra = (0.0, Vec3::ZERO); // beyond 8 walls: summed
-        self.boundary.for_each_wall_within(x, h, |d, n| {
-            let (f, density) = self.wall.fraction_and_density(d);
-            let grad = -density * n;
-            if count < walls.len() {
-                walls[count] = (1.0 - f, grad);
-                count += 1;
-            } else {
-                extra = (extra.0 + f, extra.1 + grad);
-            }
-        });
-        let walls = &walls[..count];
-        let outside: f32 = walls.iter().map(|w| w.0).product();
-        let mut grad = extra.1;
-        for (k, &(_, g)) in walls.iter().enumerate() {
-            let others: f32 = (walls.iter().enumerate())
-                .filter(|&(l, _)| l != k)
-                .map(|(_, w)| w.0)
-                .product();
-            grad += others * g;
-        }
-        (rho0 * (1.0 - outside + extra.0), grad)
     }
 
     /// Density ρ_i and the constraint's λ_i and D_i = 1/(Σ_k|∇_k C_i|² + ε)
@@ -530,7 +412,7 @@ impl Model {
         pairs: &mut [Pair],
     ) -> Constraint {
         let xi = x[i];
-        let (rho_wall, wall) = self.walls(xi);
+        let (rho_wall, wall) = self.walls.at(xi);
         // Per lane: ρ, ∇_i C_i by axis, Σ|∇_j C_i|².
         let mut acc = [[0.0f32; LANES]; 5];
         let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
@@ -620,7 +502,7 @@ impl Model {
         }
         let curl = Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
         Sums {
-            rho: self.walls(xi).0 + m[i] * self.w0 + total(&acc[0]),
+            rho: self.walls.at(xi).0 + m[i] * self.w0 + total(&acc[0]),
             curl,
             curl_len: curl.length(),
             mean: Vec3::new(total(&acc[4]), total(&acc[5]), total(&acc[6])),
@@ -720,7 +602,7 @@ impl Processor for SolveDensity {
                     dp
                 })
                 .collect_into_vec(&mut self.corrections);
-            let b = &model.boundary;
+            let b = model.walls.boundary();
             (f.positions.par_iter_mut())
                 .zip(f.velocities.par_iter_mut())
                 .zip(self.corrections.par_iter())

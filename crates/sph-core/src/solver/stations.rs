@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use crate::boundary::Boundary;
 use crate::error::{Error, Result, positive};
+use crate::grid::NeighbourLists;
 use crate::particles::Particles;
 #[cfg(doc)]
 use crate::processor::Program;
@@ -329,4 +330,79 @@ impl Processor for Sink {
         }
         Ok(())
     }
+}
+
+/// Sets every particle's acceleration to gravity. Processors that add accelerations of their own go
+/// right after it (its station is named `forces`, as WCSPH's is). Used by
+/// PBF (Algorithm 1's line 2) and DFSPH.
+#[derive(Debug, Clone, Copy)]
+pub struct BodyForces {
+    gravity: Vec3,
+}
+
+impl BodyForces {
+    /// Gravity `gravity` (m/s²).
+    pub fn new(gravity: Vec3) -> Self {
+        Self { gravity }
+    }
+}
+
+impl Processor for BodyForces {
+    fn name(&self) -> &str {
+        "forces"
+    }
+    fn process(&mut self, particles: &mut Particles, _: &mut Context) -> Result<()> {
+        let g = self.gravity;
+        particles
+            .accelerations_mut()
+            .par_iter_mut()
+            .for_each(|a| *a = g);
+        Ok(())
+    }
+}
+
+/// Each particle's neighbours on the current positions, into
+/// [`Context::neighbours`], kept for the rest of the step (PBF: lines 5–7,
+/// on the predicted positions; DFSPH).
+#[derive(Debug, Clone, Copy)]
+pub struct FindNeighbours {
+    h: f32,
+}
+
+impl FindNeighbours {
+    /// Lists over the grid of search radius `h`.
+    pub fn new(h: f32) -> Self {
+        Self { h }
+    }
+}
+
+impl Processor for FindNeighbours {
+    fn name(&self) -> &str {
+        "neighbours"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let mut lists = ctx.take_lists_memory().unwrap_or_default();
+        lists.rebuild(grid(ctx, particles, self.h, "neighbours")?);
+        ctx.neighbours = Some(lists);
+        Ok(())
+    }
+}
+
+/// The context's neighbour lists, checked to be over `particles`.
+pub(crate) fn lists<'a>(
+    ctx: &'a Context,
+    particles: &Particles,
+    who: &'static str,
+) -> Result<&'a NeighbourLists> {
+    let lists = ctx.neighbours.as_ref().ok_or(Error::Pipeline {
+        processor: who,
+        reason: "needs the neighbour lists: put `grid` and `neighbours` processors before it",
+    })?;
+    if lists.len() != particles.len() {
+        return Err(Error::Pipeline {
+            processor: who,
+            reason: "the neighbour lists are out of date: a processor added or removed particles after `neighbours` without calling `Context::invalidate_neighbours`",
+        });
+    }
+    Ok(lists)
 }

@@ -34,8 +34,15 @@ pub struct FrameReport {
     pub substeps: u32,
     /// Smallest and largest substep (s).
     pub dt_range: (f32, f32),
-    /// Constraint iterations over all substeps (0 for WCSPH, which has none).
+    /// Constraint iterations over all substeps (0 for WCSPH, which has
+    /// none): PBF's density constraint, DFSPH's constant-density solve.
     pub iterations: u32,
+    /// DFSPH's divergence-solve iterations over all substeps (0 for the
+    /// other solvers).
+    pub divergence_iterations: u32,
+    /// DFSPH's solves that stopped at their iteration limit above their
+    /// tolerance, over all substeps (0 for the other solvers).
+    pub unconverged: u32,
     /// The density error (compression) max(ρ/ρ0 − 1, 0) averaged over the
     /// particles, then over the frame's substeps: each substep's densities
     /// as the solver left them (WCSPH: at the start of the substep, the ones
@@ -95,7 +102,8 @@ impl World {
     }
 
     /// A world running `solver`'s program. `stepping` is the adaptive step
-    /// of WCSPH; PBF steps by its own [`super::PbfParams`].
+    /// of WCSPH (and its `min_dt`, below which any solver's step counts as
+    /// a blow-up); PBF and DFSPH step by their own parameters.
     ///
     /// # Errors
     /// Invalid parameters (the fluid's, the time stepping's or the
@@ -111,7 +119,7 @@ impl World {
         params.validate()?;
         stepping.validate()?;
         solver.validate()?;
-        if solver == Solver::Wcsph {
+        if matches!(solver, Solver::Wcsph | Solver::Dfsph(_)) {
             check_viscous_dt(&params, &stepping)?;
         }
         particles.validate()?;
@@ -161,9 +169,21 @@ impl World {
 
     /// The next step's length. WCSPH: from the viscous, CFL and force
     /// conditions. PBF: its longest substep, [`super::PbfParams::max_dt`].
+    /// DFSPH: from the flow's speed ([`super::DfsphParams::step`]) and the
+    /// viscous condition.
     pub fn stable_dt(&self) -> f32 {
-        if let Solver::Pbf(pbf) = self.solver {
-            return pbf.max_dt;
+        match self.solver {
+            Solver::Pbf(pbf) => return pbf.max_dt,
+            Solver::Dfsph(dfsph) => {
+                let speed = (self.particles.velocities().par_iter())
+                    .zip(self.particles.accelerations().par_iter())
+                    .map(|(v, a)| v.length() + a.length() * dfsph.max_dt)
+                    .reduce(|| 0.0, f32::max);
+                return dfsph
+                    .step(self.params.h, speed)
+                    .min(self.params.viscous_dt());
+            }
+            Solver::Wcsph => {}
         }
         let (v_max, a_max) = self
             .particles
@@ -204,7 +224,7 @@ impl World {
         Ok(dt)
     }
 
-    /// Advances by `frame_dt`. WCSPH takes stable substeps, the last one
+    /// Advances by `frame_dt`. WCSPH and DFSPH take stable substeps, the last one
     /// shortened to land on the frame time; PBF takes
     /// [`super::PbfParams::substeps`] equal substeps, more only where they
     /// would be longer than its `max_dt`.
@@ -216,6 +236,8 @@ impl World {
             substeps: 0,
             dt_range: (f32::INFINITY, 0.0),
             iterations: 0,
+            divergence_iterations: 0,
+            unconverged: 0,
             density_error_avg: 0.0,
             density_error_max: 0.0,
             clamped: 0,
@@ -230,6 +252,8 @@ impl World {
             report.substeps += 1;
             report.dt_range = (report.dt_range.0.min(dt), report.dt_range.1.max(dt));
             report.iterations += counters.iterations;
+            report.divergence_iterations += counters.divergence_iterations;
+            report.unconverged += counters.unconverged;
             report.clamped += counters.clamped;
             error_sum += avg;
             report.density_error_max = report.density_error_max.max(max);
@@ -281,12 +305,12 @@ impl World {
         Ok((ctx.counters, error))
     }
     /// NaN, infinities and speeds above 5 × the speed of sound end the run,
-    /// WCSPH only: there is no speed of sound in PBF, whose guard and
-    /// density solve check themselves.
+    /// WCSPH only: there is no speed of sound in PBF or DFSPH, whose solves
+    /// check themselves.
     fn check(&self) -> Result<()> {
         let limit = match self.solver {
             Solver::Wcsph => 5.0 * self.params.sound_speed(),
-            Solver::Pbf(_) => f32::INFINITY,
+            Solver::Pbf(_) | Solver::Dfsph(_) => f32::INFINITY,
         };
         let bad = self
             .particles
@@ -321,6 +345,11 @@ impl World {
                 "raise solver.pbf.substeps (now {}) or solver.pbf.iterations (now {}), \
                  or lower solver.pbf.max_dt (now {:e} s)",
                 pbf.substeps, pbf.iterations, pbf.max_dt
+            ),
+            Solver::Dfsph(dfsph) => format!(
+                "lower solver.dfsph.cfl (now {}) or solver.dfsph.max_dt (now {:e} s), \
+                 or raise solver.dfsph.max_iterations (now {})",
+                dfsph.cfl, dfsph.max_dt, dfsph.max_iterations
             ),
             Solver::Wcsph => format!(
                 "lower time_step.max_dt (now {:e} s) or time_step.cfl (now {}), \

@@ -1,4 +1,4 @@
-//! The pair sums of the PBF stations, eight neighbours at a time: each
+//! The pair sums of the PBF and DFSPH stations, eight neighbours at a time: each
 //! chunk of a neighbour list is gathered into per-axis lanes, the kernels
 //! are evaluated lane by lane on whole arrays, and the sums are kept per
 //! lane and added in a fixed tree at the end, so the result depends on
@@ -57,6 +57,8 @@ pub(super) struct LaneKernels {
     h: f32,
     h2: f32,
     poly6: f32,
+    /// b of ∇W_poly6 = −b (h² − r²)² r.
+    poly6_grad: f32,
     spiky: f32,
     /// The smallest |r| divided by: 1e-6 h.
     tiny: f32,
@@ -68,6 +70,7 @@ impl LaneKernels {
             h,
             h2: h * h,
             poly6: poly6.coefficients().0,
+            poly6_grad: poly6.coefficients().1,
             spiky: spiky.coefficient(),
             tiny: h * 1e-6,
         }
@@ -87,6 +90,22 @@ impl LaneKernels {
             let len = r2[l].sqrt();
             let t = (self.h - len).max(0.0);
             s[l] = -self.spiky * t * t / len.max(self.tiny);
+        }
+        (w, s)
+    }
+}
+
+impl LaneKernels {
+    /// (W, s) per lane with poly6's own gradient, ∇W_poly6 = s r: the
+    /// gradient of the density sum itself (no square root or division).
+    #[inline(always)]
+    pub(super) fn eval_poly6(&self, r2: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
+        let mut w = [0.0; LANES];
+        let mut s = [0.0; LANES];
+        for l in 0..LANES {
+            let d = (self.h2 - r2[l]).max(0.0);
+            w[l] = self.poly6 * d * d * d;
+            s[l] = -self.poly6_grad * d * d;
         }
         (w, s)
     }

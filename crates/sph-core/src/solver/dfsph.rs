@@ -1,0 +1,672 @@
+//! Divergence-free SPH (Bender & Koschier 2015, "Divergence-Free Smoothed
+//! Particle Hydrodynamics", SCA; 2017, IEEE TVCG): incompressibility by two
+//! implicit pressure solves per step, one that makes the velocity field
+//! divergence-free and one that brings the predicted density to rest
+//! density, at a step set by the flow's speed (a CFL condition), not by a
+//! speed of sound. The default solver of SPlisHSPlasH.
+//!
+//! The paper's Algorithm 1, station by station (in SPlisHSPlasH's order,
+//! which starts a step where the paper's loop body ends: the neighbours,
+//! densities and factors of the positions the previous step left):
+//!
+//! | Algorithm 1 | station | processor |
+//! |---|---|---|
+//! | find neighbours | `grid`, `neighbours` | [`BuildGrid`], [`FindNeighbours`] |
+//! | compute ρ_i, α_i; correct the divergence error (Algorithm 2) | `divergence` | [`DivergenceSolve`] |
+//! | non-pressure forces | `forces`, `viscosity` | [`BodyForces`], [`Viscosity`] |
+//! | Δt by the CFL condition | (the [`crate::World`]'s clock) | [`DfsphParams::cfl`] |
+//! | v* ← v + Δt a; correct the density error (Algorithm 3) | `density` | [`DensitySolve`] |
+//! | x ← x + Δt v* | `advect`, `boundaries` | [`Advect`], [`Boundaries`] |
+//!
+//! Both solves are the same Jacobi iteration on a different right-hand side.
+//! With volumes V_j = m_j/ρ0, the pairs' G_ij = V_j ∇W_ij and the walls'
+//! density term f_i = ρ_wall(x_i)/ρ0 ([`crate::boundary`]):
+//!
+//! - the density rate DS_i/Dt = Σ_j (v_i − v_j)·G_ij + v_i·∇f_i (ρ/ρ0 per s);
+//! - the factor α_i = 1 / (|g_i|² + Σ_j |G_ij|²), with g_i = Σ_j G_ij + ∇f_i
+//!   (0 where the sum vanishes: a lone particle feels no pressure);
+//! - each iteration computes κ_i = e_i α_i / Δt² from the particle's error
+//!   e_i and moves every velocity by
+//!   Δv_i = −Δt (κ_i g_i + Σ_j κ_j G_ij),
+//!   the pressure acceleration −Σ_j V_j (κ_i + κ_j)∇W_ij of the symmetric
+//!   SPH formula (κ = ρ0 p/ρ², so momentum is conserved pair by pair) plus
+//!   the walls' push −κ_i ∇f_i.
+//! - The divergence solve's error is e_i = max(Δt DS_i/Dt, 0), the density
+//!   change the current velocities would make over the step; the density
+//!   solve's is e_i = max(ρ_i/ρ0 + Δt DS_i/Dt − 1, 0), the compression they
+//!   would leave. Both are one-sided: a particle below rest density (the
+//!   free surface) is not pulled.
+//! - Each solve stops when the mean of e_i over all particles is at most its
+//!   tolerance ([`DfsphParams::density_tolerance`],
+//!   [`DfsphParams::divergence_tolerance`]), after at least two density
+//!   iterations (the paper's minimum) and one divergence iteration, or at
+//!   [`DfsphParams::max_iterations`] (counted in
+//!   [`crate::StepCounters::unconverged`]).
+//! - **Warm start.** Each solve starts from the previous step's total κ of
+//!   its particle, clamped to κ ≥ 0 (an attractive start would pull the
+//!   surface in) and halved, as SPlisHSPlasH does: a full warm start
+//!   overshoots where the flow changes. The totals ride with their
+//!   particles through the grid's reordering, as the particle attributes
+//!   [`KAPPA_DENSITY`] and [`KAPPA_DIVERGENCE`].
+//! - **Pressure.** The density solve's total κ is the step's pressure:
+//!   p_i = κ_i ρ_i²/ρ0 into [`Particles::pressures`] (Pa).
+//! - **Viscosity** is the thesis's explicit term (eq. 17) with
+//!   [`FluidParams::viscosity`] μ in Pa·s, whose step limit
+//!   [`FluidParams::viscous_dt`] the clock keeps. Surface tension is not
+//!   applied.
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::lanes::{Chunk, LANES, LaneKernels, total};
+use super::params::FluidParams;
+use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
+use super::walls::Walls;
+use crate::boundary::Boundary;
+use crate::error::{Error, Result};
+use crate::grid::NeighbourLists;
+use crate::kernels::{Poly6, Spiky};
+use crate::particles::Particles;
+use crate::processor::{Context, Processor, Program};
+
+/// The parameters of DFSPH. Scene files give them under `[solver.dfsph]`; a
+/// field left out takes its default.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct DfsphParams {
+    /// The Courant number λ of the step: Δt = λ h / v_max, with v_max the
+    /// largest |v| + |a| max_dt of the particles. Default 0.2 (at the
+    /// built-in scenes' h = 2 × spacing, a particle moves at most 0.4
+    /// spacings per step, the rule of Bender & Koschier).
+    pub cfl: f32,
+    /// The longest step (s). Default 0.005 (SPlisHSPlasH's).
+    pub max_dt: f32,
+    /// The density solve's tolerance: the mean compression
+    /// max(ρ/ρ0 − 1, 0) over the particles it leaves. Default 0.0005
+    /// (0.05 %).
+    pub density_tolerance: f32,
+    /// The divergence solve's tolerance: the mean density change
+    /// max(Δt Dρ/Dt, 0)/ρ0 over one step it leaves. Default 0.001 (0.1 %).
+    pub divergence_tolerance: f32,
+    /// The most iterations of either solve per step; a solve that reaches
+    /// it above its tolerance is counted as unconverged. Default 100.
+    pub max_iterations: u32,
+}
+
+impl Default for DfsphParams {
+    fn default() -> Self {
+        Self {
+            cfl: 0.2,
+            max_dt: 0.005,
+            density_tolerance: 5e-4,
+            divergence_tolerance: 1e-3,
+            max_iterations: 100,
+        }
+    }
+}
+
+/// The most iterations [`DfsphParams::validate`] accepts.
+pub const MAX_DFSPH_ITERATIONS: u32 = 10_000;
+
+/// The density solve's fewest iterations (Bender & Koschier 2017).
+const MIN_DENSITY_ITERATIONS: u32 = 2;
+
+/// The divergence solve's fewest iterations.
+const MIN_DIVERGENCE_ITERATIONS: u32 = 1;
+
+/// The mean error above which a solve that makes no headway over its
+/// iterations has failed, and the run stops ([`Error::Unstable`]): a mean
+/// compression of 10 %.
+pub const MAX_MEAN_ERROR: f32 = 0.1;
+
+/// The particle attribute (f32) holding each particle's total κ of the
+/// last density solve (m²/s²), its warm start.
+pub const KAPPA_DENSITY: &str = "dfsph_kappa";
+
+/// The particle attribute (f32) holding each particle's total κ of the last
+/// divergence solve (m²/s²), its warm start.
+pub const KAPPA_DIVERGENCE: &str = "dfsph_kappa_divergence";
+
+impl DfsphParams {
+    /// Checks every parameter is finite and in range; the error names it
+    /// (`dfsph.cfl`, ...).
+    pub fn validate(&self) -> Result<()> {
+        let check = |name: &'static str, value: f64, ok: bool, reason: &'static str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(Error::InvalidParameter {
+                    name,
+                    value: value.to_string(),
+                    reason,
+                })
+            }
+        };
+        check(
+            "dfsph.cfl",
+            self.cfl.into(),
+            self.cfl > 0.0 && self.cfl <= 1.0,
+            "must lie in (0, 1] (a fraction of h per step)",
+        )?;
+        check(
+            "dfsph.max_dt",
+            self.max_dt.into(),
+            (1e-6..=1.0).contains(&self.max_dt),
+            "must lie in [1e-6, 1] s",
+        )?;
+        check(
+            "dfsph.density_tolerance",
+            self.density_tolerance.into(),
+            self.density_tolerance > 0.0 && self.density_tolerance <= 0.1,
+            "must lie in (0, 0.1] (a mean compression: 0.0005 is 0.05 %)",
+        )?;
+        check(
+            "dfsph.divergence_tolerance",
+            self.divergence_tolerance.into(),
+            self.divergence_tolerance > 0.0 && self.divergence_tolerance <= 0.1,
+            "must lie in (0, 0.1] (a mean density change per step: 0.001 is 0.1 %)",
+        )?;
+        check(
+            "dfsph.max_iterations",
+            self.max_iterations.into(),
+            (MIN_DENSITY_ITERATIONS..=MAX_DFSPH_ITERATIONS).contains(&self.max_iterations),
+            "must be a whole number from 2 to 10000",
+        )?;
+        Ok(())
+    }
+
+    /// The step for particles whose largest |v| + |a| max_dt is `speed`:
+    /// λ h / speed, at most `max_dt`.
+    pub fn step(&self, h: f32, speed: f32) -> f32 {
+        if speed > 0.0 {
+            self.max_dt.min(self.cfl * h / speed)
+        } else {
+            self.max_dt
+        }
+    }
+}
+
+/// The DFSPH program: grid → neighbours → divergence → forces → viscosity
+/// → density → advect → boundaries.
+///
+/// # Errors
+/// Parameters or a boundary that do not validate.
+pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Program> {
+    let model = Model::new(params, dfsph, boundary.clone())?;
+    let mut program = Program::new("dfsph");
+    program
+        .push(BuildGrid::new(params.h, 1))
+        .push(FindNeighbours::new(params.h))
+        .push(DivergenceSolve(Solve::new(
+            model.clone(),
+            Target::Divergence,
+        )))
+        .push(BodyForces::new(params.gravity))
+        .push(Viscosity::with_model(model.clone()))
+        .push(DensitySolve(Solve::new(model, Target::Density)))
+        .push(Advect)
+        .push(Boundaries::new(boundary)?);
+    Ok(program)
+}
+
+/// What the DFSPH stations share: parameters, kernels, walls.
+#[derive(Debug, Clone)]
+struct Model {
+    params: FluidParams,
+    dfsph: DfsphParams,
+    walls: Walls,
+    lanes: LaneKernels,
+    /// 1 / ρ0.
+    inv_rho0: f32,
+    /// W_poly6(0).
+    w0: f32,
+    /// An offset beyond the kernels' support, for unused lanes.
+    far: f32,
+    /// The viscosity kernel's laplacian coefficient, 45/(π h⁶).
+    visc_lap: f32,
+}
+
+impl Model {
+    fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
+        params.validate()?;
+        dfsph.validate()?;
+        boundary.validate()?;
+        let h = params.h;
+        let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
+        Ok(Self {
+            params,
+            dfsph,
+            walls: Walls::new(boundary, h, params.rest_density),
+            lanes: LaneKernels::new(&poly6, &spiky, h),
+            inv_rho0: 1.0 / params.rest_density,
+            w0: poly6.value_r2(0.0),
+            far: 2.0 * h,
+            visc_lap: crate::kernels::Viscosity::new(h)?.coefficient(),
+        })
+    }
+
+    /// Particle i's density (with the walls), α_i, g_i and the walls'
+    /// ∇f_i at the current positions; writes each neighbour's
+    /// G_ij = (m_j/ρ0)∇W_ij into `pairs`.
+    #[inline]
+    fn factor(&self, i: usize, x: &[Vec3], m: &[f32], list: &[u32], pairs: &mut [Vec3]) -> Factor {
+        let xi = x[i];
+        let (rho_wall, wall) = self.walls.at(xi);
+        // Per lane: ρ, g by axis, Σ|G_ij|².
+        let mut acc = [[0.0f32; LANES]; 5];
+        for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
+            let c = Chunk::gather(xi, x, m, js, self.far);
+            let (w, s) = self.lanes.eval(&c.r2());
+            let mut g = [[0.0f32; LANES]; 3];
+            for l in 0..LANES {
+                let f = s[l] * c.m[l] * self.inv_rho0;
+                for a in 0..3 {
+                    g[a][l] = c.d[a][l] * f;
+                    acc[1 + a][l] += g[a][l];
+                }
+                acc[0][l] += c.m[l] * w[l];
+                acc[4][l] += g[0][l] * g[0][l] + g[1][l] * g[1][l] + g[2][l] * g[2][l];
+            }
+            for (l, o) in out.iter_mut().enumerate() {
+                *o = Vec3::new(g[0][l], g[1][l], g[2][l]);
+            }
+        }
+        let rho = rho_wall + m[i] * self.w0 + total(&acc[0]);
+        let grad = wall + Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
+        let sum = grad.length_squared() + total(&acc[4]);
+        // Below this the particle has (almost) no neighbours: no pressure.
+        let tiny = 1e-6 / (self.params.h * self.params.h);
+        Factor {
+            rho,
+            alpha: if sum > tiny { 1.0 / sum } else { 0.0 },
+            grad,
+            wall,
+        }
+    }
+}
+
+/// One particle's share of the step's linear system.
+#[derive(Debug, Clone, Copy, Default)]
+struct Factor {
+    /// ρ_i (kg/m³), the walls' term included.
+    rho: f32,
+    /// α_i = 1 / (|g_i|² + Σ_j |G_ij|²) (m²).
+    alpha: f32,
+    /// g_i = Σ_j G_ij + ∇f_i (1/m).
+    grad: Vec3,
+    /// The walls' ∇f_i (1/m).
+    wall: Vec3,
+}
+
+/// Which error a [`Solve`] drives to its tolerance.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Target {
+    /// max(Δt DS/Dt, 0).
+    Divergence,
+    /// max(ρ/ρ0 + Δt DS/Dt − 1, 0).
+    Density,
+}
+
+impl Target {
+    fn name(self) -> &'static str {
+        match self {
+            Target::Divergence => "divergence",
+            Target::Density => "density",
+        }
+    }
+    fn attribute(self) -> &'static str {
+        match self {
+            Target::Divergence => KAPPA_DIVERGENCE,
+            Target::Density => KAPPA_DENSITY,
+        }
+    }
+    fn min_iterations(self) -> u32 {
+        match self {
+            Target::Divergence => MIN_DIVERGENCE_ITERATIONS,
+            Target::Density => MIN_DENSITY_ITERATIONS,
+        }
+    }
+}
+
+/// Particles per chunk of the error's mean: a fixed size, so the sum's
+/// order does not depend on the number of threads.
+const MEAN_CHUNK: usize = 4096;
+
+/// The mean of `values`, summed in fixed chunks in a fixed order.
+fn mean(values: &[f32]) -> f64 {
+    if values.is_empty() {
+        return 0.0;
+    }
+    let sums: Vec<f64> = values
+        .par_chunks(MEAN_CHUNK)
+        .map(|c| c.iter().map(|&e| f64::from(e)).sum::<f64>())
+        .collect();
+    sums.iter().sum::<f64>() / values.len() as f64
+}
+
+/// The Jacobi solve both pressure stations run, with its working memory.
+#[derive(Debug, Clone)]
+struct Solve {
+    model: Model,
+    target: Target,
+    factors: Vec<Factor>,
+    pairs: Vec<Vec3>,
+    /// The source b_i: the density change (over ρ0) to undo.
+    source: Vec<f32>,
+    /// κ_i (m²/s²), warm start included.
+    kappa: Vec<f32>,
+    /// The pressure accelerations of κ.
+    accelerations: Vec<Vec3>,
+    /// e_i of the current iteration.
+    errors: Vec<f32>,
+}
+
+impl Solve {
+    fn new(model: Model, target: Target) -> Self {
+        Self {
+            model,
+            target,
+            factors: Vec::new(),
+            pairs: Vec::new(),
+            source: Vec::new(),
+            kappa: Vec::new(),
+            accelerations: Vec::new(),
+            errors: Vec::new(),
+        }
+    }
+
+    /// Densities and factors of the current positions, then the iterations
+    /// for κ, then the velocities. Writes the densities, and for the
+    /// density solve the pressures.
+    fn run(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        if self.target == Target::Divergence && std::env::var("NODIV").is_ok() {
+            return Ok(());
+        }
+        let who = self.target.name();
+        let lists = lists(ctx, particles, who)?;
+        let model = &self.model;
+        let (dt, target) = (ctx.dt, self.target);
+        let n = particles.len();
+        if !particles.has_attribute(target.attribute()) {
+            particles.add_attribute(target.attribute(), 0.0f32)?;
+        }
+        self.kappa.clear();
+        (self.kappa).extend_from_slice(particles.attribute::<f32>(target.attribute())?);
+        let f = particles.fields_mut();
+        let (x, m) = (&*f.positions, &*f.masses);
+        self.pairs.resize(lists.pairs(), Vec3::ZERO);
+        self.factors.resize(n, Factor::default());
+        lists.par_map_rows(&mut self.factors, &mut self.pairs, |i, list, pairs| {
+            model.factor(i, x, m, list, pairs)
+        });
+        (f.densities.par_iter_mut())
+            .zip(self.factors.par_iter())
+            .for_each(|(rho, c)| *rho = c.rho);
+        let v = f.velocities;
+        if target == Target::Density {
+            // v* = v + Δt a: the non-pressure forces.
+            (v.par_iter_mut())
+                .zip(f.accelerations.par_iter())
+                .for_each(|(v, &a)| *v += dt * a);
+        }
+        let (factors, pairs) = (&self.factors, &self.pairs);
+        // The source b_i, the density change to undo: −Δt DS_i/Dt, or
+        // 1 − (ρ_i/ρ0 + Δt DS_i/Dt). The warm start: half the last step's
+        // κ where the particle would be compressed, 0 elsewhere.
+        let inv_rho0 = model.inv_rho0;
+        (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let c = factors[i];
+                let vi = v[i];
+                let mut rate = vi.dot(c.wall);
+                for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
+                    rate += (vi - v[j as usize]).dot(*g);
+                }
+                match target {
+                    Target::Divergence => -dt * rate,
+                    Target::Density => 1.0 - (c.rho * inv_rho0 + dt * rate),
+                }
+            })
+            .collect_into_vec(&mut self.source);
+        (self.kappa.par_iter_mut())
+            .zip(self.source.par_iter())
+            .for_each(|(k, &b)| *k = if b < 0.0 && std::env::var("NOWARM").is_err() { 0.5 * *k } else { 0.0 });
+        let dfsph = model.dfsph;
+        let tolerance = match target {
+            Target::Divergence => dfsph.divergence_tolerance,
+            Target::Density => dfsph.density_tolerance,
+        };
+        self.errors.resize(n, 0.0);
+        let (mut iterations, mut first) = (0, None);
+        let error = loop {
+            accelerations(lists, factors, pairs, &self.kappa, &mut self.accelerations);
+            // (Aκ)_i = Δt² (Σ_j (a_i − a_j)·G_ij + a_i·∇f_i): the density
+            // change the pressure accelerations make over the step. Each κ_i
+            // moves by half its Jacobi step towards (Aκ)_i = b_i, projected to
+            // κ_i ≥ 0; e_i = max((Aκ)_i − b_i, 0) is the compression left.
+            let a = &self.accelerations;
+            let source = &self.source;
+            (self.kappa.par_iter_mut())
+                .zip(self.errors.par_iter_mut())
+                .enumerate()
+                .for_each(|(i, (k, e))| {
+                    let c = factors[i];
+                    let ai = a[i];
+                    let mut ak = ai.dot(c.wall);
+                    for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
+                        ak += (ai - a[j as usize]).dot(*g);
+                    }
+                    let residual = source[i] - dt * dt * ak;
+                    *e = (-residual).max(0.0);
+                    *k = (*k - 0.5 * residual * c.alpha / (dt * dt)).max(0.0);
+                });
+            iterations += 1;
+            let error = mean(&self.errors) as f32;
+            let first = *first.get_or_insert(error);
+            if !error.is_finite() || (error > MAX_MEAN_ERROR && error >= first && iterations > 1) {
+                return Err(self.unstable(ctx, error, first, iterations));
+            }
+            let done = iterations >= target.min_iterations() && error <= tolerance;
+            if done || iterations >= dfsph.max_iterations {
+                break error;
+            }
+        };
+        accelerations(lists, factors, pairs, &self.kappa, &mut self.accelerations);
+        (v.par_iter_mut())
+            .zip(self.accelerations.par_iter())
+            .for_each(|(v, &a)| *v += dt * a);
+        if error > tolerance {
+            ctx.counters.unconverged += 1;
+        }
+        match target {
+            Target::Divergence => ctx.counters.divergence_iterations += iterations,
+            Target::Density => {
+                ctx.counters.iterations += iterations;
+                let rest = model.params.rest_density;
+                (f.pressures.par_iter_mut())
+                    .zip(self.kappa.par_iter().zip(factors.par_iter()))
+                    .for_each(|(p, (&k, c))| *p = k * c.rho * c.rho / rest);
+            }
+        }
+        particles
+            .attribute_mut::<f32>(target.attribute())?
+            .copy_from_slice(&self.kappa);
+        Ok(())
+    }
+
+    fn unstable(&self, ctx: &Context, error: f32, first: f32, iterations: u32) -> Error {
+        let dfsph = self.model.dfsph;
+        Error::Unstable {
+            step: ctx.step,
+            time: ctx.time,
+            what: format!(
+                "the {} solve diverged: a mean error of {:.2} % after {iterations} iterations, \
+                 from {:.2} % at the first",
+                self.target.name(),
+                error * 100.0,
+                first * 100.0
+            ),
+            hint: format!(
+                "lower solver.dfsph.cfl (now {}) or solver.dfsph.max_dt (now {:e} s); \
+                 check that no particles start on top of each other",
+                dfsph.cfl, dfsph.max_dt
+            ),
+        }
+    }
+}
+
+/// The pressure accelerations of `kappa`:
+/// a_i = −(κ_i g_i + Σ_j κ_j G_ij) = −Σ_j V_j (κ_i + κ_j)∇W_ij − κ_i ∇f_i.
+fn accelerations(
+    lists: &NeighbourLists,
+    factors: &[Factor],
+    pairs: &[Vec3],
+    kappa: &[f32],
+    out: &mut Vec<Vec3>,
+) {
+    (0..kappa.len())
+        .into_par_iter()
+        .map(|i| {
+            let mut a = kappa[i] * factors[i].grad;
+            for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
+                a += kappa[j as usize] * *g;
+            }
+            -a
+        })
+        .collect_into_vec(out);
+}
+
+/// Algorithm 2: the densities and factors of the step's positions (into
+/// [`Particles::densities`]), then velocities corrected until the density
+/// would change by at most [`DfsphParams::divergence_tolerance`] over the
+/// step on average.
+#[derive(Debug, Clone)]
+pub struct DivergenceSolve(Solve);
+
+impl DivergenceSolve {
+    /// For this fluid, these DFSPH parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
+        let model = Model::new(params, dfsph, boundary)?;
+        Ok(Self(Solve::new(model, Target::Divergence)))
+    }
+}
+
+impl Processor for DivergenceSolve {
+    fn name(&self) -> &str {
+        "divergence"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        self.0.run(particles, ctx)
+    }
+}
+
+/// Algorithm 3: v* ← v + Δt a (the non-pressure forces), then velocities
+/// corrected until the density they predict for the step's end is at most
+/// [`DfsphParams::density_tolerance`] above rest on average. The total κ is
+/// the pressure, p = κ ρ²/ρ0, into [`Particles::pressures`].
+#[derive(Debug, Clone)]
+pub struct DensitySolve(Solve);
+
+impl DensitySolve {
+    /// For this fluid, these DFSPH parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
+        let model = Model::new(params, dfsph, boundary)?;
+        Ok(Self(Solve::new(model, Target::Density)))
+    }
+}
+
+impl Processor for DensitySolve {
+    fn name(&self) -> &str {
+        "density"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        self.0.run(particles, ctx)
+    }
+}
+
+/// The thesis's explicit viscosity (eq. 17): adds
+/// (μ/ρ_i) Σ_j m_j (v_j − v_i)/ρ_j ∇²W_visc(r_ij) to each acceleration,
+/// with the densities [`DivergenceSolve`] left.
+#[derive(Debug, Clone)]
+pub struct Viscosity {
+    model: Model,
+    out: Vec<Vec3>,
+}
+
+impl Viscosity {
+    /// For this fluid (its μ), these DFSPH parameters and walls.
+    ///
+    /// # Errors
+    /// Parameters or a boundary that do not validate.
+    pub fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
+        Model::new(params, dfsph, boundary).map(Self::with_model)
+    }
+
+    fn with_model(model: Model) -> Self {
+        Self {
+            model,
+            out: Vec::new(),
+        }
+    }
+}
+
+impl Processor for Viscosity {
+    fn name(&self) -> &str {
+        "viscosity"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let mu = self.model.params.viscosity;
+        if mu == 0.0 {
+            return Ok(());
+        }
+        let lists = lists(ctx, particles, "viscosity")?;
+        let (h, lap) = (self.model.params.h, self.model.visc_lap);
+        let f = particles.fields_mut();
+        let (x, v, m, rho) = (&*f.positions, &*f.velocities, &*f.masses, &*f.densities);
+        (0..x.len())
+            .into_par_iter()
+            .map(|i| {
+                let mut sum = Vec3::ZERO;
+                for &j in lists.of(i) {
+                    let j = j as usize;
+                    let r = (x[i] - x[j]).length();
+                    // ∇²W_visc = 45/(π h⁶) (h − r) inside h.
+                    let l = lap * (h - r).max(0.0);
+                    sum += (m[j] / rho[j] * l) * (v[j] - v[i]);
+                }
+                mu / rho[i] * sum
+            })
+            .collect_into_vec(&mut self.out);
+        (f.accelerations.par_iter_mut())
+            .zip(self.out.par_iter())
+            .for_each(|(a, &dv)| *a += dv);
+        Ok(())
+    }
+}
+
+/// x ← x + Δt v: the positions of the step's end, from the velocities the
+/// density solve left.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Advect;
+
+impl Processor for Advect {
+    fn name(&self) -> &str {
+        "advect"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let dt = ctx.dt;
+        let f = particles.fields_mut();
+        (f.positions.par_iter_mut())
+            .zip(f.velocities.par_iter())
+            .for_each(|(x, &v)| *x += dt * v);
+        ctx.invalidate_grid(); // positions moved
+        Ok(())
+    }
+}
