@@ -11,6 +11,7 @@
 //! | [`Poly6`] | 315/(64πh⁹)(h²−r²)³ | −945/(32πh⁹)(h²−r²)² **r** | 945/(32πh⁹)(h²−r²)(7r²−3h²) |
 //! | [`Spiky`] | 15/(πh⁶)(h−r)³ | −45/(πh⁶)(h−r)² **r̂** | 90/(πh⁶)(h−r)(2r−h)/r |
 //! | [`Viscosity`] | 15/(2πh³)(−q³/2 + q² + 1/2q − 1), q = r/h | −15/(2πh⁴)(1−q)²(3q²+2q+1)/(2q²) **r̂** | 45/(πh⁶)(h−r) |
+//! | [`CubicSpline`] (DFSPH) | 8/(πh³)(2a³ − 8b³), a = (1−q)⁺, b = (½−q)⁺ | 8/(πh⁴)(24b² − 6a²) **r̂** | W'' + 2W'/r |
 
 use glam::Vec3;
 
@@ -254,6 +255,90 @@ impl Kernel for Viscosity {
     }
 }
 
+/// The cubic spline kernel (Monaghan 1992) with support radius h, as
+/// SPlisHSPlasH writes it: W = k w(q), q = r/h, k = 8/(πh³),
+/// w = 6q³ − 6q² + 1 for q ≤ ½ and 2(1 − q)³ for ½ < q ≤ 1. DFSPH sums
+/// densities and takes its pressure gradients with it: one kernel for both,
+/// so the density change its solves predict is the change the next density
+/// sum measures. (Poly6 densities with spiky gradients, PBF's pair, made a
+/// resting DFSPH tank boil at 0.1 m/s; poly6's own gradient, which fades
+/// inside r = h/√5, let particles pair up under compression.)
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CubicSpline {
+    h: f32,
+    k: f32,
+}
+
+impl CubicSpline {
+    /// The kernel for support radius `h` (m), within
+    /// [`crate::error::KERNEL_H_RANGE`]; other values are an error.
+    pub fn new(h: f32) -> Result<Self> {
+        check_kernel_h(h)?;
+        Ok(Self {
+            h,
+            k: (8.0 / (std::f64::consts::PI * (h as f64).powi(3))) as f32,
+        })
+    }
+
+    /// The coefficient k = 8/(πh³) = W(0).
+    #[inline]
+    pub fn coefficient(&self) -> f32 {
+        self.k
+    }
+
+    /// dW/dr at the distance `len`, branch-free in the form the neighbour
+    /// sums use: with a = max(1 − q, 0) and b = max(½ − q, 0),
+    /// w = 2a³ − 8b³ and dw/dq = −6a² + 24b².
+    #[inline]
+    pub fn derivative_len(&self, len: f32) -> f32 {
+        let q = len / self.h;
+        let a = (1.0 - q).max(0.0);
+        let b = (0.5 - q).max(0.0);
+        self.k / self.h * (24.0 * b * b - 6.0 * a * a)
+    }
+
+    /// W at the distance `len`.
+    #[inline]
+    pub fn value_len(&self, len: f32) -> f32 {
+        let q = len / self.h;
+        let a = (1.0 - q).max(0.0);
+        let b = (0.5 - q).max(0.0);
+        self.k * (2.0 * a * a * a - 8.0 * b * b * b)
+    }
+}
+
+impl Kernel for CubicSpline {
+    fn h(&self) -> f32 {
+        self.h
+    }
+    #[inline]
+    fn value(&self, r: Vec3) -> f32 {
+        self.value_len(r.length())
+    }
+    /// Zero at r = 0, where dW/dr vanishes.
+    #[inline]
+    fn gradient(&self, r: Vec3) -> Vec3 {
+        let len = r.length();
+        if len <= 0.0 {
+            return Vec3::ZERO;
+        }
+        r * (self.derivative_len(len) / len)
+    }
+    /// ∇²W = W'' + 2W'/r, with d²w/dq² = 12a − 48b (continuous at q = ½).
+    #[inline]
+    fn laplacian(&self, r: Vec3) -> f32 {
+        let len = r.length();
+        if len > self.h || len <= 0.0 {
+            return 0.0;
+        }
+        let q = len / self.h;
+        let a = (1.0 - q).max(0.0);
+        let b = (0.5 - q).max(0.0);
+        let second = self.k / (self.h * self.h) * (12.0 * a - 48.0 * b);
+        second + 2.0 * self.derivative_len(len) / len
+    }
+}
+
 /// The three kernels of the solver for one smoothing length.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Kernels {
@@ -359,9 +444,13 @@ mod tests {
             }
             // Smooth kernels converge fast on a cartesian grid too; the viscosity
             // kernel's 1/r singularity at the centre is left to the radial rule.
+            let cubic = CubicSpline::new(h).unwrap();
+            let radial = radial_integral(&cubic);
+            assert!((radial - 1.0).abs() < 1e-3, "cubic h={h}: ∫W dV = {radial}");
             for (name, integral) in [
                 ("poly6", cartesian_integral(&k.poly6, 120)),
                 ("spiky", cartesian_integral(&k.spiky, 120)),
+                ("cubic", cartesian_integral(&cubic, 120)),
             ] {
                 assert!(
                     (integral - 1.0).abs() < 1e-3,
@@ -417,7 +506,13 @@ mod tests {
 
     fn check_derivatives(name: &str, k: &impl Kernel) {
         let h = k.h();
-        for r in sample_offsets(h) {
+        // The cubic spline's third derivative jumps at q = ½, where the
+        // extrapolated second differences lose their order: sample beside it.
+        let offsets = sample_offsets(h).into_iter().filter(|r| {
+            let q = r.length() / h;
+            !(name == "cubic" && (q - 0.5).abs() < 0.05)
+        });
+        for r in offsets.chain([0.45, 0.55].map(|q| Vec3::Y * (q * h))) {
             let (g_fd, l_fd) = finite_differences(k, r);
             let g = k.gradient(r);
             // Scale tolerances by the kernel's magnitude at this h.
@@ -443,6 +538,7 @@ mod tests {
             check_derivatives("poly6", &k.poly6);
             check_derivatives("spiky", &k.spiky);
             check_derivatives("viscosity", &k.viscosity);
+            check_derivatives("cubic", &CubicSpline::new(h).unwrap());
         }
     }
 
@@ -455,6 +551,7 @@ mod tests {
         assert!(k.spiky.gradient(r).dot(r) < 0.0);
         assert!(k.viscosity.gradient(r).dot(r) < 0.0);
         assert!(k.viscosity.laplacian(r) > 0.0);
+        assert!(CubicSpline::new(1.0).unwrap().gradient(r).dot(r) < 0.0);
     }
 
     #[test]
@@ -472,6 +569,10 @@ mod tests {
                 assert_eq!(k.viscosity.value(r), 0.0);
                 assert_eq!(k.viscosity.gradient(r), Vec3::ZERO);
                 assert_eq!(k.viscosity.laplacian(r), 0.0);
+                let cubic = CubicSpline::new(h).unwrap();
+                assert_eq!(cubic.value(r), 0.0);
+                assert_eq!(cubic.gradient(r), Vec3::ZERO);
+                assert_eq!(cubic.laplacian(r), 0.0);
             }
             // Continuity at the support edge: values go to zero at r = h.
             let edge = Vec3::X * h;

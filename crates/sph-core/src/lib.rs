@@ -28,7 +28,7 @@ pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
 pub use export::{FrameWriter, PointCloud};
 pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood, Poly6Sums, Simd, simd_level};
-pub use kernels::{Kernel, Kernels, Poly6, Spiky, Viscosity};
+pub use kernels::{CubicSpline, Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;

@@ -523,7 +523,7 @@ impl Scene {
     /// skipping lattice points inside obstacles.
     pub fn particles(&self) -> Result<Particles> {
         self.validate()?;
-        let mass = self.fluid_params().particle_mass(self.spacing)?;
+        let mass = (self.solver()).particle_mass(&self.fluid_params(), self.spacing)?;
         let boundary = self.boundary();
         let mut p = Particles::new();
         for b in &self.blocks {
@@ -568,7 +568,7 @@ impl Scene {
             force_factor: t.force_factor,
             ..TimeStepping::default()
         };
-        let mass = self.fluid_params().particle_mass(self.spacing)?;
+        let mass = (self.solver()).particle_mass(&self.fluid_params(), self.spacing)?;
         let mut world = World::with_solver(
             particles,
             self.fluid_params(),

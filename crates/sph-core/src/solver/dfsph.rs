@@ -58,14 +58,14 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::lanes::{Chunk, LANES, LaneKernels, total};
+use super::lanes::{Chunk, LANES, LaneCubic, total};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
 use super::walls::Walls;
-use crate::boundary::Boundary;
+use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::grid::NeighbourLists;
-use crate::kernels::{Poly6, Spiky};
+use crate::kernels::{CubicSpline, Kernel};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
@@ -215,7 +215,8 @@ struct Model {
     params: FluidParams,
     dfsph: DfsphParams,
     walls: Walls,
-    lanes: LaneKernels,
+    lanes: LaneCubic,
+    cubic: CubicSpline,
     /// 1 / ρ0.
     inv_rho0: f32,
     /// W_poly6(0).
@@ -232,14 +233,15 @@ impl Model {
         dfsph.validate()?;
         boundary.validate()?;
         let h = params.h;
-        let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
+        let cubic = CubicSpline::new(h)?;
         Ok(Self {
             params,
             dfsph,
-            walls: Walls::new(boundary, h, params.rest_density),
-            lanes: LaneKernels::new(&poly6, &spiky, h),
+            walls: Walls::new(boundary, WallKernel::cubic_spline(h), params.rest_density),
+            lanes: LaneCubic::new(&cubic),
+            cubic,
             inv_rho0: 1.0 / params.rest_density,
-            w0: poly6.value_r2(0.0),
+            w0: cubic.coefficient(),
             far: 2.0 * h,
             visc_lap: crate::kernels::Viscosity::new(h)?.coefficient(),
         })
@@ -251,7 +253,8 @@ impl Model {
     #[inline]
     fn factor(&self, i: usize, x: &[Vec3], m: &[f32], list: &[u32], pairs: &mut [Vec3]) -> Factor {
         let xi = x[i];
-        let (rho_wall, wall) = self.walls.at(xi);
+        // The walls continue the particle's lattice: spacing V_i^⅓.
+        let (rho_wall, wall) = self.walls.at_layers(xi, (m[i] * self.inv_rho0).cbrt());
         // Per lane: ρ, g by axis, Σ|G_ij|².
         let mut acc = [[0.0f32; LANES]; 5];
         for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
@@ -328,6 +331,73 @@ impl Target {
     }
 }
 
+/// The relaxation ω of the Jacobi iteration for particles `spacing` apart
+/// under the cubic spline `cubic`: SPlisHSPlasH's ½ where that converges,
+/// less where the neighbourhood is wide.
+///
+/// Relaxed Jacobi, κ ← κ + ω D⁻¹(b − Aκ), converges while ω < 2/λ, with λ
+/// the largest eigenvalue of D⁻¹A. On a lattice in the fluid's bulk A's
+/// modes are plane waves e^{iθ·x}, with eigenvalue
+/// λ(θ) = |Σ_j G_j sin(θ·r_j)|² / Σ_j |G_j|² over the neighbour offsets
+/// r_j (G_j = ∇W(r_j)): 2.8 at h = 2 spacings, 4.4 at 2.5, 7.5 at 3. So
+/// ω = ½ diverges beyond about 2.4 spacings (measured: a tank at h = 3
+/// spacings stopped as unstable at its first step). ω is
+/// min(½, 1.5/λ_max), λ_max the largest λ(θ) over a 13³ grid of the
+/// octant θ ∈ [0, π]³ (the other octants mirror it): a quarter below the
+/// limit, for packings less regular than the lattice.
+pub fn relaxation(cubic: &CubicSpline, spacing: f32) -> f32 {
+    const MODES: usize = 13;
+    let h = cubic.h() as f64;
+    let s = spacing as f64;
+    let n = (h / s).ceil() as i32;
+    let mut offsets = Vec::new();
+    for k in -n..=n {
+        for j in -n..=n {
+            for i in -n..=n {
+                let r = glam::DVec3::new(i.into(), j.into(), k.into()) * s;
+                let len = r.length();
+                if len > 0.0 && len < h {
+                    let g = r * (f64::from(cubic.derivative_len(len as f32)) / len);
+                    offsets.push((glam::DVec3::new(i.into(), j.into(), k.into()), g));
+                }
+            }
+        }
+    }
+    let norm: f64 = offsets.iter().map(|(_, g)| g.length_squared()).sum();
+    if norm <= 0.0 {
+        return 0.5;
+    }
+    let step = std::f64::consts::PI / (MODES - 1) as f64;
+    let mut largest = 0.0f64;
+    for a in 0..MODES {
+        for b in 0..MODES {
+            for c in 0..MODES {
+                let theta = glam::DVec3::new(a as f64, b as f64, c as f64) * step;
+                let wave: glam::DVec3 = (offsets.iter())
+                    .map(|&(p, g)| g * theta.dot(p).sin())
+                    .sum();
+                largest = largest.max(wave.length_squared() / norm);
+            }
+        }
+    }
+    (0.5f64).min(1.5 / largest) as f32
+}
+
+/// The relaxation for the widest neighbourhood of `masses`: the smallest
+/// spacing V^⅓ = (m/ρ0)^⅓. Kept in `cache` while that spacing stays the same.
+fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Model) -> f32 {
+    let lightest = masses.par_iter().copied().reduce(|| f32::INFINITY, f32::min);
+    let spacing = (lightest * model.inv_rho0).cbrt();
+    match *cache {
+        Some((s, omega)) if s == spacing => omega,
+        _ => {
+            let omega = relaxation(&model.cubic, spacing);
+            *cache = Some((spacing, omega));
+            omega
+        }
+    }
+}
+
 /// Particles per chunk of the error's mean: a fixed size, so the sum's
 /// order does not depend on the number of threads.
 const MEAN_CHUNK: usize = 4096;
@@ -359,6 +429,10 @@ struct Solve {
     accelerations: Vec<Vec3>,
     /// e_i of the current iteration.
     errors: Vec<f32>,
+    /// The density solve's record of the divergence solve's κ_i.
+    applied: Vec<f32>,
+    /// The last spacing and its [`relaxation`].
+    relaxation: Option<(f32, f32)>,
 }
 
 impl Solve {
@@ -372,6 +446,8 @@ impl Solve {
             kappa: Vec::new(),
             accelerations: Vec::new(),
             errors: Vec::new(),
+            applied: Vec::new(),
+            relaxation: None,
         }
     }
 
@@ -382,6 +458,7 @@ impl Solve {
         if self.target == Target::Divergence && std::env::var("NODIV").is_ok() {
             return Ok(());
         }
+        let omega = cached_relaxation(&mut self.relaxation, particles.masses(), &self.model);
         let who = self.target.name();
         let lists = lists(ctx, particles, who)?;
         let model = &self.model;
@@ -392,6 +469,13 @@ impl Solve {
         }
         self.kappa.clear();
         (self.kappa).extend_from_slice(particles.attribute::<f32>(target.attribute())?);
+        // The step's pressure is both solves' κ: the divergence solve's
+        // total, already applied, and this one's.
+        self.applied.clear();
+        if target == Target::Density && particles.has_attribute(KAPPA_DIVERGENCE) {
+            (self.applied).extend_from_slice(particles.attribute::<f32>(KAPPA_DIVERGENCE)?);
+        }
+        self.applied.resize(n, 0.0);
         let f = particles.fields_mut();
         let (x, m) = (&*f.positions, &*f.masses);
         self.pairs.resize(lists.pairs(), Vec3::ZERO);
@@ -431,7 +515,13 @@ impl Solve {
             .collect_into_vec(&mut self.source);
         (self.kappa.par_iter_mut())
             .zip(self.source.par_iter())
-            .for_each(|(k, &b)| *k = if b < 0.0 && std::env::var("NOWARM").is_err() { 0.5 * *k } else { 0.0 });
+            .for_each(|(k, &b)| {
+                *k = if b < 0.0 && std::env::var("NOWARM").is_err() {
+                    0.5 * *k
+                } else {
+                    0.0
+                }
+            });
         let dfsph = model.dfsph;
         let tolerance = match target {
             Target::Divergence => dfsph.divergence_tolerance,
@@ -459,7 +549,7 @@ impl Solve {
                     }
                     let residual = source[i] - dt * dt * ak;
                     *e = (-residual).max(0.0);
-                    *k = (*k - 0.5 * residual * c.alpha / (dt * dt)).max(0.0);
+                    *k = (*k - omega * residual * c.alpha / (dt * dt)).max(0.0);
                 });
             iterations += 1;
             let error = mean(&self.errors) as f32;
@@ -486,7 +576,8 @@ impl Solve {
                 let rest = model.params.rest_density;
                 (f.pressures.par_iter_mut())
                     .zip(self.kappa.par_iter().zip(factors.par_iter()))
-                    .for_each(|(p, (&k, c))| *p = k * c.rho * c.rho / rest);
+                    .zip(self.applied.par_iter())
+                    .for_each(|((p, (&k, c)), &k0)| *p = (k0 + k) * c.rho * c.rho / rest);
             }
         }
         particles
@@ -668,5 +759,24 @@ impl Processor for Advect {
             .for_each(|(x, &v)| *x += dt * v);
         ctx.invalidate_grid(); // positions moved
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// λ_max of the lattice's Jacobi matrix, against the values of an
+    /// independent sweep (a 24³ grid over [0, 2π)³, in Python): 2.81 at
+    /// h = 2 spacings, 4.37 at 2.5, 7.45 at 3; ω = min(½, 1.5/λ).
+    #[test]
+    fn relaxation_follows_the_neighbourhood() {
+        let h = 0.04;
+        let cubic = CubicSpline::new(h).unwrap();
+        for (ratio, lambda) in [(2.0f32, 2.814f32), (2.5, 4.374), (3.0, 7.451)] {
+            let omega = relaxation(&cubic, h / ratio);
+            let expected = (0.5f32).min(1.5 / lambda);
+            assert!((omega - expected).abs() < 0.01 * expected, "h/s {ratio}: ω {omega}, expected {expected}");
+        }
     }
 }

@@ -9,7 +9,7 @@
 
 use glam::Vec3;
 
-use crate::kernels::{Poly6, Spiky};
+use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 
 /// Neighbours per chunk.
 pub(super) const LANES: usize = 8;
@@ -57,8 +57,6 @@ pub(super) struct LaneKernels {
     h: f32,
     h2: f32,
     poly6: f32,
-    /// b of ∇W_poly6 = −b (h² − r²)² r.
-    poly6_grad: f32,
     spiky: f32,
     /// The smallest |r| divided by: 1e-6 h.
     tiny: f32,
@@ -70,7 +68,6 @@ impl LaneKernels {
             h,
             h2: h * h,
             poly6: poly6.coefficients().0,
-            poly6_grad: poly6.coefficients().1,
             spiky: spiky.coefficient(),
             tiny: h * 1e-6,
         }
@@ -95,17 +92,41 @@ impl LaneKernels {
     }
 }
 
-impl LaneKernels {
-    /// (W, s) per lane with poly6's own gradient, ∇W_poly6 = s r: the
-    /// gradient of the density sum itself (no square root or division).
+/// The cubic spline's W and gradient factor s (∇W = s r) per lane, from
+/// |r|²: the formulas of [`CubicSpline`], without branches (DFSPH's pair
+/// sums).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct LaneCubic {
+    inv_h: f32,
+    /// 8/(πh³).
+    k: f32,
+    /// The smallest |r| divided by: 1e-6 h.
+    tiny: f32,
+}
+
+impl LaneCubic {
+    pub(super) fn new(cubic: &CubicSpline) -> Self {
+        let h = cubic.h();
+        Self {
+            inv_h: 1.0 / h,
+            k: cubic.coefficient(),
+            tiny: h * 1e-6,
+        }
+    }
+
+    /// (W, s) per lane. Beyond h both are 0 through the `max`es; a
+    /// coincident pair (r = 0) has a finite s times a zero offset.
     #[inline(always)]
-    pub(super) fn eval_poly6(&self, r2: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
+    pub(super) fn eval(&self, r2: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
         let mut w = [0.0; LANES];
         let mut s = [0.0; LANES];
         for l in 0..LANES {
-            let d = (self.h2 - r2[l]).max(0.0);
-            w[l] = self.poly6 * d * d * d;
-            s[l] = -self.poly6_grad * d * d;
+            let len = r2[l].sqrt();
+            let q = len * self.inv_h;
+            let a = (1.0 - q).max(0.0);
+            let b = (0.5 - q).max(0.0);
+            w[l] = self.k * (2.0 * a * a * a - 8.0 * b * b * b);
+            s[l] = self.k * self.inv_h * (24.0 * b * b - 6.0 * a * a) / len.max(self.tiny);
         }
         (w, s)
     }

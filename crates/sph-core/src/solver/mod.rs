@@ -117,6 +117,22 @@ impl Solver {
         }
     }
 
+    /// The particle mass for fluid sampled on a cubic lattice of `spacing`
+    /// that starts at rest density with the kernel this solver sums
+    /// densities with: poly6 for WCSPH and PBF
+    /// ([`FluidParams::particle_mass`]), the cubic spline for DFSPH.
+    ///
+    /// # Errors
+    /// A spacing [`FluidParams::lattice_mass`] refuses.
+    pub fn particle_mass(&self, params: &FluidParams, spacing: f32) -> Result<f32> {
+        match self {
+            Solver::Wcsph | Solver::Pbf(_) => params.particle_mass(spacing),
+            Solver::Dfsph(_) => {
+                params.lattice_mass(&crate::kernels::CubicSpline::new(params.h)?, spacing)
+            }
+        }
+    }
+
     /// The solver's program for this fluid and these walls.
     ///
     /// # Errors

@@ -4,7 +4,6 @@
 use glam::Vec3;
 
 use crate::error::{Error, Result, non_negative, positive};
-use crate::kernels::Kernel;
 
 /// Physical parameters of the fluid.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -127,7 +126,18 @@ impl FluidParams {
     /// The particle mass for fluid sampled on a cubic lattice of `spacing`: chosen
     /// so that a particle inside the lattice sums to exactly ρ0 with the poly6
     /// kernel, so fluid starts at rest density rather than a few % off.
+    /// (DFSPH sums densities with the cubic spline:
+    /// [`crate::Solver::particle_mass`] picks the solver's kernel.)
     pub fn particle_mass(&self, spacing: f32) -> Result<f32> {
+        self.lattice_mass(&crate::kernels::Poly6::new(self.h)?, spacing)
+    }
+
+    /// The particle mass for fluid sampled on a cubic lattice of `spacing`
+    /// that sums to exactly ρ0 inside the lattice with `kernel`.
+    ///
+    /// # Errors
+    /// A spacing that is not positive, not below h, or below h/10.
+    pub fn lattice_mass(&self, kernel: &impl crate::kernels::Kernel, spacing: f32) -> Result<f32> {
         positive("spacing", spacing)?;
         if spacing >= self.h {
             return Err(Error::InvalidParameter {
@@ -143,14 +153,13 @@ impl FluidParams {
                 reason: "h / spacing must be at most 10: beyond, each particle would have thousands of neighbours",
             });
         }
-        let poly6 = crate::kernels::Poly6::new(self.h)?;
         let n = (self.h / spacing).ceil() as i32;
         let mut sum = 0.0f64;
         for k in -n..=n {
             for j in -n..=n {
                 for i in -n..=n {
                     let r = Vec3::new(i as f32, j as f32, k as f32) * spacing;
-                    sum += poly6.value(r) as f64;
+                    sum += kernel.value(r) as f64;
                 }
             }
         }

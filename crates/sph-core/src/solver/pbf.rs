@@ -64,7 +64,7 @@ use rayon::prelude::*;
 
 use super::params::FluidParams;
 use super::stations::{Boundaries, BuildGrid};
-use crate::boundary::Boundary;
+use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
@@ -388,7 +388,7 @@ impl Model {
         Ok(Self {
             params,
             pbf,
-            walls: Walls::new(boundary, h, params.rest_density),
+            walls: Walls::new(boundary, WallKernel::new(h), params.rest_density),
             epsilon: pbf.relaxation / (h * h),
             inv_w_dq: 1.0 / poly6.value_r2(dq * dq),
             inv_rho0: 1.0 / params.rest_density,

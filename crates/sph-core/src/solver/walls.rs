@@ -7,24 +7,22 @@ use glam::Vec3;
 
 use crate::boundary::{Boundary, WallKernel};
 
-/// The walls of a boundary, seen by a fluid of smoothing length h and rest
+/// The walls of a boundary, seen by a fluid of one density kernel and rest
 /// density ρ0.
 #[derive(Debug, Clone)]
 pub(crate) struct Walls {
     boundary: Boundary,
     kernel: WallKernel,
-    h: f32,
     rest_density: f32,
 }
 
 impl Walls {
-    /// The walls of `boundary` for a fluid of smoothing length `h` and rest
-    /// density `rest_density`.
-    pub(crate) fn new(boundary: Boundary, h: f32, rest_density: f32) -> Self {
+    /// The walls of `boundary` for a fluid whose density sums `kernel`
+    /// integrates, of rest density `rest_density`.
+    pub(crate) fn new(boundary: Boundary, kernel: WallKernel, rest_density: f32) -> Self {
         Self {
             boundary,
-            kernel: WallKernel::new(h),
-            h,
+            kernel,
             rest_density,
         }
     }
@@ -47,20 +45,37 @@ impl Walls {
     /// would empty the edges of a tank.
     #[inline]
     pub(crate) fn at(&self, x: Vec3) -> (f32, Vec3) {
+        self.united(x, |d| self.kernel.fraction_and_density(d))
+    }
+
+    /// [`Self::at`] with each wall the fluid's lattice of `spacing`
+    /// continued behind it ([`WallKernel::layers_fraction_and_density`]):
+    /// DFSPH's walls, under which a lattice filled to the walls starts at
+    /// rest density.
+    #[inline]
+    pub(crate) fn at_layers(&self, x: Vec3, spacing: f32) -> (f32, Vec3) {
+        self.united(x, |d| self.kernel.layers_fraction_and_density(d, spacing))
+    }
+
+    /// The union of the walls within h of `x`, each of fraction and slope
+    /// `wall(d)` at distance d.
+    #[inline]
+    fn united(&self, x: Vec3, wall: impl Fn(f32) -> (f32, f32)) -> (f32, Vec3) {
         // Up to 8 walls (6 domain walls and obstacles): (1 − f_k, ∇f_k).
         let mut walls = [(1.0f32, Vec3::ZERO); 8];
         let mut count = 0;
         let mut extra = (0.0, Vec3::ZERO); // beyond 8 walls: summed
-        self.boundary.for_each_wall_within(x, self.h, |d, n| {
-            let (f, density) = self.kernel.fraction_and_density(d);
-            let grad = -density * n;
-            if count < walls.len() {
-                walls[count] = (1.0 - f, grad);
-                count += 1;
-            } else {
-                extra = (extra.0 + f, extra.1 + grad);
-            }
-        });
+        self.boundary
+            .for_each_wall_within(x, self.kernel.h(), |d, n| {
+                let (f, density) = wall(d);
+                let grad = -density * n;
+                if count < walls.len() {
+                    walls[count] = (1.0 - f, grad);
+                    count += 1;
+                } else {
+                    extra = (extra.0 + f, extra.1 + grad);
+                }
+            });
         let walls = &walls[..count];
         let outside: f32 = walls.iter().map(|w| w.0).product();
         let mut grad = extra.1;
