@@ -536,7 +536,11 @@ mod tests {
     fn layered_walls_continue_a_lattice() {
         use crate::kernels::{CubicSpline, Kernel, Poly6};
         let s = 0.02f32;
-        for (name, h, tolerance) in [("cubic", 2.0 * s, 1e-3), ("cubic", 2.5 * s, 2e-3), ("poly6", 2.0 * s, 5e-3)] {
+        for (name, h, tolerance) in [
+            ("cubic", 2.0 * s, 1e-3),
+            ("cubic", 2.5 * s, 2e-3),
+            ("poly6", 2.0 * s, 5e-3),
+        ] {
             let (kernel, wall): (Box<dyn Fn(Vec3) -> f32>, _) = if name == "cubic" {
                 let k = CubicSpline::new(h).unwrap();
                 (Box::new(move |r| k.value(r)), WallKernel::cubic_spline(h))
@@ -577,7 +581,10 @@ mod tests {
                     - wall.layers_fraction_and_density(d.max(e) + e, s).0)
                     / (2.0 * e);
                 let slope = wall.layers_fraction_and_density(d.max(e), s).1;
-                assert!((fd - slope).abs() < 2e-3 * slope.abs().max(1.0 / h), "{name} d {d}: {fd} vs {slope}");
+                assert!(
+                    (fd - slope).abs() < 2e-3 * slope.abs().max(1.0 / h),
+                    "{name} d {d}: {fd} vs {slope}"
+                );
             }
         }
     }

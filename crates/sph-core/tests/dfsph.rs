@@ -2,7 +2,8 @@
 //! pressure against ρ0 g depth, rest), the dam break's compression,
 //! determinism across threads, and bad input.
 
-use sph_core::{DfsphParams, Particles, Scene, SolverKind, World};
+use sph_core::glam::Vec3;
+use sph_core::{DfsphParams, Error, Particles, Scene, SolverKind, World};
 
 /// A tank `w` × `w` across, filled to `depth` on a lattice of 0.02 m
 /// (h = 0.04 m, μ = 0.5 Pa·s: the dam-break scene's fluid), run by DFSPH.
@@ -15,7 +16,7 @@ fn tank(w: f32, depth: f32, dfsph: DfsphParams) -> Scene {
 }
 
 /// Positions in the order of the particles' ids (the grid reorders them).
-fn positions_by_id(p: &Particles) -> Vec<sph_core::glam::Vec3> {
+fn positions_by_id(p: &Particles) -> Vec<Vec3> {
     let mut pairs: Vec<_> = p.ids().iter().zip(p.positions()).collect();
     pairs.sort_by_key(|(id, _)| **id);
     pairs.into_iter().map(|(_, &x)| x).collect()
@@ -70,9 +71,7 @@ fn slope(ys: &[f32], ps: &[f32]) -> f64 {
 #[test]
 fn hydrostatic_tank() {
     let (w, depth) = (0.32, 0.2);
-    let mut params = DfsphParams::default();
-    if let Ok(v) = std::env::var("TOL") { params.density_tolerance = v.parse().unwrap(); params.divergence_tolerance = 2.0 * params.density_tolerance; }
-    let scene = tank(w, depth, params);
+    let scene = tank(w, depth, DfsphParams::default());
     let mut world = scene.build_world().unwrap();
     let n = world.particles.len();
     let (mut worst_avg, mut worst_max, mut unconverged) = (0.0f32, 0.0f32, 0);
@@ -141,4 +140,230 @@ fn hydrostatic_tank() {
     // 8 cm cells, and 5 mm/s of jitter within them).
     assert!(rms < 0.02, "rms speed {rms} m/s");
     assert!(drift < 0.005, "rms drift {drift} m in a second");
+}
+
+/// The largest single-particle compression and the average compression
+/// over the first second of the demo's slab dam break (`dam-break`, 1,200
+/// particles), with the frame's steps, iterations and unconverged solves.
+fn dam_break_errors(kind: SolverKind) -> (f32, f32, u32, u32, u32, u32) {
+    let scene = Scene::dam_break(0.25, 0.08, 0.02).with_solver(kind);
+    let mut world = scene.build_world().unwrap();
+    let n = world.particles.len();
+    let (mut worst_avg, mut worst_max) = (0.0f32, 0.0f32);
+    let (mut steps, mut iterations, mut divergence, mut unconverged) = (0, 0, 0, 0);
+    for _ in 0..60 {
+        let r = world.advance(1.0 / 60.0).unwrap();
+        worst_avg = worst_avg.max(r.density_error_avg);
+        worst_max = worst_max.max(r.density_error_max);
+        steps += r.substeps;
+        iterations += r.iterations;
+        divergence += r.divergence_iterations;
+        unconverged += r.unconverged;
+        assert!(contained(&world, &scene));
+    }
+    assert_eq!(world.particles.len(), n);
+    (
+        worst_max,
+        worst_avg,
+        steps,
+        iterations,
+        divergence,
+        unconverged,
+    )
+}
+
+/// DFSPH against WCSPH on the dam break's first second: the densities each
+/// step starts from (after the last step's motion), every step.
+///
+/// Measured (this test's output): DFSPH at most 2.3 % in a single particle
+/// and 0.077 % on average, in 903 steps; WCSPH 16.5 % and 0.45 %, in
+/// 3,057. (The issue's 4.2–4.8 % for WCSPH were frame ends, recomputed.)
+/// The issue's goal for the single particle, 1 %, is not met: the solves
+/// are linear in the step's motion, and where the front meets the far wall
+/// at 3 m/s a particle moves a third of a spacing in a step, far enough
+/// for the kernel's curvature to matter. (At λ = 0.05 it is 1.2 %.)
+#[test]
+fn dam_break_compression() {
+    let (max, avg, steps, iterations, divergence, unconverged) =
+        dam_break_errors(SolverKind::Dfsph);
+    let (wc_max, wc_avg, wc_steps, ..) = dam_break_errors(SolverKind::Wcsph);
+    println!(
+        "DFSPH: {steps} steps, {:.1} density + {:.1} divergence iterations per step, \
+         {unconverged} unconverged; compression ≤ {:.3} % max, ≤ {:.4} % avg\n\
+         WCSPH: {wc_steps} steps; compression ≤ {:.3} % max, ≤ {:.4} % avg",
+        iterations as f64 / steps as f64,
+        divergence as f64 / steps as f64,
+        100.0 * max,
+        100.0 * avg,
+        100.0 * wc_max,
+        100.0 * wc_avg
+    );
+    assert!(avg <= 0.001, "average compression {avg}");
+    assert!(max <= 0.03, "largest compression {max}");
+    assert!(
+        max <= 0.5 * wc_max,
+        "largest compression {max}, WCSPH {wc_max}"
+    );
+    assert_eq!(unconverged, 0);
+    // Steps set by the flow: at most Ritter's 2√(gH) ≈ 4.4 m/s allows
+    // λh/v ≈ 0.9 ms; WCSPH's speed of sound about 0.3 ms.
+    assert!(steps * 3 < wc_steps, "{steps} steps, WCSPH {wc_steps}");
+}
+
+/// Bitwise the same particles and reports for 1, 2 and 4 threads: the
+/// solves' error means are summed in fixed chunks in a fixed order.
+#[test]
+fn identical_for_1_2_and_4_threads() {
+    let scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Dfsph);
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| {
+                let mut world = scene.build_world().unwrap();
+                let mut reports = Vec::new();
+                for _ in 0..20 {
+                    let r = world.advance(1.0 / 60.0).unwrap();
+                    reports.push((
+                        r.substeps,
+                        r.iterations,
+                        r.divergence_iterations,
+                        r.density_error_max.to_bits(),
+                    ));
+                }
+                let p = &world.particles;
+                let bits = |v: &[Vec3]| {
+                    v.iter()
+                        .flat_map(|x| x.to_array().map(f32::to_bits))
+                        .collect::<Vec<_>>()
+                };
+                let pressures: Vec<u32> = p.pressures().iter().map(|x| x.to_bits()).collect();
+                (
+                    p.ids().to_vec(),
+                    bits(p.positions()),
+                    bits(p.velocities()),
+                    pressures,
+                    reports,
+                )
+            })
+    };
+    let one = run(1);
+    assert_eq!(one, run(2));
+    assert_eq!(one, run(4));
+}
+
+/// Every DFSPH parameter that is zero, negative, NaN or absurd is an error
+/// naming it, from the library, through a scene, and in a file.
+#[test]
+fn bad_parameters_are_errors_naming_the_field() {
+    let d = DfsphParams::default();
+    let cases = [
+        ("dfsph.cfl", DfsphParams { cfl: 0.0, ..d }),
+        ("dfsph.cfl", DfsphParams { cfl: f32::NAN, ..d }),
+        ("dfsph.cfl", DfsphParams { cfl: 5.0, ..d }),
+        ("dfsph.max_dt", DfsphParams { max_dt: -1.0, ..d }),
+        (
+            "dfsph.max_dt",
+            DfsphParams {
+                max_dt: f32::INFINITY,
+                ..d
+            },
+        ),
+        (
+            "dfsph.density_tolerance",
+            DfsphParams {
+                density_tolerance: 0.0,
+                ..d
+            },
+        ),
+        (
+            "dfsph.density_tolerance",
+            DfsphParams {
+                density_tolerance: f32::NAN,
+                ..d
+            },
+        ),
+        (
+            "dfsph.density_tolerance",
+            DfsphParams {
+                density_tolerance: -1e-3,
+                ..d
+            },
+        ),
+        (
+            "dfsph.divergence_tolerance",
+            DfsphParams {
+                divergence_tolerance: 0.0,
+                ..d
+            },
+        ),
+        (
+            "dfsph.divergence_tolerance",
+            DfsphParams {
+                divergence_tolerance: f32::NAN,
+                ..d
+            },
+        ),
+        (
+            "dfsph.max_iterations",
+            DfsphParams {
+                max_iterations: 0,
+                ..d
+            },
+        ),
+        (
+            "dfsph.max_iterations",
+            DfsphParams {
+                max_iterations: u32::MAX,
+                ..d
+            },
+        ),
+    ];
+    for (name, p) in cases {
+        match p.validate() {
+            Err(Error::InvalidParameter { name: got, .. }) => assert_eq!(got, name, "{p:?}"),
+            other => panic!("{p:?}: {other:?}"),
+        }
+        let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Dfsph);
+        scene.solver.dfsph = Some(p);
+        let e = scene.build_world().unwrap_err().to_string();
+        assert!(e.contains(&format!("solver.{name}")), "{e}");
+    }
+    let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Dfsph);
+    scene.solver.dfsph = Some(d);
+    let text = scene.to_toml();
+    assert!(text.contains("max_iterations = 100"), "{text}");
+    let e = Scene::from_toml(&text.replace("max_iterations = 100", "max_iterations = 0"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("solver.dfsph.max_iterations"), "{e}");
+    assert_eq!(Scene::from_toml(&text).unwrap().dfsph_params(), d);
+}
+
+/// Particles started a third of the spacing apart are 27 times denser than
+/// rest: the density solve cannot bring them back within its two
+/// iterations, so the run stops with `Error::Unstable` and a hint rather
+/// than flying apart.
+#[test]
+fn a_failed_solve_stops_the_run() {
+    let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Dfsph);
+    scene.solver.dfsph = Some(DfsphParams {
+        max_iterations: 2,
+        ..DfsphParams::default()
+    });
+    let mut particles = scene.particles().unwrap();
+    let centre = Vec3::new(0.05, 0.05, 0.02);
+    let f = particles.fields_mut();
+    for x in f.positions.iter_mut() {
+        *x = centre + (*x - centre) / 3.0;
+    }
+    let mut world = scene.world_with(particles).unwrap();
+    match world.advance(1.0 / 60.0) {
+        Err(Error::Unstable { what, hint, .. }) => {
+            assert!(what.contains("solve diverged"), "{what}");
+            assert!(hint.contains("solver.dfsph"), "{hint}");
+        }
+        other => panic!("{other:?}"),
+    }
 }
