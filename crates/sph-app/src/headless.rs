@@ -32,7 +32,8 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     writeln!(
         csv,
         "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
-         solver,substeps,iterations,density_error_avg,density_error_max,clamped"
+         solver,substeps,iterations,density_error_avg,density_error_max,clamped,\
+         divergence_iterations,unconverged"
     )
     .map_err(|e| AppError::output(&csv_path, e))?;
 
@@ -183,7 +184,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             };
             writeln!(
                 csv,
-                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{}",
+                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{},{},{}",
                 s.time,
                 s.particles,
                 s.surfels,
@@ -196,7 +197,9 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
                 s.iterations,
                 error(s.density_error_avg),
                 error(s.density_error_max),
-                s.clamped
+                s.clamped,
+                s.divergence_iterations,
+                s.unconverged
             )
             .and_then(|()| csv.flush())
             .map_err(|e| AppError::output(&csv_path, e))?;

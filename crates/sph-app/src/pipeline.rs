@@ -28,7 +28,8 @@ pub struct FrameStats {
     pub solver: sph_core::SolverKind,
     /// Solver substeps of the frame.
     pub substeps: u32,
-    /// Constraint iterations of the frame, all substeps (0 for WCSPH).
+    /// Constraint (PBF) or density-solve (DFSPH) iterations of the frame,
+    /// all substeps (0 for WCSPH).
     pub iterations: u32,
     /// Average density error max(ρ/ρ0 − 1, 0) of the frame
     /// ([`sph_core::FrameReport::density_error_avg`]); NaN where the GPU
@@ -38,6 +39,11 @@ pub struct FrameStats {
     pub density_error_max: f32,
     /// Particles the solver's guard slowed in the frame (PBF).
     pub clamped: u64,
+    /// Divergence-solve iterations of the frame, all substeps (DFSPH).
+    pub divergence_iterations: u32,
+    /// Solves that stopped at their iteration limit above their tolerance
+    /// (DFSPH).
+    pub unconverged: u32,
     /// Simulation wall time (ms).
     pub step_ms: f64,
     /// Extraction wall time (ms).
@@ -210,6 +216,8 @@ impl Pipeline {
                     substeps,
                     dt_range: (f32::NAN, f32::NAN),
                     iterations: 0,
+                    divergence_iterations: 0,
+                    unconverged: 0,
                     density_error_avg: f32::NAN,
                     density_error_max: f32::NAN,
                     clamped: 0,
@@ -229,6 +237,8 @@ impl Pipeline {
         self.stats.density_error_avg = report.density_error_avg;
         self.stats.density_error_max = report.density_error_max;
         self.stats.clamped = report.clamped;
+        self.stats.divergence_iterations = report.divergence_iterations;
+        self.stats.unconverged = report.unconverged;
         self.stats.time = report.time;
         self.stats.frame += 1;
         self.stats.particles = self.world.particles.len();

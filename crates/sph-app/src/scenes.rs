@@ -97,7 +97,7 @@ mod tests {
 
     /// Every built-in scene runs a frame with each solver, PBF by default.
     #[test]
-    fn built_ins_run_with_both_solvers() {
+    fn built_ins_run_with_every_solver() {
         for (name, _, make) in BUILT_IN {
             assert_eq!(make().solver.kind, SolverKind::Pbf, "{name}");
             for kind in SolverKind::ALL {

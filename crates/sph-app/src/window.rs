@@ -508,6 +508,13 @@ impl App {
                         stats.iterations, stats.clamped
                     ),
                     SolverKind::Wcsph => "adaptive step, no iterations".into(),
+                    SolverKind::Dfsph => format!(
+                        "{} steps, {} density + {} divergence iterations per frame, {} unconverged",
+                        stats.substeps,
+                        stats.iterations,
+                        stats.divergence_iterations,
+                        stats.unconverged
+                    ),
                 });
                 ui.label(format!(
                     "density error {:.2} % avg, {:.1} % max",

@@ -74,7 +74,8 @@ fn headless_frames_csv_and_exports() {
     assert_eq!(
         csv.lines().next().unwrap(),
         "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
-         solver,substeps,iterations,density_error_avg,density_error_max,clamped"
+         solver,substeps,iterations,density_error_avg,density_error_max,clamped,\
+         divergence_iterations,unconverged"
     );
     assert_eq!(rows.len(), 3, "{csv}");
     for (i, row) in rows.iter().enumerate() {
@@ -93,6 +94,11 @@ fn headless_frames_csv_and_exports() {
             "{row:?}"
         );
         assert_eq!(row[14], "0", "no particle clamped: {row:?}");
+        assert_eq!(
+            &row[15..17],
+            ["0", "0"],
+            "no divergence solve in PBF: {row:?}"
+        );
         // The render passes' GPU time (lavapipe has timestamp queries): more
         // than nothing, less than the frame's render with its read-back.
         if let Ok(gpu_ms) = row[8].parse::<f64>() {
@@ -454,8 +460,9 @@ fn cull_extracts_only_front_facing_surfels() {
     assert!(0 < front && front < 3 * all / 4, "{front} of {all} surfels");
 }
 
-/// The GPU path runs WCSPH only: `--gpu-sim` on a PBF scene is refused with
-/// the way out, not switched silently; `--solver wcsph` runs it.
+/// The GPU path runs WCSPH only: `--gpu-sim` on a PBF or DFSPH scene is
+/// refused with the way out, not switched silently; `--solver wcsph` runs
+/// it.
 #[test]
 fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
     let out = scratch("gpu-sim-pbf");
@@ -483,6 +490,13 @@ fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
         err.contains("the GPU path runs only the thesis's WCSPH, and this scene runs pbf")
             && err.contains("--solver wcsph"),
         "{err}"
+    );
+    let o = app(&[&args[..], &["--solver", "dfsph"]].concat());
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("and this scene runs dfsph"),
+        "{}",
+        stderr(&o)
     );
     let o = app(&[&args[..], &["--solver", "wcsph"]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
@@ -520,9 +534,40 @@ fn solver_flag_chooses_and_bad_names_are_errors() {
         row[10].parse::<u32>().unwrap() > 10,
         "WCSPH's small steps: {csv}"
     );
+    // DFSPH: steps by the flow's speed, both solves' iterations, all
+    // converged.
+    let o = app(&[
+        "--headless",
+        "--frames",
+        "2",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--solver",
+        "dfsph",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    for line in csv.lines().skip(1) {
+        let row: Vec<&str> = line.split(',').collect();
+        assert_eq!(row[9], "dfsph", "{csv}");
+        let number = |k: usize| row[k].parse::<u32>().unwrap();
+        assert!(number(10) >= 1 && number(11) >= 2 * number(10), "{csv}");
+        assert!(number(15) >= number(10), "{csv}");
+        assert_eq!(row[16], "0", "unconverged: {csv}");
+        let max: f32 = row[13].parse().unwrap();
+        assert!(max < 0.02, "{csv}");
+    }
     let o = app(&["--headless", "--solver", "flip"]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("one of wcsph, pbf"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("one of wcsph, pbf, dfsph"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 /// `--gif` writes the run as a looping animated GIF that decodes, one frame
