@@ -5,14 +5,15 @@
 //!
 //! For each row it prints the wall seconds per simulated second of the
 //! simulation alone and of simulation + surfel extraction (2 iterations,
-//! the demo's default), the substeps and constraint iterations per frame,
+//! the demo's default), the substeps and iterations per frame (PBF's
+//! constraint iterations; DFSPH's density and divergence solves'),
 //! and the average and largest density error, then the largest particle
 //! count each solver holds at real time (wall s per simulated s ≤ 1), found
 //! by bisection on the spacing (seven runs per solver), and the largest
 //! row at real time.
 //!
 //! ```text
-//! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf] [--max-particles N]
+//! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf,dfsph] [--max-particles N]
 //!     [--pbf substeps=2,iterations=4]
 //! ```
 
@@ -33,6 +34,7 @@ struct Row {
     extract_s: f64,
     substeps: f64,
     iterations: f64,
+    divergence: f64,
     error_avg: f64,
     error_max: f32,
     clamped: u64,
@@ -62,6 +64,7 @@ fn run(
         extract_s: 0.0,
         substeps: 0.0,
         iterations: 0.0,
+        divergence: 0.0,
         error_avg: 0.0,
         error_max: 0.0,
         clamped: 0,
@@ -75,6 +78,7 @@ fn run(
         row.extract_s += start.elapsed().as_secs_f64();
         row.substeps += f64::from(report.substeps);
         row.iterations += f64::from(report.iterations);
+        row.divergence += f64::from(report.divergence_iterations);
         row.error_avg += f64::from(report.density_error_avg);
         row.error_max = row.error_max.max(report.density_error_max);
         row.clamped += report.clamped;
@@ -82,6 +86,7 @@ fn run(
     let frames = f64::from(frames);
     row.substeps /= frames;
     row.iterations /= frames;
+    row.divergence /= frames;
     row.error_avg /= frames;
     Ok(row)
 }
@@ -120,13 +125,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rayon::current_num_threads()
     );
     println!(
-        "{:<6} {:>9} {:>12} {:>14} {:>9} {:>11} {:>10} {:>10} {:>8}",
+        "{:<6} {:>9} {:>12} {:>14} {:>9} {:>11} {:>8} {:>10} {:>10} {:>8}",
         "solver",
         "particles",
         "sim s/sim s",
         "+extract s/s",
         "substeps",
         "iterations",
+        "div it",
         "err avg %",
         "err max %",
         "clamped"
@@ -141,13 +147,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let r = run(kind, spacing, seconds, pbf.as_ref())?;
             let per = |s: f64| s / seconds;
             println!(
-                "{:<6} {:>9} {:>12.3} {:>14.3} {:>9.1} {:>11.1} {:>10.3} {:>10.2} {:>8}",
+                "{:<6} {:>9} {:>12.3} {:>14.3} {:>9.1} {:>11.1} {:>8.1} {:>10.3} {:>10.2} {:>8}",
                 r.solver.name(),
                 r.particles,
                 per(r.sim_s),
                 per(r.sim_s + r.extract_s),
                 r.substeps,
                 r.iterations,
+                r.divergence,
                 r.error_avg * 100.0,
                 r.error_max * 100.0,
                 r.clamped

@@ -12,7 +12,8 @@
 //! | Algorithm 1 | station | processor |
 //! |---|---|---|
 //! | find neighbours | `grid`, `neighbours` | [`BuildGrid`], [`FindNeighbours`] |
-//! | compute ρ_i, α_i; correct the divergence error (Algorithm 2) | `divergence` | [`DivergenceSolve`] |
+//! | compute ρ_i, α_i | `factors` | [`Factors`] |
+//! | correct the divergence error (Algorithm 2) | `divergence` | [`DivergenceSolve`] |
 //! | non-pressure forces | `forces`, `viscosity` | [`BodyForces`], [`Viscosity`] |
 //! | Δt by the CFL condition | (the [`crate::World`]'s clock) | [`DfsphParams::cfl`] |
 //! | v* ← v + Δt a; correct the density error (Algorithm 3) | `density` | [`DensitySolve`] |
@@ -81,6 +82,8 @@
 //!   [`FluidParams::viscosity`] μ in Pa·s, whose step limit
 //!   [`FluidParams::viscous_dt`] the clock keeps. Surface tension is not
 //!   applied.
+
+use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -216,24 +219,33 @@ impl DfsphParams {
     }
 }
 
-/// The DFSPH program: grid → neighbours → divergence → forces → viscosity
-/// → density → advect → boundaries.
+/// The DFSPH program: grid → neighbours → factors → divergence → forces →
+/// viscosity → density → advect → boundaries.
 ///
 /// # Errors
 /// Parameters or a boundary that do not validate.
 pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Program> {
-    let model = Model::new(params, dfsph, boundary.clone())?;
+    let model = Arc::new(Model::new(params, dfsph, boundary.clone())?);
+    let shared = Shared::default();
     let mut program = Program::new("dfsph");
     program
         .push(BuildGrid::new(params.h, 1))
         .push(FindNeighbours::new(params.h))
+        .push(Factors {
+            model: model.clone(),
+            shared: shared.clone(),
+        })
         .push(DivergenceSolve(Solve::new(
             model.clone(),
+            shared.clone(),
             Target::Divergence,
         )))
         .push(BodyForces::new(params.gravity))
-        .push(Viscosity::with_model(model.clone()))
-        .push(DensitySolve(Solve::new(model, Target::Density)))
+        .push(Viscosity {
+            model: model.clone(),
+            out: Vec::new(),
+        })
+        .push(DensitySolve(Solve::new(model, shared, Target::Density)))
         .push(Advect)
         .push(Boundaries::new(boundary)?);
     Ok(program)
@@ -292,7 +304,8 @@ impl Model {
     fn factor(&self, i: usize, x: &[Vec3], m: &[f32], list: &[u32], pairs: &mut [Vec3]) -> Factor {
         let xi = x[i];
         // The walls continue the particle's lattice: spacing V_i^⅓.
-        let (rho_wall, wall) = self.walls.at_layers(xi, (m[i] * self.inv_rho0).cbrt());
+        let spacing = (m[i] * self.inv_rho0).cbrt();
+        let (rho_wall, wall) = self.walls.at_layers(xi, spacing);
         // Per lane: ρ, g by axis, Σ|G_ij|².
         let mut acc = [[0.0f32; LANES]; 5];
         for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
@@ -322,6 +335,7 @@ impl Model {
             wall,
             fraction: rho_wall * self.inv_rho0,
             pairs: total(&acc[4]),
+            spacing,
         }
     }
 }
@@ -341,6 +355,8 @@ struct Factor {
     fraction: f32,
     /// Σ_j |G_ij|² (1/m²).
     pairs: f32,
+    /// The particle's lattice spacing V_i^⅓ (m), for the walls' layers.
+    spacing: f32,
 }
 
 /// Which error a [`Solve`] drives to its tolerance.
@@ -446,70 +462,116 @@ fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Mod
 /// order does not depend on the number of threads.
 const MEAN_CHUNK: usize = 4096;
 
-/// The mean of `values`, summed in fixed chunks in a fixed order.
-fn mean(values: &[f32]) -> f64 {
-    if values.is_empty() {
-        return 0.0;
+/// The factors of the step's positions, which the `factors` station
+/// computes and both solves read: per particle, then G_ij per pair in the
+/// neighbour lists' order.
+#[derive(Debug, Default)]
+struct Linearisation {
+    factors: Vec<Factor>,
+    pairs: Vec<Vec3>,
+}
+
+/// The [`Linearisation`] the stations of one program share.
+type Shared = Arc<Mutex<Linearisation>>;
+
+/// Locks the shared factors (a poisoned lock, from a panic elsewhere,
+/// still holds whole vectors).
+fn lock(shared: &Shared) -> std::sync::MutexGuard<'_, Linearisation> {
+    shared
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+}
+
+/// Algorithm 1's "compute densities ρ_i and factors α_i": the densities
+/// (into [`Particles::densities`]), α_i, g_i, the walls' term and G_ij of
+/// the step's positions, once for both solves (nothing between them moves
+/// a particle).
+#[derive(Debug)]
+pub struct Factors {
+    model: Arc<Model>,
+    shared: Shared,
+}
+
+impl Processor for Factors {
+    fn name(&self) -> &str {
+        "factors"
     }
-    let sums: Vec<f64> = values
-        .par_chunks(MEAN_CHUNK)
-        .map(|c| c.iter().map(|&e| f64::from(e)).sum::<f64>())
-        .collect();
-    sums.iter().sum::<f64>() / values.len() as f64
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let lists = lists(ctx, particles, "factors")?;
+        let model = &*self.model;
+        let mut shared = lock(&self.shared);
+        let Linearisation { factors, pairs } = &mut *shared;
+        let f = particles.fields_mut();
+        let (x, m) = (&*f.positions, &*f.masses);
+        pairs.resize(lists.pairs(), Vec3::ZERO);
+        factors.resize(x.len(), Factor::default());
+        lists.par_map_rows(factors, pairs, |i, list, pairs| {
+            model.factor(i, x, m, list, pairs)
+        });
+        (f.densities.par_iter_mut())
+            .zip(factors.par_iter())
+            .for_each(|(rho, c)| *rho = c.rho);
+        Ok(())
+    }
+}
+
+/// Particle i's share of a solve: the walls' gradient the solve linearises
+/// with, its α, and the source b_i.
+#[derive(Debug, Clone, Copy, Default)]
+struct Row {
+    wall: Vec3,
+    alpha: f32,
+    source: f32,
 }
 
 /// The Jacobi solve both pressure stations run, with its working memory.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 struct Solve {
-    model: Model,
+    model: Arc<Model>,
+    shared: Shared,
     target: Target,
-    factors: Vec<Factor>,
-    pairs: Vec<Vec3>,
-    /// The source b_i: the density change (over ρ0) to undo.
-    source: Vec<f32>,
+    rows: Vec<Row>,
     /// κ_i (m²/s²), warm start included.
     kappa: Vec<f32>,
     /// The pressure accelerations of κ.
     accelerations: Vec<Vec3>,
-    /// e_i of the current iteration.
-    errors: Vec<f32>,
     /// The density solve's record of the divergence solve's κ_i.
     applied: Vec<f32>,
     /// The last spacing and its [`relaxation`].
     relaxation: Option<(f32, f32)>,
-    /// Per particle, the walls' gradient the solve linearises with and its
-    /// α: ∇f_i and α_i for the divergence solve; at the predicted position
-    /// x_i + Δt v*_i for the density solve.
-    linear: Vec<(Vec3, f32)>,
 }
 
 impl Solve {
-    fn new(model: Model, target: Target) -> Self {
+    fn new(model: Arc<Model>, shared: Shared, target: Target) -> Self {
         Self {
             model,
+            shared,
             target,
-            factors: Vec::new(),
-            pairs: Vec::new(),
-            source: Vec::new(),
+            rows: Vec::new(),
             kappa: Vec::new(),
             accelerations: Vec::new(),
-            errors: Vec::new(),
             applied: Vec::new(),
             relaxation: None,
-            linear: Vec::new(),
         }
     }
 
-    /// Densities and factors of the current positions, then the iterations
-    /// for κ, then the velocities. Writes the densities, and for the
-    /// density solve the pressures.
+    /// The iterations for κ on the shared factors, then the velocities.
+    /// The density solve first adds the non-pressure forces (v* = v + Δt a)
+    /// and at the end writes the pressures.
     fn run(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let omega = cached_relaxation(&mut self.relaxation, particles.masses(), &self.model);
-        let who = self.target.name();
-        let lists = lists(ctx, particles, who)?;
-        let model = &self.model;
         let (dt, target) = (ctx.dt, self.target);
+        let lists = lists(ctx, particles, target.name())?;
+        let model = &*self.model;
         let n = particles.len();
+        let shared = lock(&self.shared);
+        let (factors, pairs) = (&shared.factors, &shared.pairs);
+        if factors.len() != n || pairs.len() != lists.pairs() {
+            return Err(Error::Pipeline {
+                processor: target.name(),
+                reason: "needs this step's factors: put the `factors` station after `neighbours` and before it, with no processor between that adds, removes or moves particles",
+            });
+        }
         if !particles.has_attribute(target.attribute()) {
             particles.add_attribute(target.attribute(), 0.0f32)?;
         }
@@ -523,101 +585,88 @@ impl Solve {
         }
         self.applied.resize(n, 0.0);
         let f = particles.fields_mut();
-        let (x, m) = (&*f.positions, &*f.masses);
-        self.pairs.resize(lists.pairs(), Vec3::ZERO);
-        self.factors.resize(n, Factor::default());
-        lists.par_map_rows(&mut self.factors, &mut self.pairs, |i, list, pairs| {
-            model.factor(i, x, m, list, pairs)
-        });
-        (f.densities.par_iter_mut())
-            .zip(self.factors.par_iter())
-            .for_each(|(rho, c)| *rho = c.rho);
-        let v = f.velocities;
+        let x = &*f.positions;
         if target == Target::Density {
             // v* = v + Δt a: the non-pressure forces.
-            (v.par_iter_mut())
+            (f.velocities.par_iter_mut())
                 .zip(f.accelerations.par_iter())
                 .for_each(|(v, &a)| *v += dt * a);
         }
-        let (factors, pairs) = (&self.factors, &self.pairs);
+        // Per particle, the source b_i, the density change to undo:
+        // −Δt DS_i/Dt, or 1 − (ρ_i/ρ0 − f_i + f̃_i + Δt Σ_j (v_i − v_j)·G_ij).
         // The walls' term is steep and convex near a wall: linearised where
         // the particle is, it lets a particle that reaches a wall within the
         // step in too far. The density solve takes it where the step would
         // leave the particle, f̃_i = f(x_i + Δt v*_i), and linearises there.
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let c = factors[i];
-                match target {
-                    Target::Divergence => (c.wall, c.alpha),
-                    Target::Density => {
-                        let s = (m[i] * model.inv_rho0).cbrt();
-                        let (_, wall) = model.walls.at_layers(x[i] + dt * v[i], s);
-                        let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
-                        (wall, model.inverse(sum))
-                    }
-                }
-            })
-            .collect_into_vec(&mut self.linear);
-        // The source b_i, the density change to undo: −Δt DS_i/Dt, or
-        // 1 − (ρ_i/ρ0 − f_i + f̃_i + Δt Σ_j (v_i − v_j)·G_ij). The warm
-        // start: half the last step's κ where the particle would be
-        // compressed, 0 elsewhere.
+        // The warm start: half the last step's κ where the source
+        // compresses, 0 elsewhere.
         let inv_rho0 = model.inv_rho0;
-        (0..n)
-            .into_par_iter()
-            .map(|i| {
+        let v = &*f.velocities;
+        self.rows.resize(n, Row::default());
+        (self.rows.par_iter_mut())
+            .zip(self.kappa.par_iter_mut())
+            .enumerate()
+            .for_each(|(i, (row, k))| {
                 let c = factors[i];
                 let vi = v[i];
                 let mut rate = 0.0;
                 for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
                     rate += (vi - v[j as usize]).dot(*g);
                 }
-                match target {
-                    Target::Divergence => -dt * (rate + vi.dot(c.wall)),
+                *row = match target {
+                    Target::Divergence => Row {
+                        wall: c.wall,
+                        alpha: c.alpha,
+                        source: -dt * (rate + vi.dot(c.wall)),
+                    },
                     Target::Density => {
-                        let s = (m[i] * model.inv_rho0).cbrt();
-                        let (rho_wall, _) = model.walls.at_layers(x[i] + dt * vi, s);
+                        let (rho_wall, wall) = model.walls.at_layers(x[i] + dt * vi, c.spacing);
                         let walls = rho_wall * inv_rho0 - c.fraction;
-                        1.0 - (c.rho * inv_rho0 + walls + dt * rate)
+                        let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
+                        Row {
+                            wall,
+                            alpha: model.inverse(sum),
+                            source: 1.0 - (c.rho * inv_rho0 + walls + dt * rate),
+                        }
                     }
-                }
-            })
-            .collect_into_vec(&mut self.source);
-        (self.kappa.par_iter_mut())
-            .zip(self.source.par_iter())
-            .for_each(|(k, &b)| *k = if b < 0.0 { 0.5 * *k } else { 0.0 });
+                };
+                *k = if row.source < 0.0 { 0.5 * *k } else { 0.0 };
+            });
         let dfsph = model.dfsph;
         let tolerance = match target {
             Target::Divergence => dfsph.divergence_tolerance,
             Target::Density => dfsph.density_tolerance,
         };
-        self.errors.resize(n, 0.0);
         let (mut iterations, mut first) = (0, None);
         let error = loop {
             accelerations(lists, factors, pairs, &self.kappa, &mut self.accelerations);
             // (Aκ)_i = Δt² (Σ_j (a_i − a_j)·G_ij + a_i·∇f_i): the density
             // change the pressure accelerations make over the step. Each κ_i
-            // moves by half its Jacobi step towards (Aκ)_i = b_i, projected to
-            // κ_i ≥ 0; e_i = max((Aκ)_i − b_i, 0) is the compression left.
-            let a = &self.accelerations;
-            let (source, linear) = (&self.source, &self.linear);
-            (self.kappa.par_iter_mut())
-                .zip(self.errors.par_iter_mut())
+            // moves by ω times its Jacobi step towards (Aκ)_i = b_i,
+            // projected to κ_i ≥ 0; e_i = max((Aκ)_i − b_i, 0) is the
+            // compression left, summed in fixed chunks.
+            let (a, rows) = (&self.accelerations, &self.rows);
+            let sums: Vec<f64> = (self.kappa.par_chunks_mut(MEAN_CHUNK))
                 .enumerate()
-                .for_each(|(i, (k, e))| {
-                    let (wall, alpha) = linear[i];
-                    let ai = a[i];
-                    let mut ak = ai.dot(wall);
-                    for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
-                        ak += (ai - a[j as usize]).dot(*g);
+                .map(|(chunk, ks)| {
+                    let mut sum = 0.0f64;
+                    for (l, k) in ks.iter_mut().enumerate() {
+                        let i = chunk * MEAN_CHUNK + l;
+                        let row = rows[i];
+                        let ai = a[i];
+                        let mut ak = ai.dot(row.wall);
+                        for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
+                            ak += (ai - a[j as usize]).dot(*g);
+                        }
+                        let residual = row.source - dt * dt * ak;
+                        sum += f64::from((-residual).max(0.0));
+                        *k = (*k - omega * residual * row.alpha / (dt * dt)).max(0.0);
                     }
-                    let residual = source[i] - dt * dt * ak;
-                    *e = (-residual).max(0.0);
-                    *k = (*k - omega * residual * alpha / (dt * dt)).max(0.0);
-                });
+                    sum
+                })
+                .collect();
             iterations += 1;
-            let error = mean(&self.errors) as f32;
+            let error = (sums.iter().sum::<f64>() / n.max(1) as f64) as f32;
             let first = *first.get_or_insert(error);
             if !error.is_finite() || (error > MAX_MEAN_ERROR && error >= first && iterations > 1) {
                 return Err(self.unstable(ctx, error, first, iterations));
@@ -633,10 +682,11 @@ impl Solve {
                 break error;
             }
         };
-        accelerations(lists, factors, pairs, &self.kappa, &mut self.accelerations);
-        (v.par_iter_mut())
-            .zip(self.accelerations.par_iter())
-            .for_each(|(v, &a)| *v += dt * a);
+        // v ← v + Δt a(κ).
+        let kappa = &self.kappa;
+        f.velocities.par_iter_mut().enumerate().for_each(|(i, v)| {
+            *v += dt * acceleration(i, lists, factors, pairs, kappa);
+        });
         if error > tolerance {
             ctx.counters.unconverged += 1;
         }
@@ -646,11 +696,12 @@ impl Solve {
                 ctx.counters.iterations += iterations;
                 let rest = model.params.rest_density;
                 (f.pressures.par_iter_mut())
-                    .zip(self.kappa.par_iter().zip(factors.par_iter()))
+                    .zip(kappa.par_iter().zip(factors.par_iter()))
                     .zip(self.applied.par_iter())
                     .for_each(|((p, (&k, c)), &k0)| *p = (k0 + k) * c.rho * c.rho / rest);
             }
         }
+        drop(shared);
         particles
             .attribute_mut::<f32>(target.attribute())?
             .copy_from_slice(&self.kappa);
@@ -679,8 +730,24 @@ impl Solve {
     }
 }
 
-/// The pressure accelerations of `kappa`:
+/// Particle i's pressure acceleration under `kappa`:
 /// a_i = −(κ_i g_i + Σ_j κ_j G_ij) = −Σ_j V_j (κ_i + κ_j)∇W_ij − κ_i ∇f_i.
+#[inline]
+fn acceleration(
+    i: usize,
+    lists: &NeighbourLists,
+    factors: &[Factor],
+    pairs: &[Vec3],
+    kappa: &[f32],
+) -> Vec3 {
+    let mut a = kappa[i] * factors[i].grad;
+    for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
+        a += kappa[j as usize] * *g;
+    }
+    -a
+}
+
+/// Every particle's [`acceleration`] into `out`.
 fn accelerations(
     lists: &NeighbourLists,
     factors: &[Factor],
@@ -690,33 +757,14 @@ fn accelerations(
 ) {
     (0..kappa.len())
         .into_par_iter()
-        .map(|i| {
-            let mut a = kappa[i] * factors[i].grad;
-            for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
-                a += kappa[j as usize] * *g;
-            }
-            -a
-        })
+        .map(|i| acceleration(i, lists, factors, pairs, kappa))
         .collect_into_vec(out);
 }
 
-/// Algorithm 2: the densities and factors of the step's positions (into
-/// [`Particles::densities`]), then velocities corrected until the density
-/// would change by at most [`DfsphParams::divergence_tolerance`] over the
-/// step on average.
-#[derive(Debug, Clone)]
+/// Algorithm 2: velocities corrected until the density would change by at
+/// most [`DfsphParams::divergence_tolerance`] over the step on average.
+#[derive(Debug)]
 pub struct DivergenceSolve(Solve);
-
-impl DivergenceSolve {
-    /// For this fluid, these DFSPH parameters and walls.
-    ///
-    /// # Errors
-    /// Parameters or a boundary that do not validate.
-    pub fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
-        let model = Model::new(params, dfsph, boundary)?;
-        Ok(Self(Solve::new(model, Target::Divergence)))
-    }
-}
 
 impl Processor for DivergenceSolve {
     fn name(&self) -> &str {
@@ -731,19 +779,8 @@ impl Processor for DivergenceSolve {
 /// corrected until the density they predict for the step's end is at most
 /// [`DfsphParams::density_tolerance`] above rest on average. The total κ is
 /// the pressure, p = κ ρ²/ρ0, into [`Particles::pressures`].
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct DensitySolve(Solve);
-
-impl DensitySolve {
-    /// For this fluid, these DFSPH parameters and walls.
-    ///
-    /// # Errors
-    /// Parameters or a boundary that do not validate.
-    pub fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
-        let model = Model::new(params, dfsph, boundary)?;
-        Ok(Self(Solve::new(model, Target::Density)))
-    }
-}
 
 impl Processor for DensitySolve {
     fn name(&self) -> &str {
@@ -759,25 +796,8 @@ impl Processor for DensitySolve {
 /// with the densities [`DivergenceSolve`] left.
 #[derive(Debug, Clone)]
 pub struct Viscosity {
-    model: Model,
+    model: Arc<Model>,
     out: Vec<Vec3>,
-}
-
-impl Viscosity {
-    /// For this fluid (its μ), these DFSPH parameters and walls.
-    ///
-    /// # Errors
-    /// Parameters or a boundary that do not validate.
-    pub fn new(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> Result<Self> {
-        Model::new(params, dfsph, boundary).map(Self::with_model)
-    }
-
-    fn with_model(model: Model) -> Self {
-        Self {
-            model,
-            out: Vec::new(),
-        }
-    }
 }
 
 impl Processor for Viscosity {
