@@ -33,7 +33,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         csv,
         "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
          solver,substeps,iterations,density_error_avg,density_error_max,clamped,\
-         divergence_iterations,unconverged"
+         divergence_iterations,viscosity_iterations,unconverged"
     )
     .map_err(|e| AppError::output(&csv_path, e))?;
 
@@ -184,7 +184,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             };
             writeln!(
                 csv,
-                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{},{},{}",
+                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{},{},{},{}",
                 s.time,
                 s.particles,
                 s.surfels,
@@ -199,6 +199,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
                 error(s.density_error_max),
                 s.clamped,
                 s.divergence_iterations,
+                s.viscosity_iterations,
                 s.unconverged
             )
             .and_then(|()| csv.flush())

@@ -41,6 +41,8 @@ pub struct FrameStats {
     pub clamped: u64,
     /// Divergence-solve iterations of the frame, all substeps (DFSPH).
     pub divergence_iterations: u32,
+    /// Implicit-viscosity CG iterations of the frame, all substeps (DFSPH).
+    pub viscosity_iterations: u32,
     /// Solves that stopped at their iteration limit above their tolerance
     /// (DFSPH).
     pub unconverged: u32,
@@ -217,6 +219,7 @@ impl Pipeline {
                     dt_range: (f32::NAN, f32::NAN),
                     iterations: 0,
                     divergence_iterations: 0,
+                    viscosity_iterations: 0,
                     unconverged: 0,
                     density_error_avg: f32::NAN,
                     density_error_max: f32::NAN,
@@ -238,6 +241,7 @@ impl Pipeline {
         self.stats.density_error_max = report.density_error_max;
         self.stats.clamped = report.clamped;
         self.stats.divergence_iterations = report.divergence_iterations;
+        self.stats.viscosity_iterations = report.viscosity_iterations;
         self.stats.unconverged = report.unconverged;
         self.stats.time = report.time;
         self.stats.frame += 1;

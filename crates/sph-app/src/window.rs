@@ -509,10 +509,11 @@ impl App {
                     ),
                     SolverKind::Wcsph => "adaptive step, no iterations".into(),
                     SolverKind::Dfsph => format!(
-                        "{} steps, {} density + {} divergence iterations per frame, {} unconverged",
+                        "{} steps, {} density + {} divergence + {} viscosity iterations per frame, {} unconverged",
                         stats.substeps,
                         stats.iterations,
                         stats.divergence_iterations,
+                        stats.viscosity_iterations,
                         stats.unconverged
                     ),
                 });

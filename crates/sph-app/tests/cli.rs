@@ -75,7 +75,7 @@ fn headless_frames_csv_and_exports() {
         csv.lines().next().unwrap(),
         "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
          solver,substeps,iterations,density_error_avg,density_error_max,clamped,\
-         divergence_iterations,unconverged"
+         divergence_iterations,viscosity_iterations,unconverged"
     );
     assert_eq!(rows.len(), 3, "{csv}");
     for (i, row) in rows.iter().enumerate() {
@@ -557,7 +557,8 @@ fn solver_flag_chooses_and_bad_names_are_errors() {
         let number = |k: usize| row[k].parse::<u32>().unwrap();
         assert!(number(10) >= 1 && number(11) >= 2 * number(10), "{csv}");
         assert!(number(15) >= number(10), "{csv}");
-        assert_eq!(row[16], "0", "unconverged: {csv}");
+        assert!(number(16) >= 1, "implicit viscosity: {csv}");
+        assert_eq!(row[17], "0", "unconverged: {csv}");
         let max: f32 = row[13].parse().unwrap();
         assert!(max < 0.02, "{csv}");
     }

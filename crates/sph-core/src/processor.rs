@@ -70,6 +70,9 @@ pub struct StepCounters {
     pub iterations: u32,
     /// DFSPH's divergence-free solve's iterations (0 for other solvers).
     pub divergence_iterations: u32,
+    /// The implicit viscosity solve's conjugate-gradient iterations (0
+    /// without one).
+    pub viscosity_iterations: u32,
     /// Solves that stopped at their iteration limit above their tolerance
     /// (DFSPH's; 0 for other solvers).
     pub unconverged: u32,

@@ -14,7 +14,7 @@
 //! | find neighbours | `grid`, `neighbours` | [`BuildGrid`], [`FindNeighbours`] |
 //! | compute ρ_i, α_i | `factors` | [`Factors`] |
 //! | correct the divergence error (Algorithm 2) | `divergence` | [`DivergenceSolve`] |
-//! | non-pressure forces | `forces`, `viscosity` | [`BodyForces`], [`Viscosity`] |
+//! | non-pressure forces | `forces`, `viscosity` | [`BodyForces`], [`ImplicitViscosity`] |
 //! | Δt by the CFL condition | (the [`crate::World`]'s clock) | [`DfsphParams::cfl`] |
 //! | v* ← v + Δt a; correct the density error (Algorithm 3) | `density` | [`DensitySolve`] |
 //! | x ← x + Δt v* | `advect`, `boundaries` | [`Advect`], [`Boundaries`] |
@@ -78,9 +78,9 @@
 //!   Away from the walls it is hydrostatic (`tests/dfsph.rs`: slope within
 //!   1 % of ρ0 g); the layer on a wall, pushed by its own κ only, holds
 //!   twice the hydrostatic pressure.
-//! - **Viscosity** is the thesis's explicit term (eq. 17) with
-//!   [`FluidParams::viscosity`] μ in Pa·s, whose step limit
-//!   [`FluidParams::viscous_dt`] the clock keeps. Surface tension is not
+//! - **Viscosity** is implicit (Weiler et al. 2018,
+//!   [`super::viscosity`]) with [`FluidParams::viscosity`] μ in Pa·s and
+//!   no-slip walls, so no viscosity limits the step. Surface tension is not
 //!   applied.
 
 use std::sync::{Arc, Mutex};
@@ -91,6 +91,7 @@ use rayon::prelude::*;
 use super::lanes::{Chunk, LANES, LaneCubic, total};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
+use super::viscosity::ImplicitViscosity;
 use super::walls::Walls;
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
@@ -124,6 +125,13 @@ pub struct DfsphParams {
     /// The most iterations of either solve per step; a solve that reaches
     /// it above its tolerance is counted as unconverged. Default 100.
     pub max_iterations: u32,
+    /// The implicit viscosity's tolerance: the conjugate gradients stop
+    /// when the residual is this fraction of the right-hand side's norm.
+    /// Default 0.001.
+    pub viscosity_tolerance: f32,
+    /// The implicit viscosity's most conjugate-gradient iterations per
+    /// step (counted as unconverged when reached). Default 100.
+    pub viscosity_max_iterations: u32,
 }
 
 impl Default for DfsphParams {
@@ -134,6 +142,8 @@ impl Default for DfsphParams {
             density_tolerance: 5e-4,
             divergence_tolerance: 1e-3,
             max_iterations: 100,
+            viscosity_tolerance: 1e-3,
+            viscosity_max_iterations: 100,
         }
     }
 }
@@ -205,6 +215,18 @@ impl DfsphParams {
             (MIN_DENSITY_ITERATIONS..=MAX_DFSPH_ITERATIONS).contains(&self.max_iterations),
             "must be a whole number from 2 to 10000",
         )?;
+        check(
+            "dfsph.viscosity_tolerance",
+            self.viscosity_tolerance.into(),
+            self.viscosity_tolerance > 0.0 && self.viscosity_tolerance <= 0.5,
+            "must lie in (0, 0.5] (a relative residual: 0.001 is 0.1 %)",
+        )?;
+        check(
+            "dfsph.viscosity_max_iterations",
+            self.viscosity_max_iterations.into(),
+            (1..=MAX_DFSPH_ITERATIONS).contains(&self.viscosity_max_iterations),
+            "must be a whole number from 1 to 10000",
+        )?;
         Ok(())
     }
 
@@ -241,10 +263,13 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             Target::Divergence,
         )))
         .push(BodyForces::new(params.gravity))
-        .push(Viscosity {
-            model: model.clone(),
-            out: Vec::new(),
-        })
+        .push(ImplicitViscosity::new(
+            params.viscosity,
+            params.h,
+            boundary.clone(),
+            dfsph.viscosity_tolerance,
+            dfsph.viscosity_max_iterations,
+        )?)
         .push(DensitySolve(Solve::new(model, shared, Target::Density)))
         .push(Advect)
         .push(Boundaries::new(boundary)?);
@@ -265,8 +290,6 @@ struct Model {
     w0: f32,
     /// An offset beyond the kernels' support, for unused lanes.
     far: f32,
-    /// The viscosity kernel's laplacian coefficient, 45/(π h⁶).
-    visc_lap: f32,
 }
 
 impl Model {
@@ -285,7 +308,6 @@ impl Model {
             inv_rho0: 1.0 / params.rest_density,
             w0: cubic.coefficient(),
             far: 2.0 * h,
-            visc_lap: crate::kernels::Viscosity::new(h)?.coefficient(),
         })
     }
 
@@ -788,49 +810,6 @@ impl Processor for DensitySolve {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         self.0.run(particles, ctx)
-    }
-}
-
-/// The thesis's explicit viscosity (eq. 17): adds
-/// (μ/ρ_i) Σ_j m_j (v_j − v_i)/ρ_j ∇²W_visc(r_ij) to each acceleration,
-/// with the densities [`DivergenceSolve`] left.
-#[derive(Debug, Clone)]
-pub struct Viscosity {
-    model: Arc<Model>,
-    out: Vec<Vec3>,
-}
-
-impl Processor for Viscosity {
-    fn name(&self) -> &str {
-        "viscosity"
-    }
-    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let mu = self.model.params.viscosity;
-        if mu == 0.0 {
-            return Ok(());
-        }
-        let lists = lists(ctx, particles, "viscosity")?;
-        let (h, lap) = (self.model.params.h, self.model.visc_lap);
-        let f = particles.fields_mut();
-        let (x, v, m, rho) = (&*f.positions, &*f.velocities, &*f.masses, &*f.densities);
-        (0..x.len())
-            .into_par_iter()
-            .map(|i| {
-                let mut sum = Vec3::ZERO;
-                for &j in lists.of(i) {
-                    let j = j as usize;
-                    let r = (x[i] - x[j]).length();
-                    // ∇²W_visc = 45/(π h⁶) (h − r) inside h.
-                    let l = lap * (h - r).max(0.0);
-                    sum += (m[j] / rho[j] * l) * (v[j] - v[i]);
-                }
-                mu / rho[i] * sum
-            })
-            .collect_into_vec(&mut self.out);
-        (f.accelerations.par_iter_mut())
-            .zip(self.out.par_iter())
-            .for_each(|(a, &dv)| *a += dv);
-        Ok(())
     }
 }
 

@@ -25,6 +25,7 @@ mod lanes;
 pub mod params;
 pub mod pbf;
 pub mod stations;
+pub mod viscosity;
 mod walls;
 pub mod wcsph;
 mod world;

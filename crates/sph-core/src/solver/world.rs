@@ -40,8 +40,12 @@ pub struct FrameReport {
     /// DFSPH's divergence-solve iterations over all substeps (0 for the
     /// other solvers).
     pub divergence_iterations: u32,
-    /// DFSPH's solves that stopped at their iteration limit above their
-    /// tolerance, over all substeps (0 for the other solvers).
+    /// The implicit viscosity's conjugate-gradient iterations over all
+    /// substeps (DFSPH; 0 for the other solvers).
+    pub viscosity_iterations: u32,
+    /// DFSPH's solves (pressure and viscosity) that stopped at their
+    /// iteration limit above their tolerance, over all substeps (0 for the
+    /// other solvers).
     pub unconverged: u32,
     /// The density error (compression) max(ρ/ρ0 − 1, 0) averaged over the
     /// particles, then over the frame's substeps: each substep's densities
@@ -119,7 +123,7 @@ impl World {
         params.validate()?;
         stepping.validate()?;
         solver.validate()?;
-        if matches!(solver, Solver::Wcsph | Solver::Dfsph(_)) {
+        if matches!(solver, Solver::Wcsph) {
             check_viscous_dt(&params, &stepping)?;
         }
         particles.validate()?;
@@ -169,8 +173,8 @@ impl World {
 
     /// The next step's length. WCSPH: from the viscous, CFL and force
     /// conditions. PBF: its longest substep, [`super::PbfParams::max_dt`].
-    /// DFSPH: from the flow's speed ([`super::DfsphParams::step`]) and the
-    /// viscous condition.
+    /// DFSPH: from the flow's speed alone ([`super::DfsphParams::step`]):
+    /// its viscosity is implicit.
     pub fn stable_dt(&self) -> f32 {
         match self.solver {
             Solver::Pbf(pbf) => return pbf.max_dt,
@@ -179,9 +183,7 @@ impl World {
                     .zip(self.particles.accelerations().par_iter())
                     .map(|(v, a)| v.length() + a.length() * dfsph.max_dt)
                     .reduce(|| 0.0, f32::max);
-                return dfsph
-                    .step(self.params.h, speed)
-                    .min(self.params.viscous_dt());
+                return dfsph.step(self.params.h, speed);
             }
             Solver::Wcsph => {}
         }
@@ -237,6 +239,7 @@ impl World {
             dt_range: (f32::INFINITY, 0.0),
             iterations: 0,
             divergence_iterations: 0,
+            viscosity_iterations: 0,
             unconverged: 0,
             density_error_avg: 0.0,
             density_error_max: 0.0,
@@ -253,6 +256,7 @@ impl World {
             report.dt_range = (report.dt_range.0.min(dt), report.dt_range.1.max(dt));
             report.iterations += counters.iterations;
             report.divergence_iterations += counters.divergence_iterations;
+            report.viscosity_iterations += counters.viscosity_iterations;
             report.unconverged += counters.unconverged;
             report.clamped += counters.clamped;
             error_sum += avg;
