@@ -64,8 +64,9 @@ fn slope(ys: &[f32], ps: &[f32]) -> f64 {
 /// that neither adds nor takes energy: see `sph_core::boundary`), so the
 /// layer on a wall holds twice the hydrostatic pressure, and its
 /// neighbours' pressure bends towards it. Where the particles settle
-/// matters at the level of the 2 % bound: the same test in a 0.32 m tank
-/// measured −2.65 %, in this one +1.60 %.
+/// matters at the level of the 2 % bound: while this solver was written,
+/// 0.32 m tanks measured from −2.65 % to +1.84 %; this one measures
+/// +0.86 %.
 ///
 /// The first steps settle the lattice by under a millimetre into the
 /// edges and corners, where the walls' union formula leaves 0.3–0.8 % of
@@ -179,14 +180,15 @@ fn dam_break_errors(kind: SolverKind) -> (f32, f32, u32, u32, u32, u32) {
 /// DFSPH against WCSPH on the dam break's first second: the densities each
 /// step starts from (after the last step's motion), every step.
 ///
-/// Measured (this test's output): DFSPH at most 1.29 % in a single
-/// particle and 0.075 % on average, in 624 steps; WCSPH 16.5 % and 0.45 %,
+/// Measured (this test's output): DFSPH at most 1.08 % in a single
+/// particle and 0.073 % on average, in 564 steps; WCSPH 16.5 % and 0.45 %,
 /// in 3,057. (The 4.2–4.8 % for WCSPH were frame ends,
 /// recomputed.) The goal for the single particle, 1 %, is not met:
 /// the solves are linear in the step's motion, and where the front meets
 /// the far wall a particle moves a fifth of a spacing in a step, far
 /// enough for the kernel's curvature to matter. (With the explicit
-/// viscosity and free-slip walls it was 2.3 % at λ = 0.1, 1.2 % at 0.05.)
+/// viscosity and free-slip walls it was 2.3 % at λ = 0.1, 1.2 % at 0.05;
+/// the implicit viscosity's no-slip walls slow the μ = 0.5 Pa·s flow.)
 #[test]
 fn dam_break_compression() {
     let (max, avg, steps, iterations, divergence, unconverged) =

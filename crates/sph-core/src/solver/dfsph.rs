@@ -264,8 +264,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
         )))
         .push(BodyForces::new(params.gravity))
         .push(ImplicitViscosity::new(
-            params.viscosity,
-            params.h,
+            &params,
             boundary.clone(),
             dfsph.viscosity_tolerance,
             dfsph.viscosity_max_iterations,

@@ -1,0 +1,132 @@
+//! DFSPH's implicit viscosity (Weiler et al. 2018) against theory: a slug
+//! driven by gravity down a square duct with no-slip walls reaches the
+//! duct's Poiseuille profile; a fluid of 1,000 Pa·s runs at the flow's step,
+//! far above the explicit viscous limit.
+
+use sph_core::glam::Vec3;
+use sph_core::{DfsphParams, Scene, SolverKind};
+
+/// Steady laminar flow down a duct −a < y < a, −a < z < a under the body
+/// force g per unit mass along x, no slip on the walls (White, Viscous
+/// Fluid Flow, eq. 3-48): u = 16 a² g / (ν π³) Σ_{n odd} (−1)^((n−1)/2) / n³
+/// [1 − cosh(nπz/2a) / cosh(nπ/2)] cos(nπy/2a).
+fn duct(y: f64, z: f64, a: f64, g: f64, nu: f64) -> f64 {
+    let mut sum = 0.0;
+    for k in 0..40 {
+        let n = (2 * k + 1) as f64;
+        let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+        let c = n * std::f64::consts::PI / (2.0 * a);
+        let ratio = (c * z).cosh() / (c * a).cosh();
+        sum += sign / n.powi(3) * (1.0 - ratio) * (c * y).cos();
+    }
+    16.0 * a * a * g / (nu * std::f64::consts::PI.powi(3)) * sum
+}
+
+/// A slug 0.3 m long filling a 0.1 m square duct (3,000 particles at 1 cm,
+/// h = 2 cm), μ = 100 Pa·s, gravity along the duct. After 0.3 s (60 times
+/// the viscous time a²/ν) the middle third's velocities against the duct's
+/// profile at each particle's place: the mean error is at most 5 % of the
+/// centre's speed, and the flow rate within 5 % (measured 4.7 % and
+/// −4.1 %; with the continuum's laplacian factor 10 instead of the
+/// lattice's, 20 % and +41 %: the fluid flowed as if 0.7 μ).
+#[test]
+fn gravity_driven_duct_flow_is_poiseuille() {
+    let (side, length, spacing, mu, g) = (0.1f32, 0.3f32, 0.01f32, 100.0f32, 9.81f32);
+    let mut scene = Scene::dam_break(length, side, spacing).with_solver(SolverKind::Dfsph);
+    scene.fluid.h = 2.0 * spacing;
+    scene.fluid.viscosity = mu;
+    scene.fluid.gravity = [g, 0.0, 0.0];
+    scene.domain.min = [0.0, 0.0, 0.0];
+    scene.domain.max = [1.0, side, side];
+    scene.blocks[0].min = [0.05, 0.0, 0.0];
+    scene.blocks[0].max = [0.05 + length, side, side];
+    scene.solver.dfsph = Some(DfsphParams::default());
+    let mut world = scene.build_world().unwrap();
+    let n = world.particles.len();
+    let mut viscosity_iterations = 0;
+    let mut steps = 0;
+    for _ in 0..18 {
+        let r = world.advance(1.0 / 60.0).unwrap();
+        viscosity_iterations += r.viscosity_iterations;
+        steps += r.substeps;
+        assert_eq!(r.unconverged, 0);
+    }
+    let p = &world.particles;
+    let (a, nu) = (
+        f64::from(side) / 2.0,
+        f64::from(mu / scene.fluid.rest_density),
+    );
+    let centre = duct(0.0, 0.0, a, f64::from(g), nu);
+    let xs: Vec<f32> = p.positions().iter().map(|x| x.x).collect();
+    let (lo, hi) = (
+        xs.iter().copied().fold(f32::MAX, f32::min),
+        xs.iter().copied().fold(f32::MIN, f32::max),
+    );
+    let third = (hi - lo) / 3.0;
+    let (mut error, mut flow, mut flow_exact, mut count) = (0.0f64, 0.0f64, 0.0f64, 0);
+    for (x, v) in p.positions().iter().zip(p.velocities()) {
+        if x.x < lo + third || x.x > hi - third {
+            continue;
+        }
+        let exact = duct(f64::from(x.y) - a, f64::from(x.z) - a, a, f64::from(g), nu);
+        error += (f64::from(v.x) - exact).abs();
+        flow += f64::from(v.x);
+        flow_exact += exact;
+        count += 1;
+    }
+    let error = error / count as f64 / centre;
+    let flow = flow / flow_exact;
+    let transverse = (p.velocities().iter())
+        .map(|v| Vec3::new(0.0, v.y, v.z).length())
+        .fold(0.0f32, f32::max);
+    println!(
+        "{n} particles, {steps} steps, {:.1} CG iterations per step; centre speed (theory) {centre:.4} m/s; \
+         middle third ({count} particles): mean |u − u_theory| {:.2} % of it, flow rate {:.3} of theory; \
+         largest transverse speed {transverse:.4} m/s",
+        f64::from(viscosity_iterations) / f64::from(steps),
+        100.0 * error,
+        flow
+    );
+    assert_eq!(world.particles.len(), n);
+    assert!(error <= 0.05, "mean error {error} of the centre speed");
+    assert!((flow - 1.0).abs() <= 0.05, "flow rate {flow} of theory");
+}
+
+/// μ = 1,000 Pa·s (a thick honey: 10⁶ × water) in the demo's slab dam break:
+/// the explicit viscous limit 0.125 h² ρ0/μ would be 0.2 ms; the implicit
+/// solve runs at DFSPH's own step (max_dt, 5 ms, as the column barely moves),
+/// stays finite and contained, and the column only slumps.
+#[test]
+fn a_thousand_pascal_seconds_runs_at_the_flow_step() {
+    let mut scene = Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Dfsph);
+    scene.fluid.viscosity = 1000.0;
+    let mut world = scene.build_world().unwrap();
+    let explicit = world.params().viscous_dt();
+    let mut shortest = f32::INFINITY;
+    let mut steps = 0;
+    for _ in 0..60 {
+        let r = world.advance(1.0 / 60.0).unwrap();
+        shortest = shortest.min(r.dt_range.0.min(r.dt_range.1));
+        steps += r.substeps;
+        assert_eq!(r.unconverged, 0);
+        assert!(r.density_error_avg <= 0.001, "{r:?}");
+    }
+    let p = &world.particles;
+    let front = p.positions().iter().map(|x| x.x).fold(f32::MIN, f32::max);
+    let speed = p
+        .velocities()
+        .iter()
+        .map(|v| v.length())
+        .fold(0.0f32, f32::max);
+    println!(
+        "μ = 1000 Pa·s: {steps} steps in 1 s (explicit limit {:.3} ms, shortest step {:.3} ms), \
+         front at {front:.3} m (0.25 at the start), fastest particle {speed:.4} m/s",
+        1e3 * explicit,
+        1e3 * shortest
+    );
+    assert!(shortest >= 10.0 * explicit, "shortest step {shortest} s");
+    assert!(p.positions().iter().all(|&x| scene.boundary().admits(x)));
+    // A fall through the column's height would reach √(2 g 0.5) ≈ 3 m/s.
+    assert!(speed < 0.3, "fastest particle {speed} m/s");
+    assert!(front < 0.5, "front at {front} m");
+}
