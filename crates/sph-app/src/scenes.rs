@@ -1,4 +1,4 @@
-//! The built-in scenes (keys 1–5 in the window) and `--scene` resolution.
+//! The built-in scenes (keys 1–7 in the window) and `--scene` resolution.
 
 use std::path::Path;
 
@@ -13,12 +13,13 @@ pub const DEFAULT: &str = "drop";
 /// A built-in scene: name, description, constructor.
 pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
-/// Built-in scenes, in key order (keys 1–5). Each runs PBF, the real-time
-/// solver, with the parameters `Scene::pbf_params` derives (3 iterations,
-/// and 3 substeps per 60 Hz frame, 6 for `dam-break-fine`, so that a fall
-/// through the fluid's height moves at most h/2 per substep); `--solver
-/// wcsph` runs the thesis's.
-pub const BUILT_IN: [BuiltIn; 5] = [
+/// Built-in scenes, in key order (keys 1–7). The first five run PBF, the
+/// real-time solver, with the parameters `Scene::pbf_params` derives (3
+/// iterations, and 3 substeps per 60 Hz frame, 6 for `dam-break-fine`, so
+/// that a fall through the fluid's height moves at most h/2 per substep);
+/// the last two DFSPH, the accurate one, with physical viscosities: water
+/// (1e-3 Pa·s) and honey (50 Pa·s). `--solver` runs any with another.
+pub const BUILT_IN: [BuiltIn; 7] = [
     ("dam-break", "thin-slab dam break", || {
         Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Pbf)
     }),
@@ -37,6 +38,20 @@ pub const BUILT_IN: [BuiltIn; 5] = [
         "dam-break-fine",
         "thin-slab dam break at 1 cm spacing",
         || Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf),
+    ),
+    (
+        "dam-break-water",
+        "thin-slab dam break of water (μ = 1e-3 Pa·s), DFSPH",
+        || {
+            let mut scene = Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Dfsph);
+            scene.fluid.viscosity = 1e-3;
+            scene
+        },
+    ),
+    (
+        "honey",
+        "a cube of honey (μ = 50 Pa·s) slumping, DFSPH",
+        || Scene::honey(0.2, 0.02),
     ),
 ];
 
@@ -58,7 +73,7 @@ pub fn resolve(scene: &str) -> Result<(String, Scene), AppError> {
 
 /// The `--list-scenes` text, with each scene's particle count at the start.
 pub fn listing() -> String {
-    let mut out = String::from("built-in scenes (--scene NAME, keys 1-5 in the window):\n");
+    let mut out = String::from("built-in scenes (--scene NAME, keys 1-7 in the window):\n");
     for (i, (name, what, make)) in BUILT_IN.iter().enumerate() {
         let scene = make();
         let count = match scene.particles() {
@@ -95,11 +110,17 @@ mod tests {
         ));
     }
 
-    /// Every built-in scene runs a frame with each solver, PBF by default.
+    /// Every built-in scene runs a frame with each solver; PBF by default,
+    /// DFSPH for the two with physical viscosities.
     #[test]
     fn built_ins_run_with_every_solver() {
-        for (name, _, make) in BUILT_IN {
-            assert_eq!(make().solver.kind, SolverKind::Pbf, "{name}");
+        for (k, (name, _, make)) in BUILT_IN.iter().enumerate() {
+            let default = if k < 5 {
+                SolverKind::Pbf
+            } else {
+                SolverKind::Dfsph
+            };
+            assert_eq!(make().solver.kind, default, "{name}");
             for kind in SolverKind::ALL {
                 let mut world = make().with_solver(kind).build_world().unwrap();
                 let r = world.advance(1.0 / 60.0).unwrap();

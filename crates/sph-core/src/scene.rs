@@ -703,6 +703,25 @@ impl Scene {
         s
     }
 
+    /// A cube of honey (side `a`, ρ0 = 1,400 kg/m³, μ = 50 Pa·s: 50,000 ×
+    /// water) let go a/2 above the floor of a tank 4a wide: it slumps and
+    /// spreads slowly, run by DFSPH (whose viscosity is implicit).
+    pub fn honey(a: f32, spacing: f32) -> Self {
+        let w = 4.0 * a;
+        let mut s = Self::base("honey", Vec3::new(w, 2.5 * a, w), spacing);
+        s.fluid.rest_density = 1400.0;
+        s.fluid.viscosity = 50.0;
+        s.blocks.push(BlockSpec {
+            min: [1.5 * a, 0.5 * a, 1.5 * a],
+            max: [2.5 * a, 1.5 * a, 2.5 * a],
+            velocity: [0.0; 3],
+        });
+        s.solver.kind = SolverKind::Dfsph;
+        s.render.camera = [2.0 * a, 2.2 * a, 6.5 * a];
+        s.render.look_at = [2.0 * a, 0.3 * a, 2.0 * a];
+        s
+    }
+
     /// A cube of water of side `a` falling into a pool of depth a/2 in a tank 3a
     /// wide and deep.
     pub fn drop_into_pool(a: f32, spacing: f32) -> Self {

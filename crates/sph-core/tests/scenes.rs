@@ -40,6 +40,7 @@ fn built_in_scenes_round_trip_through_toml() {
         Scene::dam_break(0.25, 0.25, 0.02),
         Scene::drop_into_pool(0.2, 0.02),
         Scene::double_dam_break(0.2, 0.2, 0.02),
+        Scene::honey(0.2, 0.02),
     ] {
         assert_eq!(Scene::from_toml(&s.to_toml()).unwrap(), s);
     }
