@@ -12,14 +12,27 @@
 //! by bisection on the spacing (seven runs per solver), and the largest
 //! row at real time.
 //!
+//! The peer, `salva` (dimforge's salva3d 0.9, its DFSPH solver with its own
+//! defaults: 0.05 % density and 0.1 % divergence error, its own CFL
+//! substeps, no viscosity), runs the same column in the same box, whose
+//! walls it samples with one layer of boundary particles at the spacing.
+//! Its density error is measured as ours: the cubic spline sum over its
+//! fluid and boundary particles with its own volumes. salva 0.9 takes one
+//! step per call (its CFL rule is switched off), so the example cuts each
+//! frame into steps by our DFSPH's rule over the particles in the box; it
+//! keeps no particle in the box by force, and its "clamped" column counts
+//! the particles that left it. It has no extraction and no iteration
+//! columns (its iterations are not public).
+//!
 //! ```text
-//! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf,dfsph] [--max-particles N]
+//! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf,dfsph,salva] [--max-particles N]
 //!     [--pbf substeps=2,iterations=4]
 //! ```
 
 use std::time::Instant;
 
-use sph_core::{PbfParams, Scene, SolverKind};
+use sph_core::glam::Vec3;
+use sph_core::{CubicSpline, Kernel, NeighbourGrid, NeighbourLists, PbfParams, Scene, SolverKind};
 use surfel_extract::{ExtractParams, Extractor};
 
 /// Particle spacings (m) of the rows: 1,200, 3,816, 10,000, 33,300 and
@@ -28,7 +41,8 @@ const SPACINGS: [f32; 5] = [0.02, 0.0133, 0.01, 0.0067, 0.00455];
 const FRAME_DT: f32 = 1.0 / 60.0;
 
 struct Row {
-    solver: SolverKind,
+    /// The solver's name: ours, or `salva` for the peer.
+    solver: &'static str,
     particles: usize,
     sim_s: f64,
     extract_s: f64,
@@ -58,7 +72,7 @@ fn run(
     };
     let frames = (seconds / f64::from(FRAME_DT)).round() as u32;
     let mut row = Row {
-        solver: kind,
+        solver: kind.name(),
         particles: world.particles.len(),
         sim_s: 0.0,
         extract_s: 0.0,
@@ -91,9 +105,190 @@ fn run(
     Ok(row)
 }
 
+/// The boundary particles of salva: each face of the box `min`..`max`
+/// sampled on a square grid of `spacing`, in two layers (on the face and a
+/// spacing behind it; one layer let the surge through the far wall).
+fn box_walls(min: Vec3, max: Vec3, spacing: f32) -> Vec<Vec3> {
+    let mut points = Vec::new();
+    let (lo, hi) = (min - Vec3::splat(spacing), max + Vec3::splat(spacing));
+    let count = |a: f32, b: f32| ((b - a) / spacing).round() as i32;
+    for axis in 0..3 {
+        let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+        for (side, out) in [(min[axis], -spacing), (max[axis], spacing)] {
+            for layer in 0..2 {
+                for i in 0..=count(lo[u], hi[u]) {
+                    for j in 0..=count(lo[v], hi[v]) {
+                        let mut p = Vec3::ZERO;
+                        p[axis] = side + layer as f32 * out;
+                        p[u] = lo[u] + i as f32 * spacing;
+                        p[v] = lo[v] + j as f32 * spacing;
+                        points.push(p);
+                    }
+                }
+            }
+        }
+    }
+    points.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap());
+    points.dedup();
+    points
+}
+
+/// The density error of salva's fluid, measured as ours: ρ_i = Σ ρ0 V_j
+/// W(x_i − x_j) over its fluid and boundary particles, cubic spline of
+/// support h; (average of max(ρ/ρ0 − 1, 0), largest ρ/ρ0 − 1).
+fn salva_density_error(
+    fluid: &[Vec3],
+    volumes: &[f32],
+    walls: &[Vec3],
+    wall_volumes: &[f32],
+    h: f32,
+) -> (f64, f32) {
+    let kernel = CubicSpline::new(h).unwrap();
+    let all: Vec<Vec3> = fluid.iter().chain(walls).copied().collect();
+    let volume: Vec<f32> = volumes.iter().chain(wall_volumes).copied().collect();
+    let grid = NeighbourGrid::build(&all, h).unwrap();
+    let lists = NeighbourLists::build(&grid);
+    let (mut sum, mut max) = (0.0f64, f32::MIN);
+    for i in 0..fluid.len() {
+        let mut rho = volume[i] * kernel.value(Vec3::ZERO);
+        for &j in lists.of(i) {
+            let j = j as usize;
+            rho += volume[j] * kernel.value(all[i] - all[j]);
+        }
+        let e = rho - 1.0;
+        sum += f64::from(e.max(0.0));
+        max = max.max(e);
+    }
+    (sum / fluid.len() as f64, max)
+}
+
+/// The slab dam break at `spacing` run by salva3d's DFSPH for `seconds`.
+fn run_salva(spacing: f32, seconds: f64) -> Result<Row, Box<dyn std::error::Error>> {
+    use salva3d::LiquidWorld;
+    use salva3d::math::{Point, Vector};
+    use salva3d::object::{Boundary, Fluid};
+    use salva3d::solver::DFSPHSolver;
+    let scene = Scene::dam_break(0.25, 0.08, spacing);
+    let particles = scene.particles()?;
+    let radius = spacing / 2.0;
+    // Kernel support 2 × radius × 2 = 2 spacings: the scene's h.
+    let mut world = LiquidWorld::new(
+        DFSPHSolver::<salva3d::kernel::CubicSplineKernel>::new(),
+        radius,
+        2.0,
+    );
+    let points = |xs: &[Vec3]| {
+        xs.iter()
+            .map(|x| Point::new(x.x, x.y, x.z))
+            .collect::<Vec<_>>()
+    };
+    let fluid = world.add_fluid(Fluid::new(points(particles.positions()), radius, 1000.0));
+    let walls = box_walls(scene.domain.min.into(), scene.domain.max.into(), spacing);
+    let boundary = world.add_boundary(Boundary::new(points(&walls)));
+    let gravity = Vector::new(0.0, -9.81, 0.0);
+    let dfsph = sph_core::DfsphParams::default();
+    let domain = scene.boundary();
+    let inside = |p: &Point<f32>| domain.admits(Vec3::new(p.x, p.y, p.z));
+    let frames = (seconds / f64::from(FRAME_DT)).round() as u32;
+    let mut row = Row {
+        solver: "salva",
+        particles: particles.len(),
+        sim_s: 0.0,
+        extract_s: f64::NAN,
+        substeps: 0.0,
+        iterations: 0.0,
+        divergence: 0.0,
+        error_avg: 0.0,
+        error_max: 0.0,
+        clamped: 0,
+    };
+    let to_vec3 = |ps: &[Point<f32>]| {
+        ps.iter()
+            .map(|p| Vec3::new(p.x, p.y, p.z))
+            .collect::<Vec<_>>()
+    };
+    let wall_positions = to_vec3(&world.boundaries()[boundary].positions);
+    for _ in 0..frames {
+        // salva takes one substep per call (its CFL is switched off in
+        // 0.9): the frame is cut into steps by our DFSPH's rule, λ h / v_max
+        // with v_max = max |v| + g max_dt, at most max_dt.
+        let start = Instant::now();
+        let mut left = FRAME_DT;
+        while left > 0.0 {
+            // The flow's speed in the box: particles that leaked out fall
+            // on without end and would shrink the step to nothing.
+            let f = &world.fluids()[fluid];
+            let fastest = (f.positions.iter().zip(&f.velocities))
+                .filter(|(p, _)| inside(p))
+                .map(|(_, v)| v.norm())
+                .fold(0.0f32, f32::max);
+            let step = dfsph.step(scene.fluid.h, fastest + 9.81 * dfsph.max_dt);
+            let dt = if left <= step {
+                left
+            } else if left < 2.0 * step {
+                0.5 * left
+            } else {
+                step
+            };
+            world.step(dt, &gravity);
+            left -= dt;
+            row.substeps += 1.0;
+        }
+        row.sim_s += start.elapsed().as_secs_f64();
+        let f = &world.fluids()[fluid];
+        let (avg, max) = salva_density_error(
+            &to_vec3(&f.positions),
+            &f.volumes,
+            &wall_positions,
+            &world.boundaries()[boundary].volumes,
+            scene.fluid.h,
+        );
+        row.error_avg += avg;
+        row.error_max = row.error_max.max(max);
+    }
+    row.substeps /= f64::from(frames);
+    row.error_avg /= f64::from(frames);
+    // Its "clamped" column: the particles that left the box.
+    row.clamped = world.fluids()[fluid]
+        .positions
+        .iter()
+        .filter(|p| !inside(p))
+        .count() as u64;
+    Ok(row)
+}
+
+/// One of the compared solvers: ours, or salva.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Runner {
+    Ours(SolverKind),
+    Salva,
+}
+
+impl Runner {
+    fn name(self) -> &'static str {
+        match self {
+            Runner::Ours(kind) => kind.name(),
+            Runner::Salva => "salva",
+        }
+    }
+
+    fn run(
+        self,
+        spacing: f32,
+        seconds: f64,
+        pbf: Option<&PbfParams>,
+    ) -> Result<Row, Box<dyn std::error::Error>> {
+        match self {
+            Runner::Ours(kind) => run(kind, spacing, seconds, pbf),
+            Runner::Salva => run_salva(spacing, seconds),
+        }
+    }
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut seconds = 1.0;
-    let mut solvers = SolverKind::ALL.to_vec();
+    let mut solvers: Vec<Runner> = SolverKind::ALL.into_iter().map(Runner::Ours).collect();
+    solvers.push(Runner::Salva);
     let mut max_particles = usize::MAX;
     let mut pbf = None;
     let mut args = std::env::args().skip(1);
@@ -105,7 +300,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--solvers" => {
                 solvers = value()?
                     .split(',')
-                    .map(|s| SolverKind::from_name(s).ok_or(format!("unknown solver {s}")))
+                    .map(|s| match s {
+                        "salva" => Ok(Runner::Salva),
+                        _ => SolverKind::from_name(s)
+                            .map(Runner::Ours)
+                            .ok_or(format!("unknown solver {s}")),
+                    })
                     .collect::<Result<_, _>>()?
             }
             // PBF parameters as `key=value` pairs, e.g. `substeps=3,iterations=4`.
@@ -144,11 +344,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if count > max_particles {
                 continue;
             }
-            let r = run(kind, spacing, seconds, pbf.as_ref())?;
+            let r = kind.run(spacing, seconds, pbf.as_ref())?;
             let per = |s: f64| s / seconds;
             println!(
                 "{:<6} {:>9} {:>12.3} {:>14.3} {:>9.1} {:>11.1} {:>8.1} {:>10.3} {:>10.2} {:>8}",
-                r.solver.name(),
+                r.solver,
                 r.particles,
                 per(r.sim_s),
                 per(r.sim_s + r.extract_s),
@@ -165,11 +365,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The largest count each solver holds at real time, simulation alone:
     // bisection on the spacing between the rows that straddle it.
     for &kind in &solvers {
+        if kind == Runner::Salva {
+            // Over ten times DFSPH's time per row: bisecting would take
+            // minutes for a count far below the rows'.
+            println!("salva: no bisection (see its rows)");
+            continue;
+        }
         let (mut lo, mut hi) = (0.003f32, 0.04f32); // fine (slow) .. coarse (fast)
         let mut best: Option<Row> = None;
         for _ in 0..7 {
             let mid = (lo * hi).sqrt();
-            let r = run(kind, mid, seconds, pbf.as_ref())?;
+            let r = kind.run(mid, seconds, pbf.as_ref())?;
             if r.sim_s <= seconds {
                 hi = mid;
                 if best.as_ref().is_none_or(|b| r.particles > b.particles) {
@@ -194,7 +400,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for kind in solvers {
         let best = |f: &dyn Fn(&Row) -> f64| {
             rows.iter()
-                .filter(|r| r.solver == kind && f(r) <= seconds)
+                .filter(|r| r.solver == kind.name() && f(r) <= seconds)
                 .map(|r| r.particles)
                 .max()
         };
