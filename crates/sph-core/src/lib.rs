@@ -33,8 +33,8 @@ pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;
 pub use solver::{
-    DfsphParams, FluidParams, FrameReport, PbfParams, PressureKernel, Solver, SolverKind,
-    TimeStepping, World,
+    DfsphParams, FluidParams, FrameReport, PbfParams, PbfViscosity, PressureKernel, Solver,
+    SolverKind, TimeStepping, World,
 };
 
 /// Re-export of the vector maths crate used in the public API.

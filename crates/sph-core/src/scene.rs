@@ -13,8 +13,8 @@ use crate::error::{Error, Result, check_kernel_h};
 use crate::grid::MAX_PARTICLES;
 use crate::particles::Particles;
 use crate::solver::{
-    DfsphParams, Emitter, FluidParams, MAX_H_OVER_SPACING, PbfParams, Solver, SolverKind,
-    TimeStepping, World, nozzle_corners, nozzle_points,
+    DfsphParams, Emitter, FluidParams, MAX_H_OVER_SPACING, PbfParams, PbfViscosity, Solver,
+    SolverKind, TimeStepping, World, nozzle_corners, nozzle_points,
 };
 
 /// A complete scene description.
@@ -705,7 +705,9 @@ impl Scene {
 
     /// A cube of honey (side `a`, ρ0 = 1,400 kg/m³, μ = 50 Pa·s: 50,000 ×
     /// water) let go a/2 above the floor of a tank 4a wide: it slumps and
-    /// spreads slowly, run by DFSPH (whose viscosity is implicit).
+    /// spreads slowly, run by DFSPH (whose viscosity is implicit); run by
+    /// PBF, its `[solver.pbf]` solves the same μ implicitly
+    /// ([`PbfViscosity::Implicit`]) instead of XSPH.
     pub fn honey(a: f32, spacing: f32) -> Self {
         let w = 4.0 * a;
         let mut s = Self::base("honey", Vec3::new(w, 2.5 * a, w), spacing);
@@ -717,6 +719,10 @@ impl Scene {
             velocity: [0.0; 3],
         });
         s.solver.kind = SolverKind::Dfsph;
+        s.solver.pbf = Some(PbfParams {
+            viscosity: PbfViscosity::Implicit,
+            ..s.pbf_params()
+        });
         s.render.camera = [2.0 * a, 2.2 * a, 6.5 * a];
         s.render.look_at = [2.0 * a, 0.3 * a, 2.0 * a];
         s

@@ -5,8 +5,8 @@
 
 use glam::Vec3;
 use sph_core::{
-    Aabb, Boundary, Error, FluidParams, Particles, PbfParams, Scene, Solver, SolverKind,
-    TimeStepping, World,
+    Aabb, Boundary, Error, FluidParams, Particles, PbfParams, PbfViscosity, Scene, Solver,
+    SolverKind, TimeStepping, World,
 };
 
 /// Deterministic pseudo-random numbers in [-1, 1).
@@ -241,10 +241,22 @@ fn free_cluster_keeps_its_momentum() {
     println!("momentum {before:?} → {after:?}; largest density error {moved}");
 }
 
-/// Bitwise the same particles for 1, 2 and 4 threads.
+/// Bitwise the same particles for 1, 2 and 4 threads, with XSPH and with
+/// the implicit viscosity (whose conjugate gradients sum in fixed chunks).
 #[test]
 fn identical_for_1_2_and_4_threads() {
-    let scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Pbf);
+    let xsph = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Pbf);
+    let mut implicit = xsph.clone();
+    implicit.solver.pbf = Some(PbfParams {
+        viscosity: PbfViscosity::Implicit,
+        ..xsph.pbf_params()
+    });
+    for scene in [xsph, implicit] {
+        identical_for_any_thread_count(&scene);
+    }
+}
+
+fn identical_for_any_thread_count(scene: &Scene) {
     let run = |threads| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -413,6 +425,27 @@ fn bad_parameters_are_errors_naming_the_field() {
                 ..d
             },
         ),
+        (
+            "pbf.viscosity_tolerance",
+            PbfParams {
+                viscosity_tolerance: 0.0,
+                ..d
+            },
+        ),
+        (
+            "pbf.viscosity_tolerance",
+            PbfParams {
+                viscosity_tolerance: f32::NAN,
+                ..d
+            },
+        ),
+        (
+            "pbf.viscosity_max_iterations",
+            PbfParams {
+                viscosity_max_iterations: 0,
+                ..d
+            },
+        ),
     ];
     for (name, p) in cases {
         match p.validate() {
@@ -434,6 +467,10 @@ fn bad_parameters_are_errors_naming_the_field() {
     assert!(e.contains("solver.pbf.iterations"), "{e}");
     let e = Scene::from_toml(&text.replace("kind = \"pbf\"", "kind = \"sph\"")).unwrap_err();
     assert!(matches!(e, Error::SceneSyntax(_)), "{e}");
+    let bogus = text.replace("viscosity = \"xsph\"", "viscosity = \"honey\"");
+    assert_ne!(bogus, text);
+    let e = Scene::from_toml(&bogus).unwrap_err().to_string();
+    assert!(e.contains("viscosity") && e.contains("implicit"), "{e}");
     // A file without [solver] runs WCSPH, as before solvers were a choice.
     let plain = Scene::dam_break(0.1, 0.04, 0.02).to_toml();
     let start = plain.find("[solver").unwrap();

@@ -91,7 +91,7 @@ use rayon::prelude::*;
 use super::lanes::{Chunk, LANES, LaneCubic, total};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
-use super::viscosity::ImplicitViscosity;
+use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::Walls;
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
@@ -268,6 +268,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             boundary.clone(),
             dfsph.viscosity_tolerance,
             dfsph.viscosity_max_iterations,
+            Update::Accelerations,
         )?)
         .push(DensitySolve(Solve::new(model, shared, Target::Density)))
         .push(Advect)

@@ -32,7 +32,7 @@ mod world;
 
 pub use dfsph::DfsphParams;
 pub use params::{FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, PressureKernel, TimeStepping};
-pub use pbf::PbfParams;
+pub use pbf::{PbfParams, PbfViscosity};
 pub use stations::{
     BodyForces, Boundaries, BuildGrid, Emitter, ExternalAcceleration, FindNeighbours, Integrate,
     Sink, nozzle_corners, nozzle_points,

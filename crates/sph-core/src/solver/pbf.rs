@@ -14,6 +14,7 @@
 //! | 8–19: λ_i, Δp_i (with s_corr), collision response, x* ← x* + Δp | `density` | [`SolveDensity`] |
 //! | 20–21: v ← (x* − x)/Δt | (kept true by `density`) | [`SolveDensity`] |
 //! | 22: vorticity confinement, XSPH viscosity | `viscosity` | [`VorticityXsph`] |
+//! | 22: or the implicit viscosity of μ | `implicit_viscosity` | [`ImplicitViscosity`] |
 //! | 23: x ← x* | `boundaries` | [`Boundaries`] |
 //!
 //! Choices the paper leaves open, and what this module does:
@@ -52,9 +53,13 @@
 //!   from the positions keeps their rounding out of v: at 0.1 ms substeps
 //!   an ulp of a position 5 m from the origin is 5 mm/s of velocity, and a
 //!   free fall drifted 0.4 m in 10,000 substeps.
-//! - **Viscosity** is XSPH ([`PbfParams::xsph`]), not the physical μ of
-//!   [`FluidParams::viscosity`], which only WCSPH uses; so are the stiffness
-//!   and surface tension.
+//! - **Viscosity** is one of two ([`PbfParams::viscosity`]): XSPH
+//!   ([`PbfParams::xsph`], the default: a smoothing of the velocities with
+//!   no unit, cheap), or the physical μ of [`FluidParams::viscosity`] in
+//!   Pa·s, solved implicitly after the velocity update (Weiler et al. 2018,
+//!   [`super::viscosity`], with no-slip walls), which makes a PBF fluid of
+//!   a given μ flow as that fluid does (`tests/viscosity.rs`: duct flow).
+//!   The stiffness and surface tension of [`FluidParams`] are WCSPH's.
 //! - **Guard.** The predicted displacement per substep is limited to
 //!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
 //!   every clamped particle is counted in [`crate::StepCounters::clamped`].
@@ -73,6 +78,7 @@ use crate::processor::{Context, Processor, Program};
 use super::lanes::{Chunk, LANES, LaneKernels, total};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
+use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::Walls;
 
 /// The parameters of position-based fluids. Scene files give them under
@@ -130,6 +136,28 @@ pub struct PbfParams {
     /// positions, so a particle may move up to h; 0.5 h clamped a fifth of
     /// the 10,000-particle dam break's particles at 2 substeps per frame).
     pub max_displacement: f32,
+    /// Which viscosity acts: `"xsph"` (default) or `"implicit"`.
+    pub viscosity: PbfViscosity,
+    /// The implicit viscosity's tolerance: the conjugate gradients stop at
+    /// this residual relative to the velocities' norm. Default 1e-3.
+    pub viscosity_tolerance: f32,
+    /// The implicit viscosity's most conjugate-gradient iterations per
+    /// substep. Default 100.
+    pub viscosity_max_iterations: u32,
+}
+
+/// The viscosity of a PBF fluid ([`PbfParams::viscosity`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PbfViscosity {
+    /// XSPH's blend of each velocity towards its neighbours' by
+    /// [`PbfParams::xsph`] per substep (Macklin & Müller 2013): no physical
+    /// unit, its effect depends on the substep count.
+    #[default]
+    Xsph,
+    /// The dynamic viscosity μ of [`FluidParams::viscosity`] (Pa·s), solved
+    /// implicitly each substep ([`ImplicitViscosity`]); XSPH is off.
+    Implicit,
 }
 
 impl Default for PbfParams {
@@ -145,6 +173,9 @@ impl Default for PbfParams {
             vorticity: 0.01,
             xsph: 0.01,
             max_displacement: 1.0,
+            viscosity: PbfViscosity::Xsph,
+            viscosity_tolerance: 1e-3,
+            viscosity_max_iterations: 100,
         }
     }
 }
@@ -270,12 +301,24 @@ impl PbfParams {
             g > 0.0 && g <= 1.0,
             "must lie in (0, 1] (a fraction of h per substep)",
         )?;
+        let t = self.viscosity_tolerance;
+        check(
+            "pbf.viscosity_tolerance",
+            t.into(),
+            t > 0.0 && t <= 0.5,
+            "must lie in (0, 0.5] (a relative residual)",
+        )?;
+        count(
+            "pbf.viscosity_max_iterations",
+            self.viscosity_max_iterations,
+        )?;
         Ok(())
     }
 }
 
 /// The PBF program: forces → predict → grid → neighbours → density →
-/// viscosity → boundaries.
+/// viscosity (vorticity and XSPH) → implicit viscosity (with
+/// [`PbfViscosity::Implicit`]) → boundaries.
 ///
 /// # Errors
 /// Parameters or a boundary that do not validate.
@@ -291,8 +334,17 @@ pub fn program(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Resul
         .push(BuildGrid::new(params.h, 1))
         .push(FindNeighbours::new(params.h))
         .push(SolveDensity::with_model(model.clone()))
-        .push(VorticityXsph::with_model(model))
-        .push(Boundaries::new(boundary)?);
+        .push(VorticityXsph::with_model(model));
+    if pbf.viscosity == PbfViscosity::Implicit {
+        program.push(ImplicitViscosity::new(
+            &params,
+            boundary.clone(),
+            pbf.viscosity_tolerance,
+            pbf.viscosity_max_iterations,
+            Update::Velocities,
+        )?);
+    }
+    program.push(Boundaries::new(boundary)?);
     Ok(program)
 }
 
@@ -697,7 +749,11 @@ impl Processor for VorticityXsph {
         let lists = lists(ctx, particles, "viscosity")?;
         let model = &self.model;
         let dt = ctx.dt;
-        let (eps, c) = (model.pbf.vorticity, model.pbf.xsph);
+        let c = match model.pbf.viscosity {
+            PbfViscosity::Xsph => model.pbf.xsph,
+            PbfViscosity::Implicit => 0.0,
+        };
+        let eps = model.pbf.vorticity;
         let f = particles.fields_mut();
         let (x, v, m) = (&*f.positions, &*f.velocities, &*f.masses);
         // Density, curl and XSPH mean at once; each pair's (m_j/ρ0)∇W_ij

@@ -22,9 +22,12 @@
 //! solved matrix-free by conjugate gradients with a block-Jacobi
 //! preconditioner (each particle's 3 × 3 diagonal block inverted), warm
 //! started with the last step's viscous velocity change of each particle
-//! (the particle attribute [`VISCOUS_CHANGE`]). The station leaves the
-//! viscous acceleration (v − v*)/Δt in the accelerations, so that the
-//! solvers' next stations see the viscous fluid's forces as any other.
+//! (the particle attribute [`VISCOUS_CHANGE`]). Where the station writes
+//! its result is its [`Update`]: DFSPH's leaves the viscous acceleration
+//! (v − v*)/Δt in the accelerations, so that the pressure solves after it
+//! see the viscous fluid's forces as any other; PBF's solves from the
+//! velocities its density solve left (v* = v) and writes the new
+//! velocities, where XSPH would act.
 //!
 //! **Walls** are no-slip: each wall within h adds the integral of the same
 //! pair term over the fluid-filled half-space behind it at rest velocity,
@@ -157,9 +160,23 @@ impl WallFriction {
     }
 }
 
+/// Where [`ImplicitViscosity`] starts from and what it writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Update {
+    /// v* = v + Δt a, and the viscous acceleration (v − v*)/Δt is added to
+    /// the accelerations: for a solver that integrates forces after this
+    /// station (DFSPH).
+    Accelerations,
+    /// v* = v, and the solution replaces the velocities: for a solver
+    /// whose velocities are final before this station (PBF, after its
+    /// velocity update; the accelerations are left alone).
+    Velocities,
+}
+
 /// The implicit viscosity station ("viscosity"), with its working memory.
 #[derive(Debug)]
 pub struct ImplicitViscosity {
+    update: Update,
     mu: f32,
     h: f32,
     rest_density: f32,
@@ -188,19 +205,38 @@ pub struct ImplicitViscosity {
 impl ImplicitViscosity {
     /// The station for the fluid `params` (its μ in Pa·s, h and ρ0) with
     /// no-slip `boundary`, solving to the relative residual `tolerance` in
-    /// at most `max_iterations` CG iterations.
+    /// at most `max_iterations` CG iterations, from and into what `update`
+    /// says.
     ///
     /// # Errors
-    /// Parameters that do not validate.
+    /// Parameters that do not validate, a tolerance outside (0, 0.5] or no
+    /// iterations.
     pub fn new(
         params: &FluidParams,
         boundary: Boundary,
         tolerance: f32,
         max_iterations: u32,
+        update: Update,
     ) -> Result<Self> {
         params.validate()?;
+        boundary.validate()?;
+        if !(tolerance > 0.0 && tolerance <= 0.5) {
+            return Err(Error::InvalidParameter {
+                name: "viscosity_tolerance",
+                value: tolerance.to_string(),
+                reason: "must lie in (0, 0.5] (a relative residual)",
+            });
+        }
+        if max_iterations == 0 {
+            return Err(Error::InvalidParameter {
+                name: "viscosity_max_iterations",
+                value: "0".into(),
+                reason: "must be at least 1",
+            });
+        }
         let kernel = CubicSpline::new(params.h)?;
         Ok(Self {
+            update,
             mu: params.viscosity,
             h: params.h,
             rest_density: params.rest_density,
@@ -252,8 +288,13 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
 }
 
 impl Processor for ImplicitViscosity {
+    /// "viscosity", or "implicit_viscosity" on [`Update::Velocities`] (PBF,
+    /// whose "viscosity" station is the vorticity and XSPH before it).
     fn name(&self) -> &str {
-        "viscosity"
+        match self.update {
+            Update::Accelerations => "viscosity",
+            Update::Velocities => "implicit_viscosity",
+        }
     }
 
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
@@ -285,7 +326,7 @@ impl Processor for ImplicitViscosity {
         if rho.iter().any(|&r| r.is_nan() || r <= 0.0) {
             return Err(Error::Pipeline {
                 processor: "viscosity",
-                reason: "needs the step's densities: put it after the station that computes them (DFSPH's `factors`)",
+                reason: "needs the step's densities: put it after the station that computes them (DFSPH's `factors`, PBF's `viscosity`)",
             });
         }
         // Per pair V_j ∇W_ij / (r² + ε); per particle the factor, the
@@ -313,11 +354,17 @@ impl Processor for ImplicitViscosity {
             let diagonal = Mat3::IDENTITY - block * c;
             (c, t, diagonal.inverse())
         });
-        // b = v* = v + Δt a; the warm start x = b + the last change.
-        (f.velocities.par_iter())
-            .zip(f.accelerations.par_iter())
-            .map(|(&v, &a)| v + dt * a)
-            .collect_into_vec(&mut self.b);
+        // b = v* (v + Δt a, or v); the warm start x = b + the last change.
+        match self.update {
+            Update::Accelerations => (f.velocities.par_iter())
+                .zip(f.accelerations.par_iter())
+                .map(|(&v, &a)| v + dt * a)
+                .collect_into_vec(&mut self.b),
+            Update::Velocities => {
+                self.b.clear();
+                self.b.extend_from_slice(f.velocities);
+            }
+        }
         (self.x.par_iter_mut())
             .zip(self.b.par_iter())
             .for_each(|(x, &b)| *x += b);
@@ -377,15 +424,28 @@ impl Processor for ImplicitViscosity {
         if residual > stop {
             ctx.counters.unconverged += 1;
         }
-        // The viscous acceleration (x − b)/Δt joins the others; the change
-        // x − b is the next step's warm start.
-        let inv_dt = 1.0 / dt;
-        (f.accelerations.par_iter_mut())
-            .zip(self.x.par_iter_mut().zip(self.b.par_iter()))
-            .for_each(|(a, (x, &b))| {
-                *x -= b;
-                *a += *x * inv_dt;
-            });
+        // The viscous acceleration (x − b)/Δt joins the others, or x
+        // replaces the velocities; the change x − b is the next step's warm
+        // start.
+        match self.update {
+            Update::Accelerations => {
+                let inv_dt = 1.0 / dt;
+                (f.accelerations.par_iter_mut())
+                    .zip(self.x.par_iter_mut().zip(self.b.par_iter()))
+                    .for_each(|(a, (x, &b))| {
+                        *x -= b;
+                        *a += *x * inv_dt;
+                    });
+            }
+            Update::Velocities => {
+                (f.velocities.par_iter_mut())
+                    .zip(self.x.par_iter_mut().zip(self.b.par_iter()))
+                    .for_each(|(v, (x, &b))| {
+                        *v = *x;
+                        *x -= b;
+                    });
+            }
+        }
         particles
             .attribute_mut::<Vec3>(VISCOUS_CHANGE)?
             .copy_from_slice(&self.x);
