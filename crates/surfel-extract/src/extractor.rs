@@ -132,6 +132,7 @@ impl Extractor {
                 Some(field) => field,
                 None => field.insert(ColourField::empty()),
             };
+            field.set_surface(params.surface)?;
             refill(field, params.h)?;
             let field_time = start.elapsed();
             out.stats = thesis::run(field, params, scratch, &mut out.surfels)?;

@@ -1,12 +1,47 @@
 //! The colour field c(x) = Σ_j V_j W_poly6(x − x_j) (thesis eq. 18, V_j = m_j/ρ_j)
 //! and the iso function f = c − k_iso (eq. 34), evaluated anywhere through
 //! `sph-core`'s neighbour grid, with every evaluation counted.
+//!
+//! The field is the thesis's isotropic one ([`Surface::Isotropic`]) or Yu &
+//! Turk's anisotropic one ([`Surface::Anisotropic`], [`crate::anisotropy`]):
+//! c(x) = Σ_j V_j det(G_j) W_poly6(|G_j (x − x̄_j)|) about smoothed centres
+//! x̄_j. Both are evaluated through the same grid (built over the centres)
+//! and give c, ∇c and ∇²c, so everything downstream works on either.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
 use rayon::prelude::*;
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Poly6Sums, Result};
+
+use crate::anisotropy::{self, Anisotropy, Ellipsoid};
+
+/// Which surface field the particles make.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Surface {
+    /// The thesis's colour field: one isotropic poly6 kernel per particle,
+    /// at the particle (eq. 18).
+    #[default]
+    Isotropic,
+    /// Yu & Turk's (2013): kernels stretched along each neighbourhood's
+    /// principal directions, about smoothed centres.
+    Anisotropic(Anisotropy),
+}
+
+impl Surface {
+    /// The anisotropic field with Yu & Turk's parameters.
+    pub fn anisotropic() -> Self {
+        Self::Anisotropic(Anisotropy::default())
+    }
+
+    /// Checks the anisotropy's parameters; the error names the field.
+    pub fn validate(&self) -> Result<()> {
+        match self {
+            Self::Isotropic => Ok(()),
+            Self::Anisotropic(a) => a.validate(),
+        }
+    }
+}
 
 /// c, ∇c and ∇²c at a point.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -60,7 +95,13 @@ impl ParticleSample {
 #[derive(Debug)]
 pub struct ColourField {
     grid: NeighbourGrid,
+    /// The kernels' centres: the particles' positions, or their smoothed
+    /// centres for the anisotropic field.
     positions: Vec<Vec3>,
+    /// Per particle (index order), its kernel's shape; empty for the
+    /// isotropic field.
+    shapes: Vec<Ellipsoid>,
+    surface: Surface,
     volumes: Vec<f32>,
     /// `volumes` in the grid's slot order, as its vectorised sums read them.
     slot_volumes: Vec<f32>,
@@ -133,6 +174,8 @@ impl ColourField {
         Self {
             grid: NeighbourGrid::build(&[], h).expect("an empty grid of h = 1 builds"),
             positions: Vec::new(),
+            shapes: Vec::new(),
+            surface: Surface::Isotropic,
             volumes: Vec::new(),
             slot_volumes: Vec::new(),
             poly6: Poly6::new(h).expect("h = 1 is a valid kernel radius"),
@@ -152,6 +195,7 @@ impl ColourField {
         let result = self.try_refill(positions, h, volumes);
         if result.is_err() {
             self.positions.clear();
+            self.shapes.clear();
             self.volumes.clear();
             self.slot_volumes.clear();
             self.evaluations = Counter::default();
@@ -215,6 +259,15 @@ impl ColourField {
                 reason: "particle volumes m/ρ must be finite and positive",
             });
         }
+        self.shapes.clear();
+        if let Surface::Anisotropic(a) = self.surface {
+            // The kernels from the particles' neighbourhoods; then the grid
+            // over their centres, through which the field is evaluated.
+            let mut centres = Vec::new();
+            anisotropy::kernels(&self.grid, positions, &a, &mut centres, &mut self.shapes);
+            self.grid.rebuild(&centres)?;
+            self.positions = centres;
+        }
         let order = self.grid.order();
         let volumes = &self.volumes;
         order
@@ -222,6 +275,69 @@ impl ColourField {
             .map(|&i| volumes[i as usize])
             .collect_into_vec(&mut self.slot_volumes);
         Ok(())
+    }
+
+    /// Which field this is; set it before a refill with
+    /// [`ColourField::set_surface`].
+    pub fn surface(&self) -> Surface {
+        self.surface
+    }
+
+    /// Makes the next refill build `surface`'s field (the current particles'
+    /// field is unchanged until then).
+    ///
+    /// # Errors
+    /// Anisotropy parameters that do not validate.
+    pub fn set_surface(&mut self, surface: Surface) -> Result<()> {
+        surface.validate()?;
+        self.surface = surface;
+        Ok(())
+    }
+
+    /// The anisotropic kernels' shapes, one per particle in index order;
+    /// empty for the isotropic field.
+    pub fn shapes(&self) -> &[Ellipsoid] {
+        &self.shapes
+    }
+
+    /// c, ∇c, ∇²c and the neighbours within h, with the second moment of
+    /// their offsets when `SECOND`, from the anisotropic kernels about `x`.
+    #[inline]
+    fn anisotropic_sums<const SECOND: bool>(
+        &self,
+        nb: Neighbourhood<'_>,
+    ) -> (Sample, [f32; 6], u32) {
+        let h2 = self.h() * self.h();
+        // W_poly6 = k (h² − r²)³.
+        let k = self.poly6.value_r2(0.0) / (h2 * h2 * h2);
+        let (mut s, mut second, mut count) = (Sample::default(), [0.0f32; 6], 0u32);
+        nb.for_each(|j, d, _| {
+            count += 1;
+            if SECOND {
+                for (m, v) in second.iter_mut().zip([
+                    d.x * d.x,
+                    d.x * d.y,
+                    d.x * d.z,
+                    d.y * d.y,
+                    d.y * d.z,
+                    d.z * d.z,
+                ]) {
+                    *m += v;
+                }
+            }
+            let e = self.shapes[j];
+            let md = e.apply(d);
+            let q = d.dot(md);
+            if q < h2 {
+                // f = (h² − q)³, ∇f = −3t² · 2Md, ∇²f = 24t|Md|² − 6t² tr M.
+                let t = h2 - q;
+                let a = self.volumes[j] * e.det * k;
+                s.c += a * t * t * t;
+                s.gradient += (a * -6.0 * t * t) * md;
+                s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * e.trace());
+            }
+        });
+        (s, second, count)
     }
 
     /// The smoothing length.
@@ -272,7 +388,11 @@ impl ColourField {
     pub fn sample(&self, x: Vec3) -> Sample {
         self.evaluations.add();
         let nb = self.grid.neighbourhood_of_point(x);
-        nb.poly6_sums(&self.poly6, &self.slot_volumes).into()
+        if self.shapes.is_empty() {
+            nb.poly6_sums(&self.poly6, &self.slot_volumes).into()
+        } else {
+            self.anisotropic_sums::<false>(nb).0
+        }
     }
 
     /// c, ∇c, ∇²c at particle `i` and the covariance of its neighbourhood about it
@@ -288,6 +408,14 @@ impl ColourField {
     #[inline]
     pub(crate) fn sample_neighbourhood(&self, nb: Neighbourhood<'_>) -> ParticleSample {
         self.evaluations.add();
+        if !self.shapes.is_empty() {
+            let (sample, covariance, count) = self.anisotropic_sums::<true>(nb);
+            return ParticleSample {
+                sample,
+                covariance,
+                neighbours: count.saturating_sub(1),
+            };
+        }
         // Offsets are at most h, so f32 sums of a few dozen terms are exact
         // enough for the shape test.
         let (sums, covariance) = nb.poly6_sums_and_second_moment(&self.poly6, &self.slot_volumes);
@@ -302,6 +430,22 @@ impl ColourField {
     /// Evaluations made since the field was built or last refilled.
     pub fn evaluations(&self) -> u64 {
         self.evaluations.total()
+    }
+
+    /// The distance from particle `i`, if it were alone, at which its kernel
+    /// reaches `iso`: [`ColourField::lone_iso_radius`] for its volume, for
+    /// an anisotropic field scaled by its kernel (an isolated particle's is
+    /// a sphere `isolated_scale` × h in radius).
+    pub fn lone_radius(&self, i: usize, iso: f32) -> Option<f32> {
+        let volume = self.volumes[i];
+        match self.shapes.get(i) {
+            None => self.lone_iso_radius(volume, iso),
+            Some(e) => {
+                // det G = 1/a³ for a sphere of radius a h: c(aρ) = (V/a³) W(ρ).
+                let a = e.det.cbrt().recip();
+                self.lone_iso_radius(volume * e.det, iso).map(|r| a * r)
+            }
+        }
     }
 
     /// The distance from a lone particle of volume `volume` at which its field
@@ -396,6 +540,76 @@ mod tests {
             );
         }
         assert_eq!(field.evaluations(), 3 * 13);
+    }
+
+    /// The anisotropic field's ∇c and ∇²c against finite differences of its
+    /// c, on a jittered block whose faces flatten its kernels; each
+    /// kernel's integral stays 1 (det G), so the field inside is about 1;
+    /// a lone particle reaches the iso value at [`ColourField::lone_radius`].
+    #[test]
+    fn anisotropic_field_matches_finite_differences() {
+        let s = 0.02f32;
+        let mut x = Vec::new();
+        for k in 0..6 {
+            for j in 0..6 {
+                for i in 0..6 {
+                    let jitter = Vec3::new(
+                        ((i * 7 + j * 3 + k) % 5) as f32,
+                        ((i + j * 5 + k * 3) % 7) as f32,
+                        ((i * 3 + j + k * 7) % 3) as f32,
+                    ) * 0.0005;
+                    x.push(Vec3::new(i as f32, j as f32, k as f32) * s + jitter);
+                }
+            }
+        }
+        let volumes = vec![s * s * s; x.len()];
+        let mut field = ColourField::empty();
+        field.set_surface(Surface::anisotropic()).unwrap();
+        field.volumes.extend_from_slice(&volumes);
+        field.refill(&x, 2.0 * s, Volumes::Kept).unwrap();
+        assert_eq!(field.shapes().len(), x.len());
+        let inside = field.sample(Vec3::splat(2.5 * s)).c;
+        assert!((inside - 1.0).abs() < 0.1, "c inside {inside}");
+        let e = 1e-4f32;
+        for p in [
+            Vec3::new(0.05, 0.102, 0.05),
+            Vec3::new(-0.002, 0.03, 0.06),
+            Vec3::new(0.101, 0.101, 0.05),
+        ] {
+            let smp = field.sample(p);
+            assert!(smp.c > 0.02 && smp.c < 1.5, "{p}: c {}", smp.c);
+            let mut lap = 0.0;
+            for a in 0..3 {
+                let mut d = Vec3::ZERO;
+                d[a] = e;
+                let fd = (field.sample(p + d).c - field.sample(p - d).c) / (2.0 * e);
+                assert!(
+                    (fd - smp.gradient[a]).abs() < 0.02 * smp.gradient.length(),
+                    "{p} axis {a}: {fd} vs {}",
+                    smp.gradient[a]
+                );
+                let e2 = 5e-4;
+                let d2 = d / e * e2;
+                lap += (field.sample(p + d2).c - 2.0 * smp.c + field.sample(p - d2).c) / (e2 * e2);
+            }
+            assert!(
+                (lap - smp.laplacian).abs()
+                    < 0.02 * smp.laplacian.abs() + 0.05 * smp.gradient.length() / s,
+                "{p}: {lap} vs {}",
+                smp.laplacian
+            );
+        }
+        // A lone particle: an isotropic kernel of half h, 8 times as high, so
+        // that it reaches the iso value where the thesis's (V W(0) = 0.2 at
+        // h = 2 spacings) does not.
+        let mut lone = ColourField::empty();
+        lone.set_surface(Surface::anisotropic()).unwrap();
+        lone.volumes.push(s * s * s);
+        lone.refill(&[Vec3::ZERO], 2.0 * s, Volumes::Kept).unwrap();
+        let r = lone.lone_radius(0, 0.5).unwrap();
+        assert_eq!(lone.lone_iso_radius(s * s * s, 0.5), None);
+        assert!(r > 0.0 && r < s, "{r}");
+        assert!((lone.sample(Vec3::new(r, 0.0, 0.0)).c - 0.5).abs() < 1e-3);
     }
 
     #[test]

@@ -29,6 +29,7 @@
 //! Everything runs in parallel with rayon and gives identical output for any
 //! number of threads. The crate depends on `sph-core` (grid, kernels) only.
 
+pub mod anisotropy;
 pub mod coverage;
 mod extractor;
 pub mod field;
@@ -45,8 +46,9 @@ use glam::Vec3;
 use sph_core::error::positive;
 use sph_core::{Error, Particles, Result};
 
+pub use anisotropy::Anisotropy;
 pub use extractor::Extractor;
-pub use field::{ColourField, ParticleSample, Sample};
+pub use field::{ColourField, ParticleSample, Sample, Surface};
 
 /// A surface element: a disc on the iso-surface.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -150,6 +152,9 @@ pub struct ExtractParams {
     pub fill_rounds: u32,
     /// How the first iteration's surfels split; later splits are 2×2.
     pub first_split: Split,
+    /// The field whose iso-surface is extracted: the thesis's isotropic
+    /// colour field (the default) or Yu & Turk's anisotropic one.
+    pub surface: Surface,
 }
 
 impl ExtractParams {
@@ -170,15 +175,26 @@ impl ExtractParams {
             mode: Mode::Covered,
             fill_rounds: 4,
             first_split: Split::ThreeByThree,
+            surface: Surface::Isotropic,
+        }
+    }
+
+    /// The same parameters on Yu & Turk's anisotropic field, with the
+    /// paper's parameters ([`Anisotropy::default`]).
+    pub fn anisotropic(self) -> Self {
+        Self {
+            surface: Surface::anisotropic(),
+            ..self
         }
     }
 
     /// The same parameters in the thesis-faithful mode: no hole closing, 2×2
-    /// splits.
+    /// splits, the isotropic field.
     pub fn thesis(self) -> Self {
         Self {
             mode: Mode::Thesis,
             first_split: Split::TwoByTwo,
+            surface: Surface::Isotropic,
             ..self
         }
     }
@@ -233,6 +249,7 @@ impl ExtractParams {
                 reason: "must be in [0, 1]",
             });
         }
+        self.surface.validate()?;
         if let Some(c) = self.camera.filter(|c| !c.is_finite()) {
             return Err(Error::InvalidParameter {
                 name: "camera",

@@ -138,7 +138,7 @@ pub(crate) fn newton_step(field: &ColourField, iso: f32, x: Vec3, max_step: f32)
 fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &ParticleSample) -> Guess {
     let h = p.h;
     if at.neighbours == 0 {
-        return match field.lone_iso_radius(field.volumes()[i], p.iso) {
+        return match field.lone_radius(i, p.iso) {
             Some(radius) => Guess::Lone { radius },
             None => Guess::Interior,
         };
