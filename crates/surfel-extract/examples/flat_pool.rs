@@ -1,0 +1,136 @@
+//! A settled pool's top surface under each surface field: how far its
+//! surfels' normals lean from vertical, and the volume the surface encloses
+//! against the particles' N m/ρ0.
+//!
+//! `cargo run --release -p surfel-extract --example flat_pool [-- SOLVER]`
+//!
+//! The pool: 0.6 × 0.2 × 0.6 m of water at 2 cm spacing (h = 4 cm) in a
+//! 0.6 × 0.4 × 0.6 m tank, settled for 2 s by DFSPH, or by the solver named
+//! (`wcsph`, `pbf`, `dfsph`).
+
+use std::time::Instant;
+
+use sph_core::glam::Vec3;
+use sph_core::{Scene, SolverKind, World};
+use surfel_extract::{Anisotropy, ColourField, ExtractParams, Extractor, Surface};
+
+/// The pool settled by `kind`.
+pub fn settled_pool(kind: SolverKind) -> (Scene, World) {
+    let spacing = 0.02;
+    let mut scene = Scene::dam_break(0.15, 0.6, spacing).with_solver(kind);
+    scene.domain.min = [0.0; 3];
+    scene.domain.max = [0.6, 0.4, 0.6];
+    scene.blocks[0].min = [0.0; 3];
+    scene.blocks[0].max = [0.6, 0.2, 0.6];
+    let mut world = scene.build_world().expect("the pool builds");
+    for _ in 0..120 {
+        world.advance(1.0 / 60.0).expect("the pool settles");
+    }
+    (scene, world)
+}
+
+/// The median, 90th and 99th percentile of `angles`.
+fn percentiles(mut angles: Vec<f32>) -> [f32; 3] {
+    angles.sort_by(f32::total_cmp);
+    let at = |q: f32| angles[((angles.len() - 1) as f32 * q).round() as usize];
+    [at(0.5), at(0.9), at(0.99)]
+}
+
+/// The volume where c > iso, by voxels of `step`.
+fn enclosed_volume(field: &ColourField, iso: f32, step: f32) -> f64 {
+    let Some((lo, hi)) = field.support_bounds() else {
+        return 0.0;
+    };
+    let n = ((hi - lo) / step).ceil();
+    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
+    let inside: usize = (0..nx * ny * nz)
+        .filter(|&k| {
+            let (i, j, l) = (k % nx, k / nx % ny, k / (nx * ny));
+            let x = lo + (Vec3::new(i as f32, j as f32, l as f32) + 0.5) * step;
+            field.sample(x).c > iso
+        })
+        .count();
+    inside as f64 * f64::from(step).powi(3)
+}
+
+fn main() {
+    let kind = match std::env::args().nth(1).as_deref() {
+        None | Some("dfsph") => SolverKind::Dfsph,
+        Some("wcsph") => SolverKind::Wcsph,
+        Some("pbf") => SolverKind::Pbf,
+        Some(other) => {
+            eprintln!("unknown solver {other:?}: wcsph, pbf or dfsph");
+            std::process::exit(2);
+        }
+    };
+    let start = Instant::now();
+    let (scene, world) = settled_pool(kind);
+    let p = &world.particles;
+    let h = scene.fluid.h;
+    let volume: f64 = p
+        .masses()
+        .iter()
+        .map(|&m| f64::from(m / scene.fluid.rest_density))
+        .sum();
+    let top = p.positions().iter().map(|x| x.y).fold(f32::MIN, f32::max);
+    println!(
+        "{kind}: {} particles settled in {:.1} s; top particle at {top:.4} m; N m/ρ0 = {volume:.5} m³",
+        p.len(),
+        start.elapsed().as_secs_f32()
+    );
+    println!(
+        "| field | surfels | discarded | top surfels | median | p90 | p99 | volume / N m/ρ0 | extraction |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let fields = [
+        ("isotropic (thesis)", Surface::Isotropic),
+        ("anisotropic, λ = 0.9", Surface::anisotropic()),
+        (
+            "anisotropic, λ = 0.5",
+            Surface::Anisotropic(Anisotropy {
+                smoothing: 0.5,
+                ..Anisotropy::default()
+            }),
+        ),
+        (
+            "anisotropic, λ = 0",
+            Surface::Anisotropic(Anisotropy {
+                smoothing: 0.0,
+                ..Anisotropy::default()
+            }),
+        ),
+    ];
+    for (name, surface) in fields {
+        let params = ExtractParams {
+            surface,
+            ..ExtractParams::new(h)
+        };
+        let mut extractor = Extractor::new();
+        let t = Instant::now();
+        let out = extractor.extract(p, &params).expect("extracts").clone();
+        let time = t.elapsed();
+        let field = extractor.field().expect("built");
+        // The top: facing up, above the top particle less h, h from the walls.
+        let angles: Vec<f32> = (out.surfels.iter())
+            .filter(|s| {
+                s.normal.y > 0.0
+                    && s.position.y > top - h
+                    && s.position.x > 2.0 * h
+                    && s.position.x < 0.6 - 2.0 * h
+                    && s.position.z > 2.0 * h
+                    && s.position.z < 0.6 - 2.0 * h
+            })
+            .map(|s| s.normal.y.clamp(-1.0, 1.0).acos().to_degrees())
+            .collect();
+        let count = angles.len();
+        let [median, p90, p99] = percentiles(angles);
+        let enclosed = enclosed_volume(field, params.iso, 0.005);
+        println!(
+            "| {name} | {} | {} | {count} | {median:.2}° | {p90:.2}° | {p99:.2}° | {:.3} | {:.0} ms |",
+            out.stats.surfels,
+            out.stats.discarded,
+            enclosed / volume,
+            time.as_secs_f64() * 1e3
+        );
+    }
+}
