@@ -86,6 +86,13 @@ fn main() {
         ("isotropic (thesis)", Surface::Isotropic),
         ("anisotropic, λ = 0.9", Surface::anisotropic()),
         (
+            "anisotropic, λ = 0.9, r = 2h",
+            Surface::Anisotropic(Anisotropy {
+                radius: 2.0,
+                ..Anisotropy::default()
+            }),
+        ),
+        (
             "anisotropic, λ = 0.5",
             Surface::Anisotropic(Anisotropy {
                 smoothing: 0.5,

@@ -264,7 +264,12 @@ impl ColourField {
             // The kernels from the particles' neighbourhoods; then the grid
             // over their centres, through which the field is evaluated.
             let mut centres = Vec::new();
-            anisotropy::kernels(&self.grid, positions, &a, &mut centres, &mut self.shapes);
+            if a.radius == 1.0 {
+                anisotropy::kernels(&self.grid, positions, &a, &mut centres, &mut self.shapes);
+            } else {
+                let wide = NeighbourGrid::build(positions, a.radius * h)?;
+                anisotropy::kernels(&wide, positions, &a, &mut centres, &mut self.shapes);
+            }
             self.grid.rebuild(&centres)?;
             self.positions = centres;
         }
