@@ -12,7 +12,8 @@ use std::time::Instant;
 
 use sph_core::glam::Vec3;
 use sph_core::{Scene, SolverKind, World};
-use surfel_extract::{Anisotropy, ColourField, ExtractParams, Extractor, Surface};
+use surfel_extract::anisotropy::Centres;
+use surfel_extract::{Anisotropy, ColourField, ExtractParams, Extractor, Surface, coverage};
 
 /// The pool settled by `kind`.
 pub fn settled_pool(kind: SolverKind) -> (Scene, World) {
@@ -79,28 +80,32 @@ fn main() {
         start.elapsed().as_secs_f32()
     );
     println!(
-        "| field | surfels | discarded | top surfels | median | p90 | p99 | volume / N m/ρ0 | extraction |"
+        "| field | surfels | discarded | coverage | median |c − iso| | top surfels | median | p90 | p99 | volume / N m/ρ0 | extraction |"
     );
-    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    println!("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let paper = Anisotropy {
+        centres: Centres::Mean,
+        ..Anisotropy::default()
+    };
     let fields = [
         ("isotropic (thesis)", Surface::Isotropic),
-        ("anisotropic, λ = 0.9", Surface::anisotropic()),
         (
-            "anisotropic, λ = 0.9, r = 2h",
+            "anisotropic (default: layer smoothing, r = 2h)",
+            Surface::anisotropic(),
+        ),
+        (
+            "anisotropic, the paper's mean smoothing",
+            Surface::Anisotropic(paper),
+        ),
+        (
+            "anisotropic, r = h",
             Surface::Anisotropic(Anisotropy {
-                radius: 2.0,
+                radius: 1.0,
                 ..Anisotropy::default()
             }),
         ),
         (
-            "anisotropic, λ = 0.5",
-            Surface::Anisotropic(Anisotropy {
-                smoothing: 0.5,
-                ..Anisotropy::default()
-            }),
-        ),
-        (
-            "anisotropic, λ = 0",
+            "anisotropic, no smoothing (λ = 0)",
             Surface::Anisotropic(Anisotropy {
                 smoothing: 0.0,
                 ..Anisotropy::default()
@@ -132,10 +137,14 @@ fn main() {
         let count = angles.len();
         let [median, p90, p99] = percentiles(angles);
         let enclosed = enclosed_volume(field, params.iso, 0.005);
+        let points = coverage::iso_points(field, params.iso, 0.01).expect("a small lattice");
+        let covered = coverage::covered_fraction(&out.surfels, &points, 0.1 * h).expect("finite");
+        let residual = coverage::residuals(field, params.iso, &out.surfels).median;
         println!(
-            "| {name} | {} | {} | {count} | {median:.2}° | {p90:.2}° | {p99:.2}° | {:.3} | {:.0} ms |",
+            "| {name} | {} | {} | {:.2} % | {residual:.4} | {count} | {median:.2}° | {p90:.2}° | {p99:.2}° | {:.3} | {:.0} ms |",
             out.stats.surfels,
             out.stats.discarded,
+            100.0 * covered,
             enclosed / volume,
             time.as_secs_f64() * 1e3
         );

@@ -8,7 +8,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 use sph_core::Result;
 
-use crate::field::{ColourField, ParticleSample};
+use crate::field::{ColourField, ParticleSample, Surface};
 use crate::flatten::par_extend_flat;
 use crate::{AllAround, ExtractParams, Mode, Split, Stats, Surfel, fill, tangent_basis};
 
@@ -152,18 +152,72 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &Particle
         return Guess::Interior;
     }
     let normal = -s.gradient / g;
-    let step = (s.c - p.iso) / g; // along the normal
+    let x = field.positions()[i];
+    let step = match field.surface() {
+        // The thesis's one Newton-Raphson step (eq. 33).
+        Surface::Isotropic => (s.c - p.iso) / g, // along the normal
+        // The anisotropic field's thin kernels make c peak near a surface
+        // particle and fall steeply beyond it, so that a Newton step from
+        // the particle overshoots (or, near the peak, calls a surface
+        // particle interior): the crossing is bracketed along the normal.
+        Surface::Anisotropic(_) => {
+            match crossing(field, p.iso, x, s.c, normal, p.interior_step * h) {
+                Some(t) => t,
+                None => return Guess::Interior,
+            }
+        }
+    };
     if step.abs() > p.interior_step * h {
         return Guess::Interior;
     }
     Guess::Surface {
         surfel: Surfel {
-            position: field.positions()[i] + normal * step.clamp(-0.5 * h, 0.5 * h),
+            position: x + normal * step.clamp(-0.5 * h, 0.5 * h),
             normal,
             radius: p.radius * h,
         },
         split: s.laplacian.abs() * h * h > p.split_laplacian,
     }
+}
+
+/// Where c crosses `iso` along the line x + t n, |t| ≤ `reach`, on the side
+/// c(x) = `c0` says (t > 0 when c0 > iso: outwards), or `None` if c is
+/// still on c0's side at `reach`. Regula falsi (Illinois) from the bracket
+/// [0, ±reach]: 1 + 6 evaluations.
+fn crossing(field: &ColourField, iso: f32, x: Vec3, c0: f32, n: Vec3, reach: f32) -> Option<f32> {
+    let side = if c0 >= iso { 1.0 } else { -1.0 };
+    let (mut a, mut fa) = (0.0f32, c0 - iso);
+    let mut b = side * reach;
+    let mut fb = field.sample(x + b * n).c - iso;
+    if fb * fa > 0.0 {
+        return None;
+    }
+    let mut last = 0;
+    for _ in 0..6 {
+        let t = if fa != fb {
+            b - fb * (b - a) / (fb - fa)
+        } else {
+            0.5 * (a + b)
+        };
+        let ft = field.sample(x + t * n).c - iso;
+        if ft == 0.0 {
+            return Some(t);
+        }
+        if (ft > 0.0) == (fa > 0.0) {
+            (a, fa) = (t, ft);
+            if last == -1 {
+                fb *= 0.5;
+            }
+            last = -1;
+        } else {
+            (b, fb) = (t, ft);
+            if last == 1 {
+                fa *= 0.5;
+            }
+            last = 1;
+        }
+    }
+    Some(if fa.abs() < fb.abs() { a } else { b })
 }
 
 /// The front-facing surfels of a non-lone guess at particle position `x`,
