@@ -23,9 +23,9 @@
 //! paper's smoothing moves a surface particle towards its neighbourhood's
 //! mean, which lies inside the fluid: the pool's surface moved in and it
 //! lost 25 % of its volume. The default [`Centres::Layer`] smooths only
-//! across the surface, within the particle's own layer: 99.7 % of the
-//! volume stays, and the top's normals lean 0.66° from vertical at the
-//! median (the isotropic field's: 1.45°). Second, the kernel's axes are proportional to
+//! across the surface, within the particle's own layer: the enclosed
+//! volume stays within 0.2 % of N m/ρ0, and the top's normals lean 0.70°
+//! from vertical at the median (the isotropic field's: 1.45°). Second, the kernel's axes are proportional to
 //! the neighbourhood's standard deviations √σ̃ₖ, not to its variances σ̃ₖ:
 //! with the paper's G = R diag(σ₁/σ̃ₖ) Rᵀ the top layer of a settled pool
 //! (neighbourhoods of radius h = 2 spacings, variances about 3.4 : 1) got
@@ -88,9 +88,14 @@ pub enum Centres {
     /// neighbours in the particle's own layer, those within `thickness` × h
     /// of its plane (weighted by (1 − (t/τ)²)² besides the paper's weight).
     /// The particle scale's bumps are smoothed away and the layer stays
-    /// where it is: the same pool kept 99.7 % of its volume.
+    /// where it is: the same pool enclosed 1.002 × its volume.
     Layer {
-        /// The layer's half-thickness τ, in units of h, in (0, 1].
+        /// The layer's half-thickness τ, in units of h, in (0, 1]. Default
+        /// 0.35 (0.7 spacings at h = 2 spacings): wide enough for a noisy
+        /// layer's heights, narrow enough that the layer below (a spacing
+        /// down) adds almost nothing. At 0.5 a WCSPH pool's top came out a
+        /// little flatter (6.6° against 7.4° at the median) but a lattice's
+        /// jittered top layer was pulled towards the layer below it.
         thickness: f32,
     },
 }
@@ -103,7 +108,7 @@ impl Default for Anisotropy {
             min_neighbours: 4,
             isolated_scale: 0.5,
             radius: 2.0,
-            centres: Centres::Layer { thickness: 0.5 },
+            centres: Centres::Layer { thickness: 0.35 },
         }
     }
 }
