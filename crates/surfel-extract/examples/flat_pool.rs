@@ -13,7 +13,7 @@ use std::time::Instant;
 use sph_core::glam::Vec3;
 use sph_core::{Scene, SolverKind, World};
 use surfel_extract::anisotropy::Centres;
-use surfel_extract::{Anisotropy, ColourField, ExtractParams, Extractor, Surface, coverage};
+use surfel_extract::{Anisotropy, ExtractParams, Extractor, Surface, coverage};
 
 /// The pool settled by `kind`.
 pub fn settled_pool(kind: SolverKind) -> (Scene, World) {
@@ -35,23 +35,6 @@ fn percentiles(mut angles: Vec<f32>) -> [f32; 3] {
     angles.sort_by(f32::total_cmp);
     let at = |q: f32| angles[((angles.len() - 1) as f32 * q).round() as usize];
     [at(0.5), at(0.9), at(0.99)]
-}
-
-/// The volume where c > iso, by voxels of `step`.
-fn enclosed_volume(field: &ColourField, iso: f32, step: f32) -> f64 {
-    let Some((lo, hi)) = field.support_bounds() else {
-        return 0.0;
-    };
-    let n = ((hi - lo) / step).ceil();
-    let (nx, ny, nz) = (n.x as usize, n.y as usize, n.z as usize);
-    let inside: usize = (0..nx * ny * nz)
-        .filter(|&k| {
-            let (i, j, l) = (k % nx, k / nx % ny, k / (nx * ny));
-            let x = lo + (Vec3::new(i as f32, j as f32, l as f32) + 0.5) * step;
-            field.sample(x).c > iso
-        })
-        .count();
-    inside as f64 * f64::from(step).powi(3)
 }
 
 fn main() {
@@ -136,7 +119,8 @@ fn main() {
             .collect();
         let count = angles.len();
         let [median, p90, p99] = percentiles(angles);
-        let enclosed = enclosed_volume(field, params.iso, 0.005);
+        let enclosed =
+            coverage::enclosed_volume(field, params.iso, 0.005).expect("a small lattice");
         let points = coverage::iso_points(field, params.iso, 0.01).expect("a small lattice");
         let covered = coverage::covered_fraction(&out.surfels, &points, 0.1 * h).expect("finite");
         let residual = coverage::residuals(field, params.iso, &out.surfels).median;

@@ -121,6 +121,18 @@ enum Volumes<'a> {
 }
 
 impl ColourField {
+    /// An empty field of the kind `surface` says, to fill with
+    /// [`ColourField::refill_from_particles`] or
+    /// [`ColourField::refill_from_positions`].
+    ///
+    /// # Errors
+    /// Anisotropy parameters that do not validate.
+    pub fn new(surface: Surface) -> Result<Self> {
+        let mut field = Self::empty();
+        field.set_surface(surface)?;
+        Ok(field)
+    }
+
     /// The field of particles with known volumes m/ρ.
     pub fn with_volumes(positions: &[Vec3], volumes: &[f32], h: f32) -> Result<Self> {
         let mut field = Self::empty();
@@ -160,6 +172,19 @@ impl ColourField {
             return self.refill(x, h, Volumes::Kept);
         }
         self.refill(x, h, Volumes::Density(m))
+    }
+
+    /// [`ColourField::with_volumes`] in place, reusing this field's memory.
+    /// On error the field is left empty.
+    pub fn refill_with_volumes(
+        &mut self,
+        positions: &[Vec3],
+        volumes: &[f32],
+        h: f32,
+    ) -> Result<()> {
+        self.volumes.clear();
+        self.volumes.extend_from_slice(volumes);
+        self.refill(positions, h, Volumes::Kept)
     }
 
     /// [`ColourField::from_positions`] in place, reusing this field's memory. On
