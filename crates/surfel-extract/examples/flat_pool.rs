@@ -10,7 +10,6 @@
 
 use std::time::Instant;
 
-use sph_core::glam::Vec3;
 use sph_core::{Scene, SolverKind, World};
 use surfel_extract::anisotropy::Centres;
 use surfel_extract::{Anisotropy, ExtractParams, Extractor, Surface, coverage};
