@@ -20,7 +20,7 @@ use splat_render::shading::shade_pixel;
 use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer};
 use surfel_extract::raycast::Raycaster;
 use surfel_extract::samples::jittered_lattice;
-use surfel_extract::{ColourField, ExtractParams, extract_field};
+use surfel_extract::{ColourField, ExtractParams, Surface, extract_field};
 
 const W: u32 = 512;
 const H_PX: u32 = 384;
@@ -49,7 +49,43 @@ fn cases() -> Vec<Case> {
         .build_world()
         .expect("built-in scene");
     world.advance(0.4).expect("dam break runs");
+    let anisotropic = |x: &[Vec3]| {
+        let mut field = ColourField::new(Surface::anisotropic()).unwrap();
+        field.refill_from_positions(x, H).unwrap();
+        field
+    };
+    let pair = [
+        Vec3::new(-0.5 * SPACING, 0.0, 0.0),
+        Vec3::new(0.5 * SPACING, 0.0, 0.0),
+    ];
     vec![
+        Case {
+            name: "sphere-anisotropic",
+            field: anisotropic(&sphere),
+            camera: Camera::looking_at(Vec3::new(0.12, 0.18, 0.3), Vec3::ZERO),
+            min_iou: 0.97,
+        },
+        Case {
+            name: "block-anisotropic",
+            field: anisotropic(&block),
+            camera: Camera::looking_at(Vec3::new(0.25, 0.2, 0.25), Vec3::new(0.0, -0.01, 0.0)),
+            min_iou: 0.97,
+        },
+        // Droplets: one particle, and a pair a spacing apart, whose
+        // anisotropic kernels are spheres of half h (too few neighbours
+        // for a covariance).
+        Case {
+            name: "droplet",
+            field: anisotropic(&[Vec3::ZERO]),
+            camera: Camera::looking_at(Vec3::new(0.008, 0.012, 0.02), Vec3::ZERO),
+            min_iou: 0.97,
+        },
+        Case {
+            name: "pair",
+            field: anisotropic(&pair),
+            camera: Camera::looking_at(Vec3::new(0.012, 0.018, 0.03), Vec3::ZERO),
+            min_iou: 0.97,
+        },
         Case {
             name: "sphere",
             field: ColourField::from_positions(&sphere, H).unwrap(),

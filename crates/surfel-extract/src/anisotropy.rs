@@ -172,6 +172,9 @@ pub struct Ellipsoid {
     pub m: [f32; 6],
     /// det G ≥ 1.
     pub det: f32,
+    /// Whether this is an isolated particle's sphere (fewer than N_ε
+    /// neighbours), which draws a droplet.
+    pub isolated: bool,
 }
 
 impl Ellipsoid {
@@ -179,14 +182,16 @@ impl Ellipsoid {
     pub const ISOTROPIC: Self = Self {
         m: [1.0, 0.0, 0.0, 1.0, 0.0, 1.0],
         det: 1.0,
+        isolated: false,
     };
 
-    /// An isotropic kernel of radius `scale` × h.
+    /// An isolated particle's kernel: isotropic, of radius `scale` × h.
     pub fn sphere(scale: f32) -> Self {
         let s = 1.0 / (scale * scale);
         Self {
             m: [s, 0.0, 0.0, s, 0.0, s],
             det: 1.0 / (scale * scale * scale),
+            isolated: true,
         }
     }
 
@@ -239,6 +244,7 @@ impl Ellipsoid {
                 g2[(2, 2)] as f32,
             ],
             det: det as f32,
+            isolated: false,
         }
     }
 }

@@ -478,6 +478,18 @@ impl ColourField {
         }
     }
 
+    /// For a particle whose anisotropic kernel is an isolated one's sphere
+    /// (a droplet of fewer than N_ε particles), its [`ColourField::lone_radius`];
+    /// `None` for every other particle and for the isotropic field.
+    pub fn droplet_radius(&self, i: usize, iso: f32) -> Option<f32> {
+        let shape = self.shapes.get(i)?;
+        if shape.isolated {
+            self.lone_radius(i, iso)
+        } else {
+            None
+        }
+    }
+
     /// The distance from a lone particle of volume `volume` at which its field
     /// c(r) = V W_poly6(r) equals `iso`, or `None` if it never reaches `iso`.
     pub fn lone_iso_radius(&self, volume: f32, iso: f32) -> Option<f32> {

@@ -273,6 +273,9 @@ pub struct Stats {
     pub all_around: usize,
     /// Lone particles given their analytic iso-sphere.
     pub lone: usize,
+    /// Particles of droplets too small for anisotropic kernels, each
+    /// surrounded by surfels on its sphere (the anisotropic field only).
+    pub droplets: usize,
     /// Surfels in the initial guess.
     pub initial: usize,
     /// Surfels discarded by the step test.
