@@ -66,6 +66,12 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
 
+    /// The surface field the surfels lie on: Yu & Turk's anisotropic kernels
+    /// (smooth water, the default) or the thesis's isotropic colour field.
+    /// --gpu-extract always extracts the isotropic field.
+    #[arg(long, value_enum, default_value_t = SurfaceField::Anisotropic)]
+    pub surface: SurfaceField,
+
     /// Surfel refinement iterations (thesis: 1–3).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub iterations: u32,
@@ -104,6 +110,24 @@ pub struct Args {
     /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,
+}
+
+/// The surface field (`--surface`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SurfaceField {
+    /// The thesis's colour field: one isotropic kernel per particle.
+    Isotropic,
+    /// Anisotropic kernels (Yu & Turk 2013) about smoothed centres.
+    Anisotropic,
+}
+
+impl From<SurfaceField> for surfel_extract::Surface {
+    fn from(f: SurfaceField) -> Self {
+        match f {
+            SurfaceField::Isotropic => Self::Isotropic,
+            SurfaceField::Anisotropic => Self::anisotropic(),
+        }
+    }
 }
 
 /// File format of exported particles or surfels.
@@ -173,6 +197,11 @@ mod tests {
             .unwrap();
         assert_eq!(a.frame_count(), 20);
         assert!(Args::try_parse_from(["sph-app", "--iterations", "7"]).is_err());
+        assert!(Args::try_parse_from(["sph-app", "--surface", "bumpy"]).is_err());
+        let a = Args::try_parse_from(["sph-app"]).unwrap();
+        assert_eq!(a.surface, SurfaceField::Anisotropic);
+        let a = Args::try_parse_from(["sph-app", "--surface", "isotropic"]).unwrap();
+        assert_eq!(a.surface, SurfaceField::Isotropic);
         assert!(Args::try_parse_from(["sph-app", "--fps", "-1"]).is_err());
         // Frames of more than 1 s of simulation would run for hours.
         assert!(Args::try_parse_from(["sph-app", "--fps", "0.0001"]).is_err());

@@ -34,6 +34,12 @@ impl GpuExtract {
     /// # Errors
     /// [`AppError::Gpu`] for parameters the GPU path rejects.
     pub fn new(ctx: &GpuContext, world: &World, params: &ExtractParams) -> Result<Self, AppError> {
+        if params.surface != surfel_extract::Surface::Isotropic {
+            log::warn!(
+                "the GPU extractor computes the thesis's isotropic colour field, not the \
+                 anisotropic one (--surface anisotropic is CPU-only): the surface is bumpier"
+            );
+        }
         let params = params.thesis();
         let particles = world.particles.len().max(1);
         // A first guess; grows on overflow.

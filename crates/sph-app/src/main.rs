@@ -60,7 +60,8 @@ fn run(args: &Args) -> Result<(), AppError> {
     if let Some(kind) = args.solver {
         scene.solver.kind = kind;
     }
-    let pipeline = Pipeline::new(name, scene, args.iterations)?;
+    let mut pipeline = Pipeline::new(name, scene, args.iterations)?;
+    pipeline.extract.surface = args.surface.into();
     if args.headless {
         return headless::run(args, pipeline);
     }

@@ -11,7 +11,7 @@ use glam::{Vec2, Vec3};
 use sph_core::SolverKind;
 use sph_core::solver::ExternalAcceleration;
 use splat_render::{GpuContext, Shading, SplatRenderer, View, wgpu};
-use surfel_extract::Split;
+use surfel_extract::{Split, Surface};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
@@ -546,6 +546,14 @@ impl App {
                     changed |= ui.add(egui::Slider::new(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)")).changed();
                 });
                 ui.collapsing("extraction", |ui| {
+                    let mut smooth = extract.surface != Surface::Isotropic;
+                    if ui
+                        .checkbox(&mut smooth, "anisotropic kernels (--surface)")
+                        .on_hover_text("Yu & Turk 2013: smooth water; off: the thesis's isotropic colour field. The GPU extractor always uses the isotropic field.")
+                        .changed()
+                    {
+                        extract.surface = if smooth { Surface::anisotropic() } else { Surface::Isotropic };
+                    }
                     ui.add(egui::Slider::new(&mut extract.iterations, 1..=3).text("iterations"));
                     ui.add(egui::Slider::new(&mut extract.iso, 0.2..=0.8).text("iso value"));
                     ui.add(egui::Slider::new(&mut extract.radius, 0.2..=1.0).text("initial radius (h)"));
