@@ -72,12 +72,19 @@ fn main() {
     let fields = [
         ("isotropic (thesis)", Surface::Isotropic),
         (
-            "anisotropic (default: layer smoothing, r = 2h)",
+            "anisotropic (default: layer smoothing, r = 1.5h)",
             Surface::anisotropic(),
         ),
         (
             "anisotropic, the paper's mean smoothing",
             Surface::Anisotropic(paper),
+        ),
+        (
+            "anisotropic, r = 2h (the paper's)",
+            Surface::Anisotropic(Anisotropy {
+                radius: 2.0,
+                ..Anisotropy::default()
+            }),
         ),
         (
             "anisotropic, r = h",

@@ -5,13 +5,14 @@
 //! meant to leave the result as it is can be checked bitwise.
 //!
 //! ```sh
-//! cargo run --release -p surfel-extract --example stage_times [-- 100k] [ITERATIONS] [RUNS]
+//! cargo run --release -p surfel-extract --example stage_times [-- 100k] [anisotropic] [ITERATIONS] [RUNS]
 //! ```
 //!
-//! Defaults: the 2,250-particle frame, 2 iterations, 21 runs.
+//! Defaults: the 2,250-particle frame, the isotropic field, 2 iterations,
+//! 21 runs.
 
 use sph_core::{Particles, Scene};
-use surfel_extract::{ExtractParams, Extractor, extract};
+use surfel_extract::{ExtractParams, Extractor, Surface, extract};
 
 /// The dam break `Scene::dam_break(a, depth, 0.01)` after `t` seconds.
 fn frame(a: f32, depth: f32, t: f32) -> Result<Particles, Box<dyn std::error::Error>> {
@@ -30,8 +31,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut numbers = args.iter().filter_map(|a| a.parse::<u32>().ok());
     let iterations = numbers.next().unwrap_or(2);
     let runs = numbers.next().unwrap_or(21).max(1) as usize;
+    let surface = if args.iter().any(|a| a == "anisotropic") {
+        Surface::anisotropic()
+    } else {
+        Surface::Isotropic
+    };
     let params = ExtractParams {
         iterations,
+        surface,
         ..ExtractParams::new(0.02)
     };
     let out = extract(&particles, &params)?;
@@ -49,7 +56,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     println!(
-        "{label} ({} particles), {iterations} iterations: {} surfels ({} from hole closing), fingerprint {fingerprint:016x}",
+        "{label} ({} particles), {surface:?}, {iterations} iterations: {} surfels ({} from hole closing), fingerprint {fingerprint:016x}",
         particles.len(),
         out.stats.surfels,
         out.stats.filled,
