@@ -11,9 +11,13 @@
 //! thesis-faithful mode. With 2 and 3 iterations the default mode also runs
 //! with the thesis's 2×2 first split (`iterations-2x2`), the default before
 //! the 3×3 one.
-//! In the same run, splashsurf's `reconstruct_surface_inplace` (marching
-//! cubes, its output and workspace kept across runs) on the same particles is
-//! the peer.
+//! The anisotropic field (Yu & Turk 2013, `anisotropic`) at 2 iterations,
+//! with its kernel pass timed alone (`anisotropic-kernels`: the field built
+//! without extracting). In the same run, splashsurf's
+//! `reconstruct_surface_inplace` (marching cubes, its output and workspace
+//! kept across runs) on the same particles is the peer, bare and with its
+//! CLI's smoothing (`splashsurf-smoothed`: 25 Laplacian iterations of the
+//! mesh, β = 1, uniform weights, and 10 of the vertex normals).
 
 use std::hint::black_box;
 
@@ -109,6 +113,41 @@ fn extraction(c: &mut Criterion) {
                 );
             }
         }
+        // The anisotropic field at 2 iterations, and its field alone.
+        let params = ExtractParams {
+            iterations: 2,
+            ..ExtractParams::new(h)
+        }
+        .anisotropic();
+        let out = extract(&particles, &params).expect("extraction");
+        let s = out.stats;
+        let mut field = ColourField::new(params.surface).expect("valid");
+        field.refill_from_particles(&particles, h).expect("field");
+        let aniso_points = iso_points(&field, 0.5, 0.25 * h).expect("iso points");
+        println!(
+            "{label} anisotropic, 2 iterations: {} surfels, {} surfel + {} particle evaluations, coverage {:.2} % of {} iso points; stages (ms): field {:.1}, initial guess {:.1}, refinement {:.1}, hole closing {:.1}",
+            s.surfels,
+            s.evaluations,
+            s.particle_evaluations,
+            100.0 * covered_fraction(&out.surfels, &aniso_points, 0.1 * h).expect("finite surfels"),
+            aniso_points.len(),
+            s.field_time.as_secs_f64() * 1e3,
+            s.initial_time.as_secs_f64() * 1e3,
+            s.refine_time.as_secs_f64() * 1e3,
+            s.fill_time.as_secs_f64() * 1e3,
+        );
+        group.throughput(Throughput::Elements(s.surfels as u64));
+        group.bench_function(BenchmarkId::new(label, "anisotropic"), |b| {
+            b.iter(|| black_box(run(&params)))
+        });
+        group.throughput(Throughput::Elements(particles.len() as u64));
+        group.bench_function(BenchmarkId::new(label, "anisotropic-kernels"), |b| {
+            b.iter(|| {
+                field.refill_from_particles(&particles, h).expect("field");
+                black_box(field.len())
+            })
+        });
+
         let params = ExtractParams::new(h);
         let ldc = |p: &Particles| {
             let field = ColourField::from_particles(p, h).expect("field");
@@ -154,6 +193,25 @@ fn extraction(c: &mut Criterion) {
         group.throughput(Throughput::Elements(mesh.vertices.len() as u64));
         group.bench_function(BenchmarkId::new(label, "splashsurf"), |b| {
             b.iter(|| black_box(mc(&positions)))
+        });
+        let mut smoothed = |x: &[Vector3<f32>]| {
+            use splashsurf_lib::mesh::Mesh3d;
+            use splashsurf_lib::postprocessing::{
+                par_laplacian_smoothing_inplace, par_laplacian_smoothing_normals_inplace,
+            };
+            splashsurf_lib::reconstruct_surface_inplace(x, &sp, &mut surface).expect("splashsurf");
+            let mesh = &mut surface.mesh;
+            let connectivity = mesh.vertex_vertex_connectivity();
+            let weights = vec![1.0f32; mesh.vertices.len()];
+            par_laplacian_smoothing_inplace(mesh, &connectivity, 25, 1.0, &weights);
+            let mut normals: Vec<Vector3<f32>> = (mesh.par_vertex_normals().iter())
+                .map(|n| n.into_inner())
+                .collect();
+            par_laplacian_smoothing_normals_inplace(&mut normals, &connectivity, 10);
+            normals.len()
+        };
+        group.bench_function(BenchmarkId::new(label, "splashsurf-smoothed"), |b| {
+            b.iter(|| black_box(smoothed(&positions)))
         });
     }
     group.finish();
