@@ -296,7 +296,8 @@ fn splats_match_the_ray_cast_iso_surface() {
     // splats match its ray-cast surface at least as well (measured: sphere
     // IoU 0.9977 against 0.9953, 0.65° against 0.85°; block 0.9949 against
     // 0.9947, 0.58° against 0.72°), to 0.002 of IoU and 0.2° for the
-    // rasteriser's rounding.
+    // rasteriser's rounding. (The dam-break frame on the anisotropic field
+    // is not yet a case: IoU 0.9685 with 736 px of holes, issue 28.)
     for shape in ["sphere", "block"] {
         let (iou, angle) = measured[shape];
         let (a_iou, a_angle) = measured[format!("{shape}-anisotropic").as_str()];

@@ -22,6 +22,11 @@ enum Guess {
     Surface { surfel: Surfel, split: bool },
     /// Surface on several sides: six or eight surfels around it (eq. 35–36).
     AllAround,
+    /// The same on the anisotropic field, each surfel where c crosses the
+    /// iso value along its direction (NaN: no crossing within reach, no
+    /// surfel): a thin sheet's or filament's kernels are thin, and surfels
+    /// half an h out, as the thesis places them, were mostly discarded.
+    AllAroundAt { distances: [f32; 8] },
     /// No neighbour: its analytic iso-sphere of this radius, final as it is.
     Lone { radius: f32 },
     /// A particle of a droplet too small for anisotropic kernels (its own
@@ -163,11 +168,22 @@ pub(crate) fn newton_step(field: &ColourField, iso: f32, x: Vec3, max_step: f32)
     if g2.is_nan() || g2 <= 1e-12 / (field.h() * field.h()) {
         return None;
     }
-    let step = -(s.c - iso) * s.gradient / g2;
-    if step.is_nan() || step.length() > max_step {
+    let mut step = -(s.c - iso) * s.gradient / g2;
+    if step.is_nan() {
         return None;
     }
     let g = g2.sqrt();
+    if step.length() > max_step {
+        // The anisotropic field's thin kernels leave c flat far from them,
+        // where a Newton step overshoots: its crossing along the normal
+        // within the step limit is kept instead (safeguarded Newton). The
+        // thesis's field discards the surfel.
+        let Surface::Anisotropic(_) = field.surface() else {
+            return None;
+        };
+        let n = -s.gradient / g;
+        step = n * crossing(field, iso, x, s.c, n, max_step)?;
+    }
     Some(Step {
         position: x + step,
         normal: -s.gradient / g,
@@ -188,7 +204,22 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &Particle
         return Guess::Droplet { radius };
     }
     if at.shape() < p.covariance_threshold as f64 {
-        return Guess::AllAround;
+        return match field.surface() {
+            Surface::Isotropic => Guess::AllAround,
+            Surface::Anisotropic(_) => {
+                let x = field.positions()[i];
+                let mut distances = [f32::NAN; 8];
+                for (t, &d) in distances.iter_mut().zip(box_directions(p.all_around)) {
+                    if let Some(found) =
+                        crossing(field, p.iso, x, at.sample.c, d, p.interior_step * h)
+                        && found > 0.0
+                    {
+                        *t = found;
+                    }
+                }
+                Guess::AllAroundAt { distances }
+            }
+        };
     }
     let s = at.sample;
     let g = s.gradient.length();
@@ -275,10 +306,25 @@ fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> impl Iterator<Item
         } => (Some(surfel), None, None),
         Guess::Surface { surfel, .. } => (None, Some(surfel), None),
         Guess::AllAround => (None, None, Some(box_directions(p.all_around))),
+        Guess::AllAroundAt { .. } => (None, None, None),
         Guess::Interior | Guess::Lone { .. } | Guess::Droplet { .. } => (None, None, None),
     };
     let droplet = match guess {
         Guess::Droplet { radius } => Some(sphere_surfels(x, radius, DROPLET_SEEDS)),
+        _ => None,
+    };
+    let at = match guess {
+        Guess::AllAroundAt { distances } => Some(
+            box_directions(p.all_around)
+                .iter()
+                .zip(distances)
+                .filter(|(_, t)| t.is_finite())
+                .map(move |(&d, t)| Surfel {
+                    position: x + t * d,
+                    normal: d,
+                    radius: p.radius * p.h,
+                }),
+        ),
         _ => None,
     };
     let (h, radius) = (p.h, p.radius * p.h);
@@ -292,6 +338,7 @@ fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> impl Iterator<Item
             radius,
         }))
         .chain(droplet.into_iter().flatten())
+        .chain(at.into_iter().flatten())
         .filter(move |s| front_facing(p, s))
 }
 
@@ -378,7 +425,7 @@ pub(crate) fn run(
         match g {
             Guess::Interior => {}
             Guess::Surface { .. } => stats.surface_particles += 1,
-            Guess::AllAround => stats.all_around += 1,
+            Guess::AllAround | Guess::AllAroundAt { .. } => stats.all_around += 1,
             Guess::Droplet { .. } => stats.droplets += 1,
             Guess::Lone { radius } => {
                 stats.lone += 1;
