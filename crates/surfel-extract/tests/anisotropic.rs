@@ -37,9 +37,9 @@ fn covered(out: &Surfels, field: &ColourField) -> f64 {
 /// settled for 2 s by DFSPH. Its top's surfels (facing up, 2h from the
 /// walls) lean from vertical by at most 1° at the median and 5° at the
 /// 99th percentile, the surface covers all of the field's iso-surface, and
-/// it encloses N m/ρ0 within 3 %. Measured: 0.76°, 1.97°, 0.997 (the
+/// it encloses N m/ρ0 within 3 %. Measured: 0.88°, 2.23°, 0.990 (the
 /// isotropic field's in the same run: 1.45°, 4.15°, 0.995); on a pool
-/// settled by WCSPH, whose top is rougher, 7.9° against 11.2°
+/// settled by WCSPH, whose top is rougher, 8.9° against 11.2°
 /// (`cargo run --release -p surfel-extract --example flat_pool -- wcsph`).
 #[test]
 fn settled_pool_is_flat_and_keeps_its_volume() {
