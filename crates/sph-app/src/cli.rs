@@ -68,8 +68,8 @@ pub struct Args {
 
     /// The surface field the surfels lie on: the thesis's isotropic colour
     /// field (the default) or Yu & Turk's anisotropic kernels, which make
-    /// smooth water but extract about 5 times slower (`drop`: 14 ms a frame
-    /// against 3 ms on two cores, too slow for real time yet).
+    /// smooth water but extract about 5 times slower (`drop`: 15.5 ms a frame
+    /// against 2.9 ms on two cores, too slow for real time yet).
     /// --gpu-extract always extracts the isotropic field.
     #[arg(long, value_enum, default_value_t = SurfaceField::Isotropic)]
     pub surface: SurfaceField,
