@@ -373,9 +373,11 @@ impl Neighbourhood<'_> {
         self.for_each_slot(|k, d, r2| f(order[k] as usize, d, r2));
     }
 
-    /// [`Neighbourhood::for_each`] with each neighbour's slot instead of its index.
+    /// [`Neighbourhood::for_each`] with each neighbour's slot (its place in
+    /// [`NeighbourGrid::order`]) instead of its index: per-particle data
+    /// kept in slot order is read in the order it lies in memory.
     #[inline]
-    fn for_each_slot(&self, mut f: impl FnMut(usize, Vec3, f32)) {
+    pub fn for_each_slot(&self, mut f: impl FnMut(usize, Vec3, f32)) {
         let (g, c) = (&self.grid.layout, self.centre);
         let [xs, ys, zs] = &g.coords;
         let mut scan = Scan::new(c, self.grid.h2, [xs, ys, zs], &self.rows);

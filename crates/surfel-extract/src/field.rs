@@ -101,6 +101,9 @@ pub struct ColourField {
     /// Per particle (index order), its kernel's shape; empty for the
     /// isotropic field.
     shapes: Vec<Ellipsoid>,
+    /// Per slot of the grid, its particle's G² and V det G times poly6's
+    /// constant: what the anisotropic sums read, in memory order.
+    slot_shapes: Vec<([f32; 6], f32)>,
     surface: Surface,
     volumes: Vec<f32>,
     /// `volumes` in the grid's slot order, as its vectorised sums read them.
@@ -200,6 +203,7 @@ impl ColourField {
             grid: NeighbourGrid::build(&[], h).expect("an empty grid of h = 1 builds"),
             positions: Vec::new(),
             shapes: Vec::new(),
+            slot_shapes: Vec::new(),
             surface: Surface::Isotropic,
             volumes: Vec::new(),
             slot_volumes: Vec::new(),
@@ -221,6 +225,7 @@ impl ColourField {
         if result.is_err() {
             self.positions.clear();
             self.shapes.clear();
+            self.slot_shapes.clear();
             self.volumes.clear();
             self.slot_volumes.clear();
             self.evaluations = Counter::default();
@@ -304,6 +309,19 @@ impl ColourField {
             .par_iter()
             .map(|&i| volumes[i as usize])
             .collect_into_vec(&mut self.slot_volumes);
+        self.slot_shapes.clear();
+        if !self.shapes.is_empty() {
+            // W_poly6 = k (h² − r²)³.
+            let k = poly6.value_r2(0.0) / (h * h).powi(3);
+            let shapes = &self.shapes;
+            order
+                .par_iter()
+                .map(|&i| {
+                    let e = shapes[i as usize];
+                    (e.m, volumes[i as usize] * e.det * k)
+                })
+                .collect_into_vec(&mut self.slot_shapes);
+        }
         Ok(())
     }
 
@@ -338,10 +356,8 @@ impl ColourField {
         nb: Neighbourhood<'_>,
     ) -> (Sample, [f32; 6], u32) {
         let h2 = self.h() * self.h();
-        // W_poly6 = k (h² − r²)³.
-        let k = self.poly6.value_r2(0.0) / (h2 * h2 * h2);
         let (mut s, mut second, mut count) = (Sample::default(), [0.0f32; 6], 0u32);
-        nb.for_each(|j, d, _| {
+        nb.for_each_slot(|k, d, _| {
             count += 1;
             if SECOND {
                 for (m, v) in second.iter_mut().zip([
@@ -355,16 +371,19 @@ impl ColourField {
                     *m += v;
                 }
             }
-            let e = self.shapes[j];
-            let md = e.apply(d);
+            let ([xx, xy, xz, yy, yz, zz], a) = self.slot_shapes[k];
+            let md = Vec3::new(
+                xx * d.x + xy * d.y + xz * d.z,
+                xy * d.x + yy * d.y + yz * d.z,
+                xz * d.x + yz * d.y + zz * d.z,
+            );
             let q = d.dot(md);
             if q < h2 {
                 // f = (h² − q)³, ∇f = −3t² · 2Md, ∇²f = 24t|Md|² − 6t² tr M.
                 let t = h2 - q;
-                let a = self.volumes[j] * e.det * k;
                 s.c += a * t * t * t;
                 s.gradient += (a * -6.0 * t * t) * md;
-                s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * e.trace());
+                s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * (xx + yy + zz));
             }
         });
         (s, second, count)
