@@ -54,6 +54,24 @@ struct Row {
     clamped: u64,
 }
 
+impl Row {
+    /// A row for `solver` on `particles` particles, nothing measured yet.
+    fn new(solver: &'static str, particles: usize) -> Self {
+        Self {
+            solver,
+            particles,
+            sim_s: 0.0,
+            extract_s: 0.0,
+            substeps: 0.0,
+            iterations: 0.0,
+            divergence: 0.0,
+            error_avg: 0.0,
+            error_max: 0.0,
+            clamped: 0,
+        }
+    }
+}
+
 fn run(
     kind: SolverKind,
     spacing: f32,
@@ -71,18 +89,7 @@ fn run(
         ..ExtractParams::new(world.params().h)
     };
     let frames = (seconds / f64::from(FRAME_DT)).round() as u32;
-    let mut row = Row {
-        solver: kind.name(),
-        particles: world.particles.len(),
-        sim_s: 0.0,
-        extract_s: 0.0,
-        substeps: 0.0,
-        iterations: 0.0,
-        divergence: 0.0,
-        error_avg: 0.0,
-        error_max: 0.0,
-        clamped: 0,
-    };
+    let mut row = Row::new(kind.name(), world.particles.len());
     for _ in 0..frames {
         let start = Instant::now();
         let report = world.advance(FRAME_DT)?;
@@ -191,16 +198,8 @@ fn run_salva(spacing: f32, seconds: f64) -> Result<Row, Box<dyn std::error::Erro
     let inside = |p: &Point<f32>| domain.admits(Vec3::new(p.x, p.y, p.z));
     let frames = (seconds / f64::from(FRAME_DT)).round() as u32;
     let mut row = Row {
-        solver: "salva",
-        particles: particles.len(),
-        sim_s: 0.0,
         extract_s: f64::NAN,
-        substeps: 0.0,
-        iterations: 0.0,
-        divergence: 0.0,
-        error_avg: 0.0,
-        error_max: 0.0,
-        clamped: 0,
+        ..Row::new("salva", particles.len())
     };
     let to_vec3 = |ps: &[Point<f32>]| {
         ps.iter()

@@ -101,9 +101,9 @@ pub struct ColourField {
     /// Per particle (index order), its kernel's shape; empty for the
     /// isotropic field.
     shapes: Vec<Ellipsoid>,
-    /// Per slot of the grid, its particle's G² and V det G times poly6's
-    /// constant: what the anisotropic sums read, in memory order.
-    slot_shapes: Vec<([f32; 6], f32)>,
+    /// Per slot of the grid, its particle's kernel shape and V det G times
+    /// poly6's constant: what the anisotropic sums read, in memory order.
+    slot_shapes: Vec<(Ellipsoid, f32)>,
     surface: Surface,
     volumes: Vec<f32>,
     /// `volumes` in the grid's slot order, as its vectorised sums read them.
@@ -139,8 +139,8 @@ impl ColourField {
     /// The field of particles with known volumes m/ρ.
     pub fn with_volumes(positions: &[Vec3], volumes: &[f32], h: f32) -> Result<Self> {
         let mut field = Self::empty();
-        field.volumes.extend_from_slice(volumes);
-        field.refilled(positions, h, Volumes::Kept)
+        field.refill_with_volumes(positions, volumes, h)?;
+        Ok(field)
     }
 
     /// The field of bare positions (any point set): each particle gets the Shepard
@@ -318,7 +318,7 @@ impl ColourField {
                 .par_iter()
                 .map(|&i| {
                     let e = shapes[i as usize];
-                    (e.m, volumes[i as usize] * e.det * k)
+                    (e, volumes[i as usize] * e.det * k)
                 })
                 .collect_into_vec(&mut self.slot_shapes);
         }
@@ -371,19 +371,15 @@ impl ColourField {
                     *m += v;
                 }
             }
-            let ([xx, xy, xz, yy, yz, zz], a) = self.slot_shapes[k];
-            let md = Vec3::new(
-                xx * d.x + xy * d.y + xz * d.z,
-                xy * d.x + yy * d.y + yz * d.z,
-                xz * d.x + yz * d.y + zz * d.z,
-            );
+            let (e, a) = self.slot_shapes[k];
+            let md = e.apply(d);
             let q = d.dot(md);
             if q < h2 {
                 // f = (h² − q)³, ∇f = −3t² · 2Md, ∇²f = 24t|Md|² − 6t² tr M.
                 let t = h2 - q;
                 s.c += a * t * t * t;
                 s.gradient += (a * -6.0 * t * t) * md;
-                s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * (xx + yy + zz));
+                s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * e.trace());
             }
         });
         (s, second, count)

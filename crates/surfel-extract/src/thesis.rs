@@ -342,32 +342,27 @@ fn guess_surfels(p: &ExtractParams, x: Vec3, guess: Guess) -> impl Iterator<Item
         .filter(move |s| front_facing(p, s))
 }
 
-/// A lone particle's iso-sphere: in the isotropic field the thesis's face
-/// and corner directions together, which leave no gap wider than 35.3°; in
-/// the anisotropic field a droplet's [`DROPLET_DIRECTIONS`].
-fn lone_surfels(
-    p: &ExtractParams,
-    x: Vec3,
-    radius: f32,
-    surface: Surface,
-) -> impl Iterator<Item = Surfel> {
-    let (thesis, droplet) = match surface {
-        Surface::Isotropic => (Some(()), None),
-        Surface::Anisotropic(_) => (None, Some(sphere_surfels(x, radius, DROPLET_DIRECTIONS))),
-    };
-    let thesis = thesis.into_iter().flat_map(move |()| {
-        box_directions(AllAround::Six)
-            .iter()
-            .chain(box_directions(AllAround::Eight))
-            .map(move |&d| Surfel {
-                position: x + radius * d,
-                normal: d,
-                radius: 0.8 * radius,
-            })
-    });
-    thesis
-        .chain(droplet.into_iter().flatten())
-        .filter(move |s| front_facing(p, s))
+/// A lone particle's iso-sphere, its front-facing surfels into `done`: in
+/// the isotropic field the thesis's face and corner directions together,
+/// which leave no gap wider than 35.3°; in the anisotropic field a
+/// droplet's [`DROPLET_DIRECTIONS`].
+fn lone_surfels(p: &ExtractParams, x: Vec3, radius: f32, surface: Surface, done: &mut Vec<Surfel>) {
+    let keep = |s: &Surfel| front_facing(p, s);
+    match surface {
+        Surface::Isotropic => done.extend(
+            (box_directions(AllAround::Six).iter())
+                .chain(box_directions(AllAround::Eight))
+                .map(|&d| Surfel {
+                    position: x + radius * d,
+                    normal: d,
+                    radius: 0.8 * radius,
+                })
+                .filter(keep),
+        ),
+        Surface::Anisotropic(_) => {
+            done.extend(sphere_surfels(x, radius, DROPLET_DIRECTIONS).filter(keep))
+        }
+    }
 }
 
 /// The extractor's buffers, kept from one frame to the next.
@@ -429,7 +424,7 @@ pub(crate) fn run(
             Guess::Droplet { .. } => stats.droplets += 1,
             Guess::Lone { radius } => {
                 stats.lone += 1;
-                done.extend(lone_surfels(p, x, radius, field.surface()));
+                lone_surfels(p, x, radius, field.surface(), done);
             }
         }
     }
