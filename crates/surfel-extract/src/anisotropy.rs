@@ -283,21 +283,18 @@ impl Principal {
     }
 }
 
-/// The smoothed kernel centres and the kernels of the particles at
-/// `positions`, from their neighbours within `params.radius` (the grid built
-/// over `positions` with that radius), into `centres` and `shapes` (index
-/// order, replaced).
+/// The smoothed kernel centre and the kernel of each particle at
+/// `positions`, from its neighbours within `params.radius` (the grid built
+/// over `positions` with that radius), into `out` (index order, replaced).
 pub fn kernels(
     grid: &NeighbourGrid,
     positions: &[Vec3],
     params: &Anisotropy,
-    centres: &mut Vec<Vec3>,
-    shapes: &mut Vec<Ellipsoid>,
+    out: &mut Vec<(Vec3, Ellipsoid)>,
 ) {
     let h = grid.h() / params.radius;
     let inv_h = 1.0 / grid.h();
     let isolated = Ellipsoid::sphere(params.isolated_scale);
-    let mut out = Vec::new();
     thread_local! {
         /// One particle's neighbours: offset x_j − x_i and weight w_ij,
         /// gathered in one scan of the grid and read by both passes.
@@ -316,12 +313,8 @@ pub fn kernels(
                 kernel_of(xi, near, params, h, isolated)
             })
         },
-        &mut out,
+        out,
     );
-    centres.clear();
-    shapes.clear();
-    centres.extend(out.iter().map(|o| o.0));
-    shapes.extend(out.iter().map(|o| o.1));
 }
 
 /// The smoothed centre and the kernel of the particle at `xi` whose
@@ -405,9 +398,9 @@ mod tests {
     /// The kernels of `x` with `params` for h = 2 × `s`.
     fn kernels_of(x: &[Vec3], s: f32, params: &Anisotropy) -> (Vec<Vec3>, Vec<Ellipsoid>) {
         let grid = NeighbourGrid::build(x, params.radius * 2.0 * s).unwrap();
-        let (mut centres, mut shapes) = (Vec::new(), Vec::new());
-        kernels(&grid, x, params, &mut centres, &mut shapes);
-        (centres, shapes)
+        let mut out = Vec::new();
+        kernels(&grid, x, params, &mut out);
+        out.into_iter().unzip()
     }
 
     /// In a lattice's interior the kernel is the isotropic one and the centre

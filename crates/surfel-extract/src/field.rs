@@ -101,6 +101,10 @@ pub struct ColourField {
     /// Per particle (index order), its kernel's shape; empty for the
     /// isotropic field.
     shapes: Vec<Ellipsoid>,
+    /// The anisotropic kernels' pass: its grid over the particles (radius
+    /// `Anisotropy::radius` × h) and its output, kept between refills.
+    wide: Option<NeighbourGrid>,
+    kernels: Vec<(Vec3, Ellipsoid)>,
     /// Per slot of the grid, its particle's kernel shape and V det G times
     /// poly6's constant: what the anisotropic sums read, in memory order.
     slot_shapes: Vec<(Ellipsoid, f32)>,
@@ -204,6 +208,8 @@ impl ColourField {
             positions: Vec::new(),
             shapes: Vec::new(),
             slot_shapes: Vec::new(),
+            wide: None,
+            kernels: Vec::new(),
             surface: Surface::Isotropic,
             volumes: Vec::new(),
             slot_volumes: Vec::new(),
@@ -293,15 +299,21 @@ impl ColourField {
         if let Surface::Anisotropic(a) = self.surface {
             // The kernels from the particles' neighbourhoods; then the grid
             // over their centres, through which the field is evaluated.
-            let mut centres = Vec::new();
-            if a.radius == 1.0 {
-                anisotropy::kernels(&self.grid, positions, &a, &mut centres, &mut self.shapes);
+            let grid = if a.radius == 1.0 {
+                &self.grid
             } else {
-                let wide = NeighbourGrid::build(positions, a.radius * h)?;
-                anisotropy::kernels(&wide, positions, &a, &mut centres, &mut self.shapes);
-            }
-            self.grid.rebuild(&centres)?;
-            self.positions = centres;
+                let r = a.radius * h;
+                match &mut self.wide {
+                    Some(wide) if wide.h() == r => wide.rebuild(positions)?,
+                    wide => *wide = Some(NeighbourGrid::build(positions, r)?),
+                }
+                self.wide.as_ref().expect("built above")
+            };
+            anisotropy::kernels(grid, positions, &a, &mut self.kernels);
+            self.positions.clear();
+            self.positions.extend(self.kernels.iter().map(|k| k.0));
+            self.shapes.extend(self.kernels.iter().map(|k| k.1));
+            self.grid.rebuild(&self.positions)?;
         }
         let order = self.grid.order();
         let volumes = &self.volumes;
