@@ -83,6 +83,9 @@ pub enum RenderError {
         /// Why.
         reason: String,
     },
+    /// Scene geometry with a non-finite or negative value, or a degenerate shape.
+    #[error("invalid scene geometry: {0}")]
+    InvalidGeometry(String),
     /// Reading a texture back to the CPU failed.
     #[error("GPU readback failed: {0}")]
     Readback(String),

@@ -3,6 +3,9 @@
 //! Draws any set of surfels with wgpu by two-pass point splatting (Vesterlund
 //! 2004, 3.2.2, 3.2.3 and 4.2.2; Botsch et al. 2005):
 //!
+//! 0. **scene pass**: the backdrop and any opaque [`SceneGeometry`] (a
+//!    container, obstacles, the ground), whose depth the splats are tested
+//!    against and whose image the fluid refracts;
 //! 1. **visibility pass**: each [`Splat`] is drawn as the screen-space rectangle
 //!    bounding its projected disc; the fragment shader intersects the view ray
 //!    with the disc (an exact, perspective-correct ellipse and depth) and writes
@@ -11,7 +14,9 @@
 //!    writing depth, add w·(normal, 1) into a float target, w the alpha mask of
 //!    eq. 37;
 //! 3. **normalise and shade** (a compute pass): A = Σ Aᵢwᵢ / Σ wᵢ per pixel and
-//!    the image-based shading of eq. 38–40, or a debug [`View`].
+//!    the image-based shading of eq. 38–40, or a debug [`View`]; with
+//!    [`Shading::absorption`] a back surface pass measures the fluid's
+//!    thickness and the refracted light is absorbed along it (Beer–Lambert).
 //!
 //! A [`GpuContext`] is created headless (tests, frame writers) or for a window
 //! surface. The crate knows nothing of SPH.
@@ -32,6 +37,7 @@
 mod camera;
 mod context;
 mod error;
+pub mod geometry;
 mod readback;
 mod renderer;
 pub mod shading;
@@ -41,6 +47,7 @@ pub mod textures;
 pub use camera::Camera;
 pub use context::{GpuContext, instance_from_env};
 pub use error::{RenderError, Result};
+pub use geometry::{Backdrop, Material, Mesh, Object, SceneGeometry};
 pub use readback::{Accumulation, read_texture_rgba8};
 pub use renderer::{OUTPUT_FORMAT, SplatRenderer};
 pub use shading::{Shading, View};

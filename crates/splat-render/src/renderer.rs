@@ -8,6 +8,7 @@ use wgpu_profiler::{GpuProfiler, GpuProfilerQuery};
 use crate::camera::Camera;
 use crate::context::GpuContext;
 use crate::error::{RenderError, Result};
+use crate::geometry::{Backdrop, GpuVertex, SceneGeometry};
 use crate::readback::{Accumulation, read_texture};
 use crate::shading::Shading;
 use crate::splat::{GpuSplat, Splat};
@@ -30,21 +31,42 @@ struct FrameUniform {
     params: [f32; 4],
     fluid: [f32; 4],
     flags: [f32; 4],
+    sun: [f32; 4],
+    absorption: [f32; 4],
 }
+
+/// Format of the scene pass's image (what the fluid refracts).
+const SCENE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 
 /// Render targets of one size.
 struct Targets {
     width: u32,
     height: u32,
+    /// The scene's depth, then the splats' visibility depth over it.
     depth: wgpu::Texture,
     depth_view: wgpu::TextureView,
+    /// The scene pass's image: backdrop and geometry.
+    scene_view: wgpu::TextureView,
+    /// The farthest back-facing splat in front of the geometry.
+    back_depth_view: wgpu::TextureView,
     accum: wgpu::Texture,
     accum_view: wgpu::TextureView,
     output: wgpu::Texture,
     output_view: wgpu::TextureView,
 }
 
-/// Draws splats by two-pass splatting and deferred shading (thesis figure 2).
+/// Draws splats by two-pass splatting and deferred shading (thesis figure 2),
+/// in front of opaque scene geometry.
+///
+/// A frame is five passes: the **scene pass** draws the backdrop and the
+/// [`SceneGeometry`] (none unless [`set_geometry`](Self::set_geometry) gave
+/// some) into an image and the depth buffer; the **back surface pass**
+/// (only with [`Shading::absorption`] non-zero) finds the farthest
+/// back-facing splat in front of the geometry, for the fluid's thickness;
+/// the **visibility** and **attribute passes** splat over the scene's
+/// depth, so geometry hides the fluid behind it; the **shade pass**
+/// normalises, and refracts the scene's image with Beer–Lambert absorption
+/// through the thickness.
 ///
 /// Create it once per [`GpuContext`]; each frame [`upload`](Self::upload) the
 /// splats (the storage buffer only grows, so steady frames allocate nothing on
@@ -67,6 +89,18 @@ pub struct SplatRenderer {
     splat_group: wgpu::BindGroup,
     visibility: wgpu::RenderPipeline,
     attribute: wgpu::RenderPipeline,
+    /// The back surface pass and its bind group (the scene's depth).
+    back: wgpu::RenderPipeline,
+    back_layout: wgpu::BindGroupLayout,
+    back_group: wgpu::BindGroup,
+    /// The scene pass: backdrop, meshes, their bind group and buffers.
+    backdrop: wgpu::RenderPipeline,
+    mesh: wgpu::RenderPipeline,
+    scene_layout: wgpu::BindGroupLayout,
+    scene_group: wgpu::BindGroup,
+    geometry: Option<MeshBuffers>,
+    backdrop_kind: Backdrop,
+    sun: glam::Vec3,
     shade_layout: wgpu::BindGroupLayout,
     shade: wgpu::ComputePipeline,
     shade_group: wgpu::BindGroup,
@@ -195,6 +229,58 @@ impl SplatRenderer {
             })],
         );
 
+        let depth_tex = |binding, visibility| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility,
+            ty: wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Depth,
+                view_dimension: wgpu::TextureViewDimension::D2,
+                multisampled: false,
+            },
+            count: None,
+        };
+        let back_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("back surface layout"),
+            entries: &[depth_tex(0, wgpu::ShaderStages::FRAGMENT)],
+        });
+        let back = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("back surface pass"),
+            layout: Some(
+                &device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("back surface pipeline layout"),
+                    bind_group_layouts: &[Some(&splat_layout), Some(&back_layout)],
+                    immediate_size: 0,
+                }),
+            ),
+            vertex: wgpu::VertexState {
+                module: &splat_module,
+                entry_point: Some("vs_splat_back"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleStrip,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Greater),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &splat_module,
+                entry_point: Some("fs_back"),
+                compilation_options: Default::default(),
+                targets: &[],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let (scene_layout, backdrop, mesh) = scene_pipelines(device);
+
         let compute = wgpu::ShaderStages::COMPUTE;
         let float_tex = |binding, filterable| wgpu::BindGroupLayoutEntry {
             binding,
@@ -217,16 +303,7 @@ impl SplatRenderer {
             entries: &[
                 uniform_entry(0, compute),
                 float_tex(1, false),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: compute,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Depth,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                depth_tex(2, compute),
                 float_tex(3, true),
                 sampler(4),
                 float_tex(5, true),
@@ -241,6 +318,7 @@ impl SplatRenderer {
                     },
                     count: None,
                 },
+                depth_tex(8, compute),
             ],
         });
         let shade_module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -303,9 +381,17 @@ impl SplatRenderer {
             &shade_layout,
             &frame,
             &targets,
+            &env_view,
+            [&env_sampler, &back_sampler],
+        );
+        let scene_group = scene_bind_group(
+            device,
+            &scene_layout,
+            &frame,
             [&env_view, &back_view],
             [&env_sampler, &back_sampler],
         );
+        let back_group = back_bind_group(device, &back_layout, &targets);
         let blit_group = blit_bind_group(device, &blit_layout, &targets);
         Ok(Self {
             accum_format,
@@ -320,6 +406,16 @@ impl SplatRenderer {
             splat_group,
             visibility,
             attribute,
+            back,
+            back_layout,
+            back_group,
+            backdrop,
+            mesh,
+            scene_layout,
+            scene_group,
+            geometry: None,
+            backdrop_kind: Backdrop::Screen,
+            sun: crate::geometry::SUN,
             shade_layout,
             shade,
             shade_group,
@@ -383,15 +479,62 @@ impl SplatRenderer {
     }
 
     fn rebind_targets(&mut self, ctx: &GpuContext) {
+        let device = &ctx.device;
         self.shade_group = shade_bind_group(
-            &ctx.device,
+            device,
             &self.shade_layout,
             &self.frame,
             &self.targets,
+            &self.env_view,
+            [&self.env_sampler, &self.back_sampler],
+        );
+        self.scene_group = scene_bind_group(
+            device,
+            &self.scene_layout,
+            &self.frame,
             [&self.env_view, &self.back_view],
             [&self.env_sampler, &self.back_sampler],
         );
-        self.blit_group = blit_bind_group(&ctx.device, &self.blit_layout, &self.targets);
+        self.back_group = back_bind_group(device, &self.back_layout, &self.targets);
+        self.blit_group = blit_bind_group(device, &self.blit_layout, &self.targets);
+    }
+
+    /// Replaces the opaque geometry drawn around the splats and what fills
+    /// the pixels it leaves (see [`SceneGeometry`]). The default, no objects
+    /// before the screen-space background, is the thesis's picture.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidGeometry`] naming the object and field that is
+    /// non-finite or negative; nothing changes then.
+    pub fn set_geometry(&mut self, ctx: &GpuContext, geometry: &SceneGeometry) -> Result<()> {
+        use wgpu::util::DeviceExt;
+        let (vertices, indices) = geometry.flatten()?;
+        self.geometry = (!indices.is_empty()).then(|| {
+            let buffer = |label, contents: &[u8], usage| {
+                ctx.device
+                    .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents,
+                        usage,
+                    })
+            };
+            MeshBuffers {
+                vertices: buffer(
+                    "scene vertices",
+                    bytemuck::cast_slice(&vertices),
+                    wgpu::BufferUsages::VERTEX,
+                ),
+                indices: buffer(
+                    "scene indices",
+                    bytemuck::cast_slice(&indices),
+                    wgpu::BufferUsages::INDEX,
+                ),
+                count: indices.len() as u32,
+            }
+        });
+        self.backdrop_kind = geometry.backdrop;
+        self.sun = geometry.sun.normalize();
+        Ok(())
     }
 
     /// Uploads the splats to draw. The GPU buffer is reused while it is large
@@ -498,7 +641,8 @@ impl SplatRenderer {
         }
     }
 
-    /// Records the three passes into `encoder` (visibility, attribute, shade).
+    /// Records the passes into `encoder` (scene, back surface when
+    /// absorbing, visibility, attribute, shade).
     ///
     /// The camera and shading go into the renderer's one uniform buffer by
     /// `queue.write_buffer`, which takes effect before the next submit: two
@@ -517,8 +661,9 @@ impl SplatRenderer {
         self.encode_timed(ctx, encoder, camera, shading, None)
     }
 
-    /// [`encode`](Self::encode) with each pass timed by `profiler` ("visibility
-    /// pass", "attribute pass", "normalise and shade"), where the device has
+    /// [`encode`](Self::encode) with each pass timed by `profiler` ("scene
+    /// pass", "back surface pass" when absorbing, "visibility pass",
+    /// "attribute pass", "normalise and shade"), where the device has
     /// `wgpu::Features::TIMESTAMP_QUERY`. The caller resolves the profiler's
     /// queries and ends its frame.
     ///
@@ -546,6 +691,8 @@ impl SplatRenderer {
         camera.validate()?;
         shading.validate()?;
         let (width, height) = self.size();
+        let absorbing = shading.absorption.max_element() > 0.0;
+        let flag = |on: bool| if on { 1.0 } else { 0.0 };
         let view = camera.view();
         let proj = camera.projection(width, height);
         let uniform = FrameUniform {
@@ -572,11 +719,13 @@ impl SplatRenderer {
             ],
             fluid: shading.fluid_colour.extend(shading.reflectivity).to_array(),
             flags: [
-                if shading.cull_back_faces { 1.0 } else { 0.0 },
-                0.0,
-                0.0,
+                flag(shading.cull_back_faces),
+                flag(self.backdrop_kind == Backdrop::Environment),
+                flag(absorbing),
                 0.0,
             ],
+            sun: self.sun.extend(0.0).to_array(),
+            absorption: shading.absorption.extend(0.0).to_array(),
         };
         ctx.queue
             .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
@@ -590,15 +739,67 @@ impl SplatRenderer {
                 p.end_query(encoder, q);
             }
         };
+        let query = begin("scene pass", encoder);
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("scene pass"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &t.scene_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: Some(depth_attachment(
+                    &t.depth_view,
+                    wgpu::LoadOp::Clear(1.0),
+                )),
+                timestamp_writes: query
+                    .as_ref()
+                    .and_then(|q| q.render_pass_timestamp_writes()),
+                ..Default::default()
+            });
+            pass.set_bind_group(0, &self.scene_group, &[]);
+            pass.set_pipeline(&self.backdrop);
+            pass.draw(0..3, 0..1);
+            if let Some(g) = &self.geometry {
+                pass.set_pipeline(&self.mesh);
+                pass.set_vertex_buffer(0, g.vertices.slice(..));
+                pass.set_index_buffer(g.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..g.count, 0, 0..1);
+            }
+        }
+        end(query, encoder);
+        if absorbing {
+            let query = begin("back surface pass", encoder);
+            {
+                let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("back surface pass"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(depth_attachment(
+                        &t.back_depth_view,
+                        wgpu::LoadOp::Clear(0.0),
+                    )),
+                    timestamp_writes: query
+                        .as_ref()
+                        .and_then(|q| q.render_pass_timestamp_writes()),
+                    ..Default::default()
+                });
+                pass.set_pipeline(&self.back);
+                pass.set_bind_group(0, &self.splat_group, &[]);
+                pass.set_bind_group(1, &self.back_group, &[]);
+                self.draw_splats(&mut pass);
+            }
+            end(query, encoder);
+        }
         let query = begin("visibility pass", encoder);
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("visibility pass"),
                 color_attachments: &[],
-                depth_stencil_attachment: Some(depth_attachment(
-                    &t.depth_view,
-                    wgpu::LoadOp::Clear(1.0),
-                )),
+                depth_stencil_attachment: Some(depth_attachment(&t.depth_view, wgpu::LoadOp::Load)),
                 timestamp_writes: query
                     .as_ref()
                     .and_then(|q| q.render_pass_timestamp_writes()),
@@ -849,21 +1050,36 @@ fn shade_bind_group(
     layout: &wgpu::BindGroupLayout,
     frame: &wgpu::Buffer,
     t: &Targets,
-    [env, back]: [&wgpu::TextureView; 2],
-    [env_sampler, back_sampler]: [&wgpu::Sampler; 2],
+    env: &wgpu::TextureView,
+    [env_sampler, scene_sampler]: [&wgpu::Sampler; 2],
 ) -> wgpu::BindGroup {
     use wgpu::BindingResource::{Sampler, TextureView};
-    let entries = [
-        frame.as_entire_binding(),
-        TextureView(&t.accum_view),
-        TextureView(&t.depth_view),
-        TextureView(env),
-        Sampler(env_sampler),
-        TextureView(back),
-        Sampler(back_sampler),
-        TextureView(&t.output_view),
-    ];
-    let entries: Vec<_> = entries
+    bind_in_order(
+        device,
+        "shade bind group",
+        layout,
+        [
+            frame.as_entire_binding(),
+            TextureView(&t.accum_view),
+            TextureView(&t.depth_view),
+            TextureView(env),
+            Sampler(env_sampler),
+            TextureView(&t.scene_view),
+            Sampler(scene_sampler),
+            TextureView(&t.output_view),
+            TextureView(&t.back_depth_view),
+        ],
+    )
+}
+
+/// A bind group of `resources` at bindings 0, 1, 2, …
+fn bind_in_order<const N: usize>(
+    device: &wgpu::Device,
+    label: &str,
+    layout: &wgpu::BindGroupLayout,
+    resources: [wgpu::BindingResource<'_>; N],
+) -> wgpu::BindGroup {
+    let entries: Vec<_> = resources
         .into_iter()
         .enumerate()
         .map(|(i, resource)| wgpu::BindGroupEntry {
@@ -872,10 +1088,155 @@ fn shade_bind_group(
         })
         .collect();
     device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("shade bind group"),
+        label: Some(label),
         layout,
         entries: &entries,
     })
+}
+
+fn scene_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    frame: &wgpu::Buffer,
+    [env, back]: [&wgpu::TextureView; 2],
+    [env_sampler, back_sampler]: [&wgpu::Sampler; 2],
+) -> wgpu::BindGroup {
+    use wgpu::BindingResource::{Sampler, TextureView};
+    bind_in_order(
+        device,
+        "scene bind group",
+        layout,
+        [
+            frame.as_entire_binding(),
+            TextureView(env),
+            Sampler(env_sampler),
+            TextureView(back),
+            Sampler(back_sampler),
+        ],
+    )
+}
+
+fn back_bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    t: &Targets,
+) -> wgpu::BindGroup {
+    bind_in_order(
+        device,
+        "back surface bind group",
+        layout,
+        [wgpu::BindingResource::TextureView(&t.depth_view)],
+    )
+}
+
+/// The scene geometry's GPU buffers.
+struct MeshBuffers {
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    count: u32,
+}
+
+/// The scene pass's bind group layout and its two pipelines: the backdrop
+/// (a full-screen triangle behind everything) and the meshes.
+fn scene_pipelines(
+    device: &wgpu::Device,
+) -> (
+    wgpu::BindGroupLayout,
+    wgpu::RenderPipeline,
+    wgpu::RenderPipeline,
+) {
+    let stages = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+    let texture = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    };
+    let sampler = |binding| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: stages,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    };
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("scene layout"),
+        entries: &[
+            uniform_entry(0, stages),
+            texture(1),
+            sampler(2),
+            texture(3),
+            sampler(4),
+        ],
+    });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("scene.wgsl"),
+        source: wgpu::ShaderSource::Wgsl(
+            concat!(
+                include_str!("shaders/frame.wgsl"),
+                include_str!("shaders/scene.wgsl")
+            )
+            .into(),
+        ),
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("scene pipeline layout"),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let vertex_layout = wgpu::VertexBufferLayout {
+        array_stride: size_of::<GpuVertex>() as u64,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4, 2 => Float32x4],
+    };
+    let pipeline = |label, vs, fs, buffers: &[Option<wgpu::VertexBufferLayout<'_>>], mesh: bool| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some(vs),
+                compilation_options: Default::default(),
+                buffers,
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: mesh.then_some(wgpu::Face::Back),
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(mesh),
+                depth_compare: Some(if mesh {
+                    wgpu::CompareFunction::Less
+                } else {
+                    wgpu::CompareFunction::Always
+                }),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some(fs),
+                compilation_options: Default::default(),
+                targets: &[Some(SCENE_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        })
+    };
+    let backdrop = pipeline("backdrop", "vs_backdrop", "fs_backdrop", &[], false);
+    let mesh = pipeline(
+        "scene meshes",
+        "vs_mesh",
+        "fs_mesh",
+        &[Some(vertex_layout)],
+        true,
+    );
+    (layout, backdrop, mesh)
 }
 
 fn blit_bind_group(
@@ -923,6 +1284,16 @@ fn create_targets(
         DEPTH_FORMAT,
         U::RENDER_ATTACHMENT | U::TEXTURE_BINDING | U::COPY_SRC,
     );
+    let (_, scene_view) = texture(
+        "scene image",
+        SCENE_FORMAT,
+        U::RENDER_ATTACHMENT | U::TEXTURE_BINDING,
+    );
+    let (_, back_depth_view) = texture(
+        "back surface depth",
+        DEPTH_FORMAT,
+        U::RENDER_ATTACHMENT | U::TEXTURE_BINDING,
+    );
     let (accum, accum_view) = texture(
         "attribute accumulation",
         accum_format,
@@ -938,6 +1309,8 @@ fn create_targets(
         height,
         depth,
         depth_view,
+        scene_view,
+        back_depth_view,
         accum,
         accum_view,
         output,

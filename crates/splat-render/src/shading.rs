@@ -46,6 +46,13 @@ pub struct Shading {
     pub refraction: f32,
     /// c_fluid of eq. 40: the fraction of background light that passes the fluid, per channel.
     pub fluid_colour: Vec3,
+    /// Beer–Lambert absorption σ per world unit and channel: light through
+    /// a thickness t of fluid keeps exp(−σ t) on top of `fluid_colour`, so
+    /// thin sheets look light and deep water coloured. The thickness runs
+    /// from the front surface to the farthest back-facing splat in front of
+    /// the geometry (an extra splat pass, run only when some σ > 0). Zero,
+    /// the default, is the thesis's eq. 40.
+    pub absorption: Vec3,
     /// Σw shown as white in [`View::Weights`].
     pub weight_scale: f32,
     /// Multiplies the Fresnel term of eq. 38–40 (1 = the thesis).
@@ -65,6 +72,7 @@ impl Default for Shading {
             depth_epsilon: 0.01,
             refraction: 0.05,
             fluid_colour: Vec3::new(0.55, 0.75, 0.85),
+            absorption: Vec3::ZERO,
             weight_scale: 2.0,
             reflectivity: 1.0,
             cull_back_faces: true,
@@ -80,7 +88,8 @@ impl Shading {
     /// # Errors
     /// [`RenderError::InvalidShading`](crate::RenderError::InvalidShading)
     /// naming the field: `depth_epsilon` must be finite and ≥ 0,
-    /// `refraction` finite, `fluid_colour` finite and ≥ 0 per channel,
+    /// `refraction` finite, `fluid_colour` and `absorption` finite and ≥ 0
+    /// per channel,
     /// `weight_scale` finite and > 0 (not subnormal), `reflectivity` finite
     /// and ≥ 0.
     pub fn validate(&self) -> crate::Result<()> {
@@ -95,6 +104,11 @@ impl Shading {
         if !self.fluid_colour.to_array().into_iter().all(non_negative) {
             return Err(InvalidShading(
                 "fluid_colour must be finite and >= 0 in every channel",
+            ));
+        }
+        if !self.absorption.to_array().into_iter().all(non_negative) {
+            return Err(InvalidShading(
+                "absorption must be finite and >= 0 in every channel",
             ));
         }
         // A subnormal scale flushes to 0 on GPUs, and Σw / 0 is NaN.
@@ -118,7 +132,15 @@ pub fn fresnel(r: Vec3, l: Vec3) -> f32 {
     f * f
 }
 
-/// Eq. 40 at one pixel, exactly as the compute pass evaluates it:
+/// The fraction of the light behind the fluid that reaches the eye through
+/// `thickness` of it, per channel: c_fluid · exp(−σ t) (eq. 40 with
+/// Beer–Lambert absorption).
+pub fn transmittance(shading: &Shading, thickness: f32) -> Vec3 {
+    shading.fluid_colour * (-shading.absorption * thickness).exp()
+}
+
+/// Eq. 40 at one pixel, exactly as the compute pass evaluates it without
+/// scene geometry or absorption (the screen-space backdrop refracted):
 /// `normal` is the (normalised) splatted world normal, `dir` the unit world
 /// direction of the pixel's view ray, `uv` the pixel centre in viewport
 /// fractions, `view` the camera's world → view matrix. `None` for `normal` is a
@@ -214,6 +236,20 @@ mod tests {
                     ..ok
                 },
                 "fluid_colour",
+            ),
+            (
+                Shading {
+                    absorption: Vec3::new(1.0, -1.0, 1.0),
+                    ..ok
+                },
+                "absorption",
+            ),
+            (
+                Shading {
+                    absorption: Vec3::new(1.0, 1.0, f32::NAN),
+                    ..ok
+                },
+                "absorption",
             ),
             (
                 Shading {

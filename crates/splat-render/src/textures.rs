@@ -95,7 +95,7 @@ fn to_rgba(c: Vec3) -> Rgba<u8> {
 
 /// A sky (horizon to zenith gradient with a sun) above a checkered floor.
 pub fn procedural_environment(width: u32, height: u32) -> RgbaImage {
-    let sun = Vec3::new(0.4, 0.6, -0.7).normalize();
+    let sun = crate::geometry::SUN.normalize();
     RgbaImage::from_fn(width, height, |x, y| {
         let phi = ((x as f32 + 0.5) / width as f32 - 0.5) * 2.0 * PI;
         let theta = (y as f32 + 0.5) / height as f32 * PI;

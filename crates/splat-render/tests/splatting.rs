@@ -472,7 +472,12 @@ fn profiled_render_times_its_passes_and_draws_the_same() {
     let labels: Vec<&str> = results.iter().map(|q| q.label.as_str()).collect();
     assert_eq!(
         labels,
-        ["visibility pass", "attribute pass", "normalise and shade"]
+        [
+            "scene pass",
+            "visibility pass",
+            "attribute pass",
+            "normalise and shade"
+        ]
     );
     let timestamps = ctx
         .device

@@ -7,7 +7,9 @@ struct Frame {
     ray: vec4<f32>,         // 1/proj[0][0], 1/proj[1][1], near, far
     params: vec4<f32>,      // depth epsilon, refraction mu, weight scale, view code
     fluid: vec4<f32>,       // fluid colour (rgb), reflectivity (w)
-    flags: vec4<f32>,       // x: 1 culls back-facing splats
+    flags: vec4<f32>,       // x: 1 culls back-facing splats, y: 1 draws the environment as backdrop, z: 1 when the back surface was drawn
+    sun: vec4<f32>,         // unit direction towards the sun (xyz)
+    absorption: vec4<f32>,  // Beer-Lambert absorption per world unit (rgb)
 };
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -16,4 +18,15 @@ struct Frame {
 fn view_ray(xy: vec2<f32>) -> vec3<f32> {
     let ndc = vec2<f32>(xy.x * frame.viewport.z * 2.0 - 1.0, 1.0 - xy.y * frame.viewport.w * 2.0);
     return vec3<f32>(ndc.x * frame.ray.x, ndc.y * frame.ray.y, -1.0);
+}
+
+const PI: f32 = 3.14159265358979;
+
+fn equirect_uv(d: vec3<f32>) -> vec2<f32> {
+    return vec2<f32>(0.5 + atan2(d.x, -d.z) / (2.0 * PI), acos(clamp(d.y, -1.0, 1.0)) / PI);
+}
+
+// World-space unit direction of the ray through framebuffer position `xy`.
+fn world_ray(xy: vec2<f32>) -> vec3<f32> {
+    return normalize((frame.inv_view * vec4<f32>(view_ray(xy), 0.0)).xyz);
 }

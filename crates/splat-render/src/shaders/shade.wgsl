@@ -4,14 +4,31 @@
 @group(0) @binding(2) var depth_tex: texture_depth_2d;
 @group(0) @binding(3) var env_tex: texture_2d<f32>;
 @group(0) @binding(4) var env_sampler: sampler;
-@group(0) @binding(5) var back_tex: texture_2d<f32>;
-@group(0) @binding(6) var back_sampler: sampler;
+// The scene pass's image: backdrop and geometry, what the fluid refracts.
+@group(0) @binding(5) var scene_tex: texture_2d<f32>;
+@group(0) @binding(6) var scene_sampler: sampler;
 @group(0) @binding(7) var out_tex: texture_storage_2d<rgba8unorm, write>;
+// The back surface pass's depth (0 where it drew nothing).
+@group(0) @binding(8) var back_depth_tex: texture_depth_2d;
 
-const PI: f32 = 3.14159265358979;
+// Distance from the eye along the ray through `xy` to depth-buffer value `d`.
+fn ray_distance(xy: vec2<f32>, d: f32) -> f32 {
+    let near = frame.ray.z;
+    let far = frame.ray.w;
+    let z = near * far / (far - d * (far - near));
+    return z * length(view_ray(xy));
+}
 
-fn equirect_uv(d: vec3<f32>) -> vec2<f32> {
-    return vec2<f32>(0.5 + atan2(d.x, -d.z) / (2.0 * PI), acos(clamp(d.y, -1.0, 1.0)) / PI);
+// The fluid's thickness along the view ray at pixel `px`: from the front
+// surface (the visibility depth, less its push-back epsilon) to the farthest
+// back-facing splat in front of the geometry; 0 where no back surface was drawn.
+fn thickness(px: vec2<i32>, xy: vec2<f32>) -> f32 {
+    let back = textureLoad(back_depth_tex, px, 0);
+    if frame.flags.z < 0.5 || back <= 0.0 {
+        return 0.0;
+    }
+    let front = ray_distance(xy, textureLoad(depth_tex, px, 0)) - frame.params.x;
+    return max(ray_distance(xy, back) - front, 0.0);
 }
 
 @compute @workgroup_size(8, 8)
@@ -25,12 +42,12 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     let uv = xy * frame.viewport.zw;
     let a = textureLoad(accum_tex, px, 0);
     let mode = u32(frame.params.w);
-    let dir = normalize((frame.inv_view * vec4<f32>(view_ray(xy), 0.0)).xyz);
+    let dir = world_ray(xy);
 
     var colour = vec3<f32>(0.0);
     if a.w <= 0.0 {
         if mode == 0u {
-            colour = textureSampleLevel(back_tex, back_sampler, uv, 0.0).rgb;
+            colour = textureSampleLevel(scene_tex, scene_sampler, uv, 0.0).rgb;
         }
     } else {
         // A = sum(A_i w_i) / sum(w_i), then renormalised to a unit normal.
@@ -59,8 +76,10 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
                 let reflected = textureSampleLevel(env_tex, env_sampler, equirect_uv(r), 0.0).rgb;
                 let rv = (frame.view * vec4<f32>(r, 0.0)).xyz;
                 let offset = frame.params.y * vec2<f32>(-rv.x, rv.y);
-                let refracted = textureSampleLevel(back_tex, back_sampler, uv + offset, 0.0).rgb;
-                colour = frame.fluid.w * f * f * reflected + frame.fluid.rgb * refracted;
+                let refracted = textureSampleLevel(scene_tex, scene_sampler, uv + offset, 0.0).rgb;
+                // Beer-Lambert: light through t of fluid keeps exp(-sigma t).
+                let transmitted = frame.fluid.rgb * exp(-frame.absorption.rgb * thickness(px, xy));
+                colour = frame.fluid.w * f * f * reflected + transmitted * refracted;
             }
         }
     }

@@ -17,8 +17,9 @@ struct VsOut {
     @location(1) @interpolate(flat) normal: vec4<f32>,
 };
 
-@vertex
-fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+// Culling, by `keep`: 0 keeps every splat, 1 drops back-facing ones, 2
+// drops front-facing ones.
+fn splat_quad(vi: u32, ii: u32, keep: u32) -> VsOut {
     let s = splats[ii];
     let r = s.position_radius.w;
     let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
@@ -46,9 +47,10 @@ fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) ->
         lo = min(lo, ndc);
         hi = max(hi, ndc);
     }
-    // Back-facing splats (their normal pointing away from the eye, at the
-    // view-space origin) are dropped when culling is on.
-    let back = frame.flags.x > 0.5 && dot(n, c) >= 0.0;
+    // Back-facing splats have their normal pointing away from the eye, at
+    // the view-space origin.
+    let facing_away = dot(n, c) >= 0.0;
+    let back = (keep == 1u && facing_away) || (keep == 2u && !facing_away);
     let corner = vec2<f32>(f32(vi & 1u), f32((vi >> 1u) & 1u));
     var xy = mix(lo, hi, corner);
     if clipped || back {
@@ -61,6 +63,17 @@ fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) ->
     out.centre = vec4<f32>(c, r);
     out.normal = vec4<f32>(s.normal.xyz, 0.0);
     return out;
+}
+
+@vertex
+fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    return splat_quad(vi, ii, select(0u, 1u, frame.flags.x > 0.5));
+}
+
+// The back surface pass draws only the splats facing away from the eye.
+@vertex
+fn vs_splat_back(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
+    return splat_quad(vi, ii, 2u);
 }
 
 // Ray-disc intersection for the pixel at `xy`: (view-space hit, r^2/h^2), or w < 0 on a miss.
@@ -115,4 +128,22 @@ fn fs_attribute(in: VsOut) -> AttributeOut {
     out.accum = vec4<f32>(in.normal.xyz * w, w);
     out.depth = depth_of(h.xyz);
     return out;
+}
+
+// The scene's depth (geometry only) while the back surface pass runs.
+@group(1) @binding(0) var scene_depth: texture_depth_2d;
+
+// Back surface pass: the farthest back-facing splat in front of the scene's
+// geometry (depth compare Greater), for the fluid's thickness.
+@fragment
+fn fs_back(in: VsOut) -> @builtin(frag_depth) f32 {
+    let h = hit_disc(in.clip.xy, in.centre, in.normal.xyz);
+    if h.w < 0.0 {
+        discard;
+    }
+    let d = depth_of(h.xyz);
+    if d > textureLoad(scene_depth, vec2<i32>(in.clip.xy), 0) {
+        discard;
+    }
+    return d;
 }
