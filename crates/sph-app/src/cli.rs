@@ -74,6 +74,11 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = SurfaceField::Isotropic)]
     pub surface: SurfaceField,
 
+    /// Draw the fluid alone before the thesis's screen-space background,
+    /// without the scene's tank, obstacles and ground.
+    #[arg(long)]
+    pub no_scenery: bool,
+
     /// Surfel refinement iterations (thesis: 1–3).
     #[arg(long, default_value_t = 2, value_parser = clap::value_parser!(u32).range(1..=3))]
     pub iterations: u32,

@@ -63,12 +63,14 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         pipeline.set_gpu_extract(Some(adapter("--gpu-extract")?))?;
     }
     let mut renderer = match &gpu {
-        Some(ctx) => Some(SplatRenderer::new(
-            ctx,
-            args.width,
-            args.height,
-            &crate::environment(),
-        )?),
+        Some(ctx) => {
+            let mut renderer =
+                SplatRenderer::new(ctx, args.width, args.height, &crate::environment())?;
+            if !args.no_scenery {
+                renderer.set_geometry(ctx, &pipeline.scenery()?)?;
+            }
+            Some(renderer)
+        }
         None => None,
     };
     let export = |prefix: &str, format: Option<crate::cli::ExportFormat>| {

@@ -2,6 +2,7 @@
 
 use std::path::Path;
 
+use sph_core::scene::ObstacleSpec;
 use sph_core::{Scene, SolverKind};
 
 use crate::error::AppError;
@@ -23,9 +24,25 @@ pub const BUILT_IN: [BuiltIn; 7] = [
     ("dam-break", "thin-slab dam break", || {
         Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Pbf)
     }),
-    ("dam-break-3d", "full 3D dam break", || {
-        Scene::dam_break(0.25, 0.25, 0.02).with_solver(SolverKind::Pbf)
-    }),
+    (
+        "dam-break-3d",
+        "full 3D dam break around a sphere and a low wall",
+        || {
+            // The obstacles of assets/scenes/dam_break_3d.toml.
+            let mut scene = Scene::dam_break(0.25, 0.25, 0.02).with_solver(SolverKind::Pbf);
+            scene.obstacles = vec![
+                ObstacleSpec::Sphere {
+                    centre: [0.6, 0.0, 0.125],
+                    radius: 0.1,
+                },
+                ObstacleSpec::Box {
+                    min: [0.85, 0.0, 0.0],
+                    max: [0.9, 0.1, 0.25],
+                },
+            ];
+            scene
+        },
+    ),
     (
         "double-dam-break",
         "two columns released from both ends",

@@ -94,6 +94,9 @@ struct Settings {
     gpu_extract: Toggle,
     /// Only front-facing surfels (`--cull`, the panel).
     cull: bool,
+    /// The tank, obstacles and ground around the fluid (`--no-scenery`
+    /// turns them off, the panel toggles them).
+    scenery: bool,
 }
 
 /// A GPU path the panel switches on and off.
@@ -154,6 +157,9 @@ struct App {
     gfx: Option<Gfx>,
     /// What the renderer holds: `Some(particles_view)` until the next extraction.
     uploaded: Option<bool>,
+    /// The scenery the renderer draws: `Some(on)` until the scene or the
+    /// toggle changes.
+    geometry: Option<bool>,
     egui: egui::Context,
     cursor: Vec2,
     dragging: Option<MouseButton>,
@@ -191,10 +197,12 @@ impl App {
                 gpu_sim: Toggle::new(args.gpu_sim),
                 gpu_extract: Toggle::new(args.gpu_extract),
                 cull: args.cull,
+                scenery: !args.no_scenery,
             },
             push,
             gfx: None,
             uploaded: None,
+            geometry: None,
             egui: egui::Context::default(),
             cursor: Vec2::ZERO,
             dragging: None,
@@ -281,6 +289,7 @@ impl App {
         self.orbit = Orbit::from_camera(&pipeline.camera());
         self.settings.shading.depth_epsilon = pipeline.shading().depth_epsilon;
         self.pipeline = pipeline;
+        self.geometry = None;
         Ok(())
     }
 
@@ -420,6 +429,15 @@ impl App {
             return Ok(());
         };
         let start = Instant::now();
+        if self.geometry != Some(self.settings.scenery) {
+            let geometry = if self.settings.scenery {
+                self.pipeline.scenery()?
+            } else {
+                Default::default()
+            };
+            gfx.renderer.set_geometry(&gfx.ctx, &geometry)?;
+            self.geometry = Some(self.settings.scenery);
+        }
         let particles_view = self.settings.view == 4;
         // Surfels are uploaded once per extraction; particle discs face the
         // camera, so they follow it every frame.
@@ -565,6 +583,12 @@ impl App {
                     }
                 });
                 ui.collapsing("shading", |ui| {
+                    ui.checkbox(&mut settings.scenery, "tank, obstacles and ground (--no-scenery)");
+                    let mut sigma = settings.shading.absorption.to_array();
+                    for (value, channel) in sigma.iter_mut().zip(["red", "green", "blue"]) {
+                        ui.add(egui::Slider::new(value, 0.0..=20.0).text(format!("absorption {channel} (1/m)")));
+                    }
+                    settings.shading.absorption = Vec3::from(sigma);
                     ui.add(egui::Slider::new(&mut settings.shading.reflectivity, 0.0..=2.0).text("reflectivity (Fresnel ×)"));
                     ui.add(egui::Slider::new(&mut settings.shading.refraction, 0.0..=0.2).text("refraction μ"));
                     ui.add(egui::Slider::new(&mut settings.shading.depth_epsilon, 0.0..=0.1).text("depth ε (m)"));

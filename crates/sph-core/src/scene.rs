@@ -214,6 +214,54 @@ impl Default for RenderSpec {
 }
 
 impl RenderSpec {
+    /// A camera that frames the box (`min`, `max`), the scene's tank: it
+    /// looks at the box from the front (+z) and 27° above, at a point a
+    /// third of the way up, from the distance at which all eight corners
+    /// fill at most 90 % of a 16:9 image with a vertical field of view of
+    /// `fov_y` degrees.
+    pub fn framing(min: Vec3, max: Vec3, fov_y: f32) -> Self {
+        let target = Vec3::new(
+            0.5 * (min.x + max.x),
+            min.y + (max.y - min.y) / 3.0,
+            0.5 * (min.z + max.z),
+        );
+        let back = Vec3::new(0.0, 0.5, 1.0).normalize();
+        let forward = -back;
+        let right = forward.cross(Vec3::Y).normalize();
+        let up = right.cross(forward);
+        let tan_y = 0.9 * (0.5 * fov_y.to_radians()).tan();
+        let tan_x = tan_y * 16.0 / 9.0;
+        let fits = |d: f32| {
+            let eye = target + d * back;
+            (0..8).all(|k| {
+                let corner = Vec3::new(
+                    if k & 1 == 0 { min.x } else { max.x },
+                    if k & 2 == 0 { min.y } else { max.y },
+                    if k & 4 == 0 { min.z } else { max.z },
+                );
+                let v = corner - eye;
+                let z = v.dot(forward);
+                z > 0.0 && v.dot(right).abs() <= tan_x * z && v.dot(up).abs() <= tan_y * z
+            })
+        };
+        // Bisection between a distance too close and one that fits.
+        let size = (max - min).length().max(f32::MIN_POSITIVE);
+        let (mut near, mut far) = (0.0, 100.0 * size);
+        for _ in 0..40 {
+            let mid = 0.5 * (near + far);
+            if fits(mid) {
+                far = mid;
+            } else {
+                near = mid;
+            }
+        }
+        Self {
+            camera: (target + far * back).to_array(),
+            look_at: target.to_array(),
+            fov_y,
+        }
+    }
+
     /// Checks the camera: finite, distinct points, a view direction that is
     /// not vertical (+y is up), a field of view in (0°, 180°).
     pub fn validate(&self) -> Result<()> {
@@ -625,11 +673,7 @@ impl Scene {
             },
             max_particles: default_max_particles(),
             solver: SolverSpec::default(),
-            render: RenderSpec {
-                camera: [domain.x * 0.5, domain.y * 0.8, domain.x * 1.6 + domain.z],
-                look_at: [domain.x * 0.5, domain.y * 0.2, domain.z * 0.5],
-                fov_y: 45.0,
-            },
+            render: RenderSpec::framing(Vec3::ZERO, domain, 45.0),
         }
     }
 
@@ -723,8 +767,6 @@ impl Scene {
             viscosity: PbfViscosity::Implicit,
             ..s.pbf_params()
         });
-        s.render.camera = [2.0 * a, 2.2 * a, 6.5 * a];
-        s.render.look_at = [2.0 * a, 0.3 * a, 2.0 * a];
         s
     }
 

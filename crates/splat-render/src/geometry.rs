@@ -64,7 +64,7 @@ impl Mesh {
     /// [`RenderError::InvalidGeometry`] for a non-finite centre, a radius
     /// that is not finite and > 0, or fewer than 3 segments.
     pub fn sphere(centre: Vec3, radius: f32, segments: u32) -> Result<Self> {
-        if !centre.is_finite() || !(radius.is_finite() && radius > 0.0) {
+        if !(centre.is_finite() && radius.is_finite() && radius > 0.0) {
             return Err(RenderError::InvalidGeometry(format!(
                 "sphere: centre {centre} and radius {radius} must be finite, the radius > 0"
             )));
@@ -105,7 +105,7 @@ impl Mesh {
     /// # Errors
     /// [`RenderError::InvalidGeometry`] for non-finite values or `half ≤ 0`.
     pub fn ground(centre: Vec3, y: f32, half: f32) -> Result<Self> {
-        if !centre.is_finite() || !y.is_finite() || !(half.is_finite() && half > 0.0) {
+        if !(centre.is_finite() && y.is_finite() && half.is_finite() && half > 0.0) {
             return Err(RenderError::InvalidGeometry(format!(
                 "ground: centre {centre}, height {y} and half-side {half} must be finite, the half-side > 0"
             )));

@@ -47,7 +47,7 @@ struct Targets {
     depth_view: wgpu::TextureView,
     /// The scene pass's image: backdrop and geometry.
     scene_view: wgpu::TextureView,
-    /// The farthest back-facing splat in front of the geometry.
+    /// The farthest back-facing splat, or the geometry where nearer.
     back_depth_view: wgpu::TextureView,
     accum: wgpu::Texture,
     accum_view: wgpu::TextureView,
@@ -62,7 +62,7 @@ struct Targets {
 /// [`SceneGeometry`] (none unless [`set_geometry`](Self::set_geometry) gave
 /// some) into an image and the depth buffer; the **back surface pass**
 /// (only with [`Shading::absorption`] non-zero) finds the farthest
-/// back-facing splat in front of the geometry, for the fluid's thickness;
+/// back-facing splat, or the geometry where nearer, for the fluid's thickness;
 /// the **visibility** and **attribute passes** splat over the scene's
 /// depth, so geometry hides the fluid behind it; the **shade pass**
 /// normalises, and refracts the scene's image with Beer–Lambert absorption

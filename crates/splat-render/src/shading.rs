@@ -49,8 +49,9 @@ pub struct Shading {
     /// Beer–Lambert absorption σ per world unit and channel: light through
     /// a thickness t of fluid keeps exp(−σ t) on top of `fluid_colour`, so
     /// thin sheets look light and deep water coloured. The thickness runs
-    /// from the front surface to the farthest back-facing splat in front of
-    /// the geometry (an extra splat pass, run only when some σ > 0). Zero,
+    /// from the front surface to the farthest back-facing splat, or to the
+    /// scene geometry where that is nearer (an extra splat pass, run only
+    /// when some σ > 0). Zero,
     /// the default, is the thesis's eq. 40.
     pub absorption: Vec3,
     /// Σw shown as white in [`View::Weights`].

@@ -132,8 +132,11 @@ fn the_refraction_shows_the_geometry_behind_the_fluid() {
         red[0] > 2 * red[1] && green[1] > 2 * green[0],
         "red box {red:?}, green box {green:?}"
     );
-    // Not the grey backdrop.
-    assert!(red[0].abs_diff(128) > 20 && green[1].abs_diff(128) > 20);
+    // Not the grey (128) backdrop.
+    assert!(
+        red[1] < 64 && green[0] < 64,
+        "red box {red:?}, green box {green:?}"
+    );
 }
 
 /// Splats tiling the faces of the box (min, max), outward normals.

@@ -69,6 +69,7 @@ fn fs_mesh(in: MeshOut) -> @location(0) vec4<f32> {
     // there is a grid.
     let line = grid_line(in.world.xyz, n, max(in.world.w, 1e-6));
     let albedo = in.colour * (1.0 - 0.45 * select(0.0, line, in.world.w > 0.0));
-    let light = 0.6 * sky + vec3<f32>(0.55 * sun);
+    // The sky around the normal tints a mostly white ambient.
+    let light = 0.3 * sky + vec3<f32>(0.4 + 0.5 * sun);
     return vec4<f32>(clamp(albedo * light, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
 }

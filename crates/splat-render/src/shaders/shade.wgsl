@@ -21,7 +21,8 @@ fn ray_distance(xy: vec2<f32>, d: f32) -> f32 {
 
 // The fluid's thickness along the view ray at pixel `px`: from the front
 // surface (the visibility depth, less its push-back epsilon) to the farthest
-// back-facing splat in front of the geometry; 0 where no back surface was drawn.
+// back-facing splat or the geometry behind it, whichever is nearer; 0 where
+// no back surface was drawn.
 fn thickness(px: vec2<i32>, xy: vec2<f32>) -> f32 {
     let back = textureLoad(back_depth_tex, px, 0);
     if frame.flags.z < 0.5 || back <= 0.0 {

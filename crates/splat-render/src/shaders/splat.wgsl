@@ -133,17 +133,15 @@ fn fs_attribute(in: VsOut) -> AttributeOut {
 // The scene's depth (geometry only) while the back surface pass runs.
 @group(1) @binding(0) var scene_depth: texture_depth_2d;
 
-// Back surface pass: the farthest back-facing splat in front of the scene's
-// geometry (depth compare Greater), for the fluid's thickness.
+// Back surface pass: the farthest back-facing splat (depth compare
+// Greater), for the fluid's thickness. The fluid ends where the geometry
+// starts: a splat behind it (the bottom of a pool, which the iso-surface
+// puts a little inside the tank's floor) counts at the geometry's depth.
 @fragment
 fn fs_back(in: VsOut) -> @builtin(frag_depth) f32 {
     let h = hit_disc(in.clip.xy, in.centre, in.normal.xyz);
     if h.w < 0.0 {
         discard;
     }
-    let d = depth_of(h.xyz);
-    if d > textureLoad(scene_depth, vec2<i32>(in.clip.xy), 0) {
-        discard;
-    }
-    return d;
+    return min(depth_of(h.xyz), textureLoad(scene_depth, vec2<i32>(in.clip.xy), 0));
 }
