@@ -110,13 +110,13 @@ fn malformed_scenes_name_the_field_and_reason() {
         ("fov_y = 45.0", "fov_y = 0.0", &["render.fov_y", "degrees"]),
         ("fov_y = 45.0", "fov_y = nan", &["render.fov_y", "degrees"]),
         (
-            "look_at = [0.5, 0.125, 0.04]",
-            "look_at = [0.5, 0.5, 1.6800001]",
+            "look_at = [0.5, 0.208, 0.04]",
+            "look_at = [0.5, 0.744, 1.112]",
             &["render.look_at", "differ"],
         ),
         (
-            "look_at = [0.5, 0.125, 0.04]",
-            "look_at = [0.5, 0.125, 1.6800001]",
+            "look_at = [0.5, 0.208, 0.04]",
+            "look_at = [0.5, 0.208, 1.112]",
             &["render.look_at", "vertical"],
         ),
         // A nozzle 100 particles wide is 2 m across in a 1 m domain.
