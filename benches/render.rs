@@ -1,15 +1,25 @@
-//! `cargo bench --bench render`: one whole splat frame — upload, visibility
-//! pass, attribute pass, normalise-and-shade compute pass, waiting for the GPU to
-//! finish (no readback) — for 20k, 100k and 1M surfels at 1280×720 and
-//! 1920×1080. Throughput is in surfels. The surfels tile a unit sphere (Fibonacci
-//! lattice, radii overlapping their neighbours) that fills about half the frame.
-//! On a machine without a GPU this runs on lavapipe: CPU-rasteriser figures.
+//! `cargo bench --bench render`: one whole splat frame — upload, scene pass,
+//! visibility pass, attribute pass, normalise-and-shade compute pass, waiting
+//! for the GPU to finish (no readback) — for 20k, 100k and 1M surfels at
+//! 1280×720 and 1920×1080. Throughput is in surfels. The surfels tile a unit
+//! sphere (Fibonacci lattice, radii overlapping their neighbours) that fills
+//! about half the frame. On a machine without a GPU this runs on lavapipe:
+//! CPU-rasteriser figures.
+//!
+//! The group `scenery` times the same frame at 1920×1080 without scene
+//! geometry (`bare`), with the demo's kind (`geometry`: an open tank around
+//! the sphere, a sphere obstacle, the ground and the environment's sky), and
+//! with that plus Beer–Lambert absorption (`geometry+absorption`, which adds
+//! the back surface pass).
 
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
-use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, wgpu};
+use splat_render::{
+    Backdrop, Camera, Environment, GpuContext, Material, Mesh, Object, SceneGeometry, Shading,
+    Splat, SplatRenderer, wgpu,
+};
 
 /// `n` surfels on the unit sphere, each with radius 1.5 × the mean spacing.
 fn sphere(n: usize) -> Vec<Splat> {
@@ -62,5 +72,70 @@ fn render(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, render);
+/// The demo's kind of scenery around the unit sphere of surfels.
+fn scenery() -> SceneGeometry {
+    let stone = Material::tiled(Vec3::new(0.8, 0.78, 0.74), 0.2);
+    SceneGeometry {
+        objects: vec![
+            Object {
+                mesh: Mesh::container(Vec3::new(-1.6, -1.1, -1.6), Vec3::new(1.6, 1.4, 1.6))
+                    .expect("tank"),
+                material: stone,
+            },
+            Object {
+                mesh: Mesh::ground(Vec3::ZERO, -1.11, 20.0).expect("ground"),
+                material: Material::tiled(Vec3::new(0.62, 0.6, 0.55), 1.0),
+            },
+            Object {
+                mesh: Mesh::sphere(Vec3::new(0.9, -0.7, 0.6), 0.4, 48).expect("obstacle"),
+                material: Material::plain(Vec3::new(0.85, 0.42, 0.22)),
+            },
+        ],
+        backdrop: Backdrop::Environment,
+        ..Default::default()
+    }
+}
+
+fn render_scenery(c: &mut Criterion) {
+    let Ok(ctx) = GpuContext::headless() else {
+        return;
+    };
+    let env = Environment::procedural();
+    let camera = Camera::looking_at(Vec3::new(0.0, 1.4, 4.2), Vec3::new(0.0, -0.2, 0.0));
+    let plain = Shading {
+        depth_epsilon: 0.02,
+        ..Default::default()
+    };
+    let absorbing = Shading {
+        absorption: Vec3::new(6.0, 1.8, 0.7),
+        ..plain
+    };
+    let mut group = c.benchmark_group("scenery");
+    group.sample_size(10);
+    let (w, h) = (1920, 1080);
+    let mut renderer = SplatRenderer::new(&ctx, w, h, &env).expect("renderer");
+    for n in [100_000, 1_000_000] {
+        let splats = sphere(n);
+        group.throughput(Throughput::Elements(n as u64));
+        for (name, geometry, shading) in [
+            ("bare", SceneGeometry::default(), plain),
+            ("geometry", scenery(), plain),
+            ("geometry+absorption", scenery(), absorbing),
+        ] {
+            renderer.set_geometry(&ctx, &geometry).expect("geometry");
+            group.bench_function(BenchmarkId::new(name, n), |b| {
+                b.iter(|| {
+                    renderer.upload(&ctx, black_box(&splats)).expect("upload");
+                    renderer.render(&ctx, &camera, &shading).expect("render");
+                    ctx.device
+                        .poll(wgpu::PollType::wait_indefinitely())
+                        .expect("GPU finished");
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, render, render_scenery);
 criterion_main!(benches);
