@@ -9,7 +9,7 @@ use image::{Rgba, RgbaImage};
 use splat_render::shading::transmittance;
 use splat_render::{
     Backdrop, Camera, Environment, GpuContext, Material, Mesh, Object, SceneGeometry, Shading,
-    Splat, SplatRenderer,
+    Splat, SplatRenderer, View,
 };
 
 const W: u32 = 160;
@@ -80,6 +80,19 @@ fn a_splat_behind_an_obstacle_is_hidden_and_one_in_front_is_drawn() {
             assert!((z - 2.9).abs() < 1e-3, "view depth {z} at the wall");
         } else {
             assert!(acc.weight(bx, by) > 0.9, "without the wall both show");
+        }
+        // The debug views show the fluid alone, hidden by the geometry as
+        // the shaded view is: black behind the wall, lit in front.
+        for view in [View::Normals, View::Weights, View::Depth] {
+            let shading = Shading {
+                view,
+                ..Default::default()
+            };
+            r.render(ctx, &camera(), &shading).unwrap();
+            let image = r.read_image(ctx).unwrap();
+            let lit = |x, y| image.get_pixel(x, y).0[..3].iter().any(|&c| c > 20);
+            assert!(lit(fx, fy), "{view:?}: the front splat");
+            assert_eq!(lit(bx, by), !hidden, "{view:?}: the splat behind the wall");
         }
     }
 }
