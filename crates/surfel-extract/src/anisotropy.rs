@@ -366,11 +366,11 @@ fn kernel_of(
             for &(o, w) in near {
                 let t = o.dot(n);
                 let u = t * inv_tau;
-                if u.abs() < 1.0 {
-                    let g = (1.0 - u * u) * (1.0 - u * u);
-                    sw += w * g;
-                    sum += w * g * t;
-                }
+                // 0 outside the layer, |u| ≥ 1, without a branch.
+                let a = (1.0 - u * u).max(0.0);
+                let wg = w * (a * a);
+                sw += wg;
+                sum += wg * t;
             }
             xi + params.smoothing * (sum / sw) * n
         }
