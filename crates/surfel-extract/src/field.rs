@@ -385,14 +385,13 @@ impl ColourField {
             }
             let (e, a) = self.slot_shapes[k];
             let md = e.apply(d);
-            let q = d.dot(md);
-            if q < h2 {
-                // f = (h² − q)³, ∇f = −3t² · 2Md, ∇²f = 24t|Md|² − 6t² tr M.
-                let t = h2 - q;
-                s.c += a * t * t * t;
-                s.gradient += (a * -6.0 * t * t) * md;
-                s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * e.trace());
-            }
+            // f = (h² − q)³, ∇f = −3t² · 2Md, ∇²f = 24t|Md|² − 6t² tr M,
+            // with t = h² − q; every term is 0 outside the kernel (t = 0),
+            // which the `max` makes so without a branch.
+            let t = (h2 - d.dot(md)).max(0.0);
+            s.c += a * t * t * t;
+            s.gradient += (a * -6.0 * t * t) * md;
+            s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * e.trace());
         });
         (s, second, count)
     }
