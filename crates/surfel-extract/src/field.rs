@@ -256,10 +256,17 @@ impl ColourField {
         }
         // The kernel and the grid change together, or not at all.
         let poly6 = Poly6::new(h)?;
+        // The anisotropic field with its volumes given and a wider
+        // neighbourhood for its kernels needs the grid at h only over the
+        // kernel centres, built below.
+        let centres_only = matches!(volumes, Volumes::Kept)
+            && matches!(self.surface, Surface::Anisotropic(a) if a.radius != 1.0);
         if self.grid.h() == h {
-            self.grid.rebuild(positions)?;
+            if !centres_only {
+                self.grid.rebuild(positions)?;
+            }
         } else {
-            self.grid = NeighbourGrid::build(positions, h)?;
+            self.grid = NeighbourGrid::build(if centres_only { &[] } else { positions }, h)?;
         }
         self.poly6 = poly6;
         self.positions.clear();
