@@ -42,7 +42,7 @@
 //! det(G) ≥ 1 keeps each kernel's integral at 1, so the field still sums
 //! the particles' volumes.
 
-use glam::{Mat3, Vec3};
+use glam::{DMat3, DVec3, Mat3, Vec3};
 use sph_core::error::positive;
 use sph_core::{Error, NeighbourGrid, Result};
 
@@ -234,22 +234,22 @@ impl Ellipsoid {
         let largest = p.variances[0];
         let floor = largest / f64::from(max_ratio);
         // G² = R diag(σ₁/σ̃) Rᵀ.
-        let mut g2 = nalgebra::Matrix3::<f64>::zeros();
+        let mut g2 = DMat3::ZERO;
         let mut det = 1.0f64;
         for k in 0..3 {
             let g2k = largest / p.variances[k].max(floor);
             det *= g2k.sqrt();
-            let v = nalgebra::Vector3::from(p.axes[k].as_dvec3().to_array());
-            g2 += v * v.transpose() * g2k;
+            let v = p.axes[k].as_dvec3();
+            g2 += DMat3::from_cols(v * v.x, v * v.y, v * v.z) * g2k;
         }
         Self {
             m: [
-                g2[(0, 0)] as f32,
-                g2[(0, 1)] as f32,
-                g2[(0, 2)] as f32,
-                g2[(1, 1)] as f32,
-                g2[(1, 2)] as f32,
-                g2[(2, 2)] as f32,
+                g2.x_axis.x as f32,
+                g2.y_axis.x as f32,
+                g2.z_axis.x as f32,
+                g2.y_axis.y as f32,
+                g2.z_axis.y as f32,
+                g2.z_axis.z as f32,
             ],
             det: det as f32,
             isolated: false,
@@ -266,20 +266,128 @@ struct Principal {
 
 impl Principal {
     /// `None` for a zero or non-finite covariance.
+    ///
+    /// Eberly's non-iterative solver for symmetric 3 × 3 matrices ("A
+    /// Robust Eigensolver for 3 × 3 Symmetric Matrices", Geometric Tools,
+    /// 2014), in f64: the eigenvalues in closed form (the trigonometric
+    /// solution of the characteristic cubic), the eigenvector of the
+    /// eigenvalue farthest from the other two from cross products of
+    /// (C − σI)'s rows, the middle one in that vector's orthogonal
+    /// complement, the third their cross product.
     fn of(c: Mat3) -> Option<Self> {
-        let m = nalgebra::Matrix3::from_fn(|i, j| f64::from(c.col(j)[i]));
-        let eigen = nalgebra::SymmetricEigen::new(m);
-        let mut order = [0usize, 1, 2];
-        order.sort_by(|&a, &b| eigen.eigenvalues[b].total_cmp(&eigen.eigenvalues[a]));
-        let variances = order.map(|k| eigen.eigenvalues[k]);
+        let c = c.as_dmat3();
+        let a = [
+            c.x_axis.x, c.y_axis.x, c.z_axis.x, c.y_axis.y, c.z_axis.y, c.z_axis.z,
+        ];
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        if !scale.is_finite() || scale == 0.0 {
+            return None;
+        }
+        // Scaled to entries of at most 1, against overflow and underflow.
+        let [a00, a01, a02, a11, a12, a22] = a.map(|v| v / scale);
+        let m = DMat3::from_cols(
+            DVec3::new(a00, a01, a02),
+            DVec3::new(a01, a11, a12),
+            DVec3::new(a02, a12, a22),
+        );
+        let q = (a00 + a11 + a22) / 3.0;
+        let (b00, b11, b22) = (a00 - q, a11 - q, a22 - q);
+        let off = a01 * a01 + a02 * a02 + a12 * a12;
+        let p = ((b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * off) / 6.0).sqrt();
+        let (values, axes) = if p == 0.0 {
+            // A multiple of the identity: any axes.
+            ([q; 3], [DVec3::X, DVec3::Y, DVec3::Z])
+        } else {
+            // cos 3θ = det((C − qI)/p)/2.
+            let c00 = b11 * b22 - a12 * a12;
+            let c01 = a01 * b22 - a12 * a02;
+            let c02 = a01 * a12 - b11 * a02;
+            let det = (b00 * c00 - a01 * c01 + a02 * c02) / (p * p * p);
+            let half_det = (0.5 * det).clamp(-1.0, 1.0);
+            let angle = half_det.acos() / 3.0;
+            // β0 ≤ β1 ≤ β2.
+            let beta2 = 2.0 * angle.cos();
+            let beta0 = 2.0 * (angle + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+            let beta1 = -(beta0 + beta2);
+            let values = [q + p * beta0, q + p * beta1, q + p * beta2];
+            // The best separated eigenvalue's vector first.
+            let axes = if half_det >= 0.0 {
+                let e2 = eigenvector_of_simple(&m, values[2]);
+                let e1 = eigenvector_in_complement(&m, e2, values[1]);
+                [e1.cross(e2), e1, e2]
+            } else {
+                let e0 = eigenvector_of_simple(&m, values[0]);
+                let e1 = eigenvector_in_complement(&m, e0, values[1]);
+                [e0, e1, e0.cross(e1)]
+            };
+            (values, axes)
+        };
+        let variances = [values[2], values[1], values[0]].map(|v| v * scale);
         if !variances[0].is_finite() || variances[0] <= 0.0 {
             return None;
         }
-        let axes = order.map(|k| {
-            let v = eigen.eigenvectors.column(k);
-            Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32)
-        });
+        let axes = [axes[2], axes[1], axes[0]].map(|v| v.as_vec3());
         Some(Self { variances, axes })
+    }
+}
+
+/// The unit eigenvector of the symmetric `m` for its simple eigenvalue
+/// `value`: the longest cross product of two rows of m − value I.
+fn eigenvector_of_simple(m: &DMat3, value: f64) -> DVec3 {
+    let rows = [
+        m.x_axis - DVec3::X * value,
+        m.y_axis - DVec3::Y * value,
+        m.z_axis - DVec3::Z * value,
+    ];
+    let crosses = [
+        rows[0].cross(rows[1]),
+        rows[0].cross(rows[2]),
+        rows[1].cross(rows[2]),
+    ];
+    let longest = (crosses.into_iter())
+        .max_by(|a, b| a.length_squared().total_cmp(&b.length_squared()))
+        .unwrap_or(DVec3::X);
+    longest.try_normalize().unwrap_or(DVec3::X)
+}
+
+/// The unit eigenvector of the symmetric `m` for `value` orthogonal to its
+/// unit eigenvector `w`: the null vector of m − value I restricted to w's
+/// orthogonal complement (a 2 × 2 problem).
+fn eigenvector_in_complement(m: &DMat3, w: DVec3, value: f64) -> DVec3 {
+    let u = if w.x.abs() > w.y.abs() {
+        DVec3::new(-w.z, 0.0, w.x) / (w.x * w.x + w.z * w.z).sqrt()
+    } else {
+        DVec3::new(0.0, w.z, -w.y) / (w.y * w.y + w.z * w.z).sqrt()
+    };
+    let v = w.cross(u);
+    let (mu, mv) = (*m * u, *m * v);
+    // The 2 × 2 matrix [[m00, m01], [m01, m11]] in the basis (u, v).
+    let (m00, m01, m11) = (u.dot(mu) - value, u.dot(mv), v.dot(mv) - value);
+    // Its null vector from the row with the larger diagonal, normalised
+    // without overflow.
+    let (d, across) = if m00.abs() >= m11.abs() {
+        (m00, 1.0)
+    } else {
+        (m11, -1.0)
+    };
+    if d.abs().max(m01.abs()) == 0.0 {
+        return u;
+    }
+    let (s, c) = if d.abs() >= m01.abs() {
+        let t = m01 / d;
+        let c = 1.0 / (1.0 + t * t).sqrt();
+        (t * c, c)
+    } else {
+        let t = d / m01;
+        let s = 1.0 / (1.0 + t * t).sqrt();
+        (s, t * s)
+    };
+    // Row (m00, m01): the null vector is (m01, −m00) ∝ (s, −c) in (u, v);
+    // row (m01, m11): (m11, −m01) ∝ (c, −s).
+    if across > 0.0 {
+        s * u - c * v
+    } else {
+        c * u - s * v
     }
 }
 
@@ -488,6 +596,51 @@ mod tests {
         assert!((g2 - Vec3::new(4.0, 1.0, 4.0)).length() < 1e-4, "{g2}");
         assert!((e.det - 4.0).abs() < 1e-4);
         assert_eq!(Ellipsoid::from_covariance(Mat3::ZERO, 4.0), None);
+    }
+
+    /// The eigen solver on random symmetric positive semi-definite
+    /// matrices and on the degenerate ones (a multiple of the identity, a
+    /// double eigenvalue, rank one, rank two): C v_k = σ_k v_k to 1e-5 of
+    /// σ₁, the axes orthonormal, the variances largest first and summing to
+    /// the trace.
+    #[test]
+    fn principal_axes_are_eigenvectors() {
+        let mut k = 7u32;
+        let mut random = move || {
+            k = k.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+            (k >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+        };
+        let mut cases = vec![
+            Mat3::IDENTITY * 3.0,
+            Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.25)),
+            Mat3::from_diagonal(Vec3::new(0.0, 2.0, 0.0)),
+            Mat3::from_diagonal(Vec3::new(1.0, 0.0, 1.0)),
+        ];
+        // A double eigenvalue in rotated axes.
+        let r = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 3.0).normalize(), 0.7);
+        cases.push(r * Mat3::from_diagonal(Vec3::new(2.0, 0.5, 0.5)) * r.transpose());
+        for _ in 0..1000 {
+            let a = Mat3::from_cols_array(&std::array::from_fn(|_| random()));
+            cases.push(a * a.transpose() * 1e-4);
+        }
+        for c in cases {
+            let p = Principal::of(c).expect("a non-zero covariance");
+            let largest = p.variances[0] as f32;
+            assert!(p.variances[0] >= p.variances[1] && p.variances[1] >= p.variances[2]);
+            let trace = p.variances.iter().sum::<f64>() as f32;
+            let want = c.x_axis.x + c.y_axis.y + c.z_axis.z;
+            assert!((trace - want).abs() <= 1e-5 * largest, "{c:?}");
+            for (kk, &v) in p.axes.iter().enumerate() {
+                let residual = c * v - v * p.variances[kk] as f32;
+                assert!(residual.length() <= 1e-5 * largest, "{c:?}: axis {kk} {v}");
+                for &w in &p.axes[kk + 1..] {
+                    assert!(v.dot(w).abs() < 1e-5, "{c:?}: {v} · {w}");
+                }
+                assert!((v.length() - 1.0).abs() < 1e-5);
+            }
+        }
+        assert!(Principal::of(Mat3::ZERO).is_none());
+        assert!(Principal::of(Mat3::IDENTITY * f32::NAN).is_none());
     }
 
     #[test]
