@@ -5,7 +5,7 @@
 //! `cargo run --release -p sph-core --example shuffled_input`
 //!
 //! Uses only API that older commits have too, so it can be copied into an
-//! old checkout to compare (see BENCHMARKS.md).
+//! old checkout to compare (see `docs/benchmark-notes.md`, "`neighbours`").
 
 use std::time::Instant;
 
