@@ -186,6 +186,56 @@ fn malformed_scenes_name_the_field_and_reason() {
     assert!(matches!(e, Error::Io { .. }), "{e}");
 }
 
+/// A degenerate obstacle (a box of zero size or turned inside out, a sphere
+/// of zero radius, NaN anywhere) is an error naming its field, from the file
+/// as from the library, before any particle or scenery is built.
+#[test]
+fn degenerate_obstacles_name_the_field() {
+    let sphere = |centre: &str, radius: &str| {
+        format!(
+            "[[obstacles]]\nshape = \"sphere\"\ncentre = {centre}\nradius = {radius}\n\n[time_step]"
+        )
+    };
+    let cuboid = |min: &str, max: &str| {
+        format!("[[obstacles]]\nshape = \"box\"\nmin = {min}\nmax = {max}\n\n[time_step]")
+    };
+    let cases = [
+        (sphere("[0.5, 0.3, 0.04]", "0.0"), "obstacles[0].radius"),
+        (sphere("[0.5, 0.3, 0.04]", "-0.1"), "obstacles[0].radius"),
+        (sphere("[0.5, 0.3, 0.04]", "nan"), "obstacles[0].radius"),
+        (sphere("[0.5, nan, 0.04]", "0.1"), "obstacles[0].centre"),
+        (
+            cuboid("[0.6, 0.0, 0.0]", "[0.6, 0.2, 0.08]"),
+            "obstacles[0]",
+        ),
+        (
+            cuboid("[0.7, 0.0, 0.0]", "[0.6, 0.2, 0.08]"),
+            "obstacles[0]",
+        ),
+        (
+            cuboid("[0.6, 0.0, nan]", "[0.7, 0.2, 0.08]"),
+            "obstacles[0].min",
+        ),
+        (
+            cuboid("[0.6, 0.0, 0.0]", "[inf, 0.2, 0.08]"),
+            "obstacles[0].max",
+        ),
+    ];
+    for (obstacle, field) in cases {
+        let msg = message(&with("[time_step]", &obstacle));
+        assert!(
+            msg.contains(field),
+            "`{obstacle}` gave `{msg}`, which lacks `{field}`"
+        );
+    }
+    // The same box with room inside is accepted.
+    Scene::from_toml(&with(
+        "[time_step]",
+        &cuboid("[0.6, 0.0, 0.0]", "[0.7, 0.2, 0.08]"),
+    ))
+    .unwrap();
+}
+
 /// Every number in every scene file, replaced in turn by an awkward value
 /// (zero, negative, tiny, huge, NaN, ±infinity, …): the scene is an error or
 /// it builds and runs three steps (then, where the case changed `frame_dt`
