@@ -42,12 +42,14 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result, check_h};
 
+mod chunks;
 mod layout;
 mod lists;
 mod pairs;
 mod scan;
 mod simd;
 mod sums;
+pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_lanes};
 pub use lists::NeighbourLists;
 pub(crate) use pairs::{Centre, ForceKernels, ForceSums, SlotFluid};
 use scan::Scan;

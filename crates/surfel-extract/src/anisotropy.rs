@@ -44,7 +44,10 @@
 
 use glam::{DMat3, DVec3, Mat3, Vec3};
 use sph_core::error::positive;
-use sph_core::{Error, NeighbourGrid, Result};
+use sph_core::grid::{CHUNK_LANES, reduce_lanes};
+use sph_core::{Error, NeighbourGrid, Neighbourhood, Result};
+#[cfg(target_arch = "x86_64")]
+use sph_core::{Simd, simd_level};
 
 /// The anisotropic kernels' parameters (Yu & Turk 2013's λ, k_r, N_ε, k_n;
 /// the paper's k_s is replaced by normalising each kernel's longest axis to
@@ -401,58 +404,124 @@ pub fn kernels(
     out: &mut Vec<(Vec3, Ellipsoid)>,
 ) {
     let h = grid.h() / params.radius;
-    let inv_h = 1.0 / grid.h();
+    let inv_r = 1.0 / grid.h();
     let isolated = Ellipsoid::sphere(params.isolated_scale);
     thread_local! {
-        /// One particle's neighbours: offset x_j − x_i and weight w_ij,
-        /// gathered in one scan of the grid and read by both passes.
-        static NEIGHBOURS: std::cell::RefCell<Vec<(Vec3, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
+        /// One particle's neighbours in lanes, gathered in one scan of the
+        /// grid and read by both passes.
+        static NEAR: std::cell::RefCell<Vec<Near>> = const { std::cell::RefCell::new(Vec::new()) };
     }
     grid.par_map_into(
         |i, nb| {
             let xi = positions[i];
-            NEIGHBOURS.with_borrow_mut(|near| {
-                near.clear();
-                nb.for_each(|_, d, r2| {
-                    let q = r2.sqrt() * inv_h;
-                    // d = x_i − x_j: the offset of x_j from x_i is −d.
-                    near.push((-d, 1.0 - q * q * q));
-                });
-                kernel_of(xi, near, params, h, isolated)
+            NEAR.with_borrow_mut(|near| {
+                #[cfg(target_arch = "x86_64")]
+                match simd_level() {
+                    // SAFETY: `simd_level` never exceeds what the CPU supports.
+                    Simd::Avx512 => unsafe {
+                        return kernel_avx512(nb, xi, near, params, h, inv_r, isolated);
+                    },
+                    // SAFETY: as above.
+                    Simd::Avx2 => unsafe {
+                        return kernel_avx2(nb, xi, near, params, h, inv_r, isolated);
+                    },
+                    Simd::Baseline => {}
+                }
+                kernel_of(nb, xi, near, params, h, inv_r, isolated)
             })
         },
         out,
     );
 }
 
-/// The smoothed centre and the kernel of the particle at `xi` whose
-/// neighbours (itself included) lie at offsets `near` with weights w.
+/// Up to 16 neighbours of a particle, one per lane: offsets x_j − x_i and
+/// weights w_ij (0 in the lanes past the chunk's neighbours).
+struct Near {
+    o: [[f32; CHUNK_LANES]; 3],
+    w: [f32; CHUNK_LANES],
+}
+
+/// Defines `$name`: [`kernel_of`] compiled with the target features
+/// `$features` (the same code, vectorised for them).
+macro_rules! kernel_with {
+    ($name:ident, $features:literal) => {
+        /// # Safety
+        /// The CPU must support the target features this function enables.
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = $features)]
+        unsafe fn $name(
+            nb: Neighbourhood<'_>,
+            xi: Vec3,
+            near: &mut Vec<Near>,
+            params: &Anisotropy,
+            h: f32,
+            inv_r: f32,
+            isolated: Ellipsoid,
+        ) -> (Vec3, Ellipsoid) {
+            kernel_of(nb, xi, near, params, h, inv_r, isolated)
+        }
+    };
+}
+
+kernel_with!(kernel_avx2, "avx2");
+kernel_with!(kernel_avx512, "avx512f,avx2");
+
+/// The smoothed centre and the kernel of the particle at `xi`, whose
+/// neighbours (itself included) within r = 1/`inv_r` are `nb`'s. Each sum is
+/// kept in 16 lanes (`sph-core`'s chunks of neighbours) and reduced by the
+/// grid's fixed tree, so every vector path gives bitwise the same kernels.
+// Lane loops index several arrays by lane, which is what vectorises.
+#[allow(clippy::needless_range_loop)]
+#[inline(always)]
 fn kernel_of(
+    nb: Neighbourhood<'_>,
     xi: Vec3,
-    near: &[(Vec3, f32)],
+    near: &mut Vec<Near>,
     params: &Anisotropy,
     h: f32,
+    inv_r: f32,
     isolated: Ellipsoid,
 ) -> (Vec3, Ellipsoid) {
+    const L: usize = CHUNK_LANES;
     // Weighted mean and second moment about x_i (offsets are at most r, so
     // f32 sums of a few hundred terms are exact enough), the second moment
-    // as its 6 distinct entries.
-    let (mut sw, mut mean) = (0.0f32, Vec3::ZERO);
-    let [mut xx, mut xy, mut xz, mut yy, mut yz, mut zz] = [0.0f32; 6];
-    for &(o, w) in near {
-        sw += w;
-        mean += w * o;
-        let wo = w * o;
-        xx += wo.x * o.x;
-        xy += wo.x * o.y;
-        xz += wo.x * o.z;
-        yy += wo.y * o.y;
-        yz += wo.y * o.z;
-        zz += wo.z * o.z;
+    // as its 6 distinct entries: [w, w o (3), w o oᵀ (6)].
+    let mut acc = [[0.0f32; L]; 10];
+    let mut count = 0;
+    near.clear();
+    for ch in nb.chunks() {
+        count += ch.len;
+        let mut n = Near {
+            o: [[0.0; L]; 3],
+            w: [0.0; L],
+        };
+        for k in 0..L {
+            let q = ch.r2[k].sqrt() * inv_r;
+            let w = ch.weight[k] * (1.0 - q * q * q);
+            // d = x_i − x_j: the offset of x_j from x_i is −d.
+            let o = [-ch.d[0][k], -ch.d[1][k], -ch.d[2][k]];
+            let wo = [w * o[0], w * o[1], w * o[2]];
+            acc[0][k] += w;
+            acc[1][k] += wo[0];
+            acc[2][k] += wo[1];
+            acc[3][k] += wo[2];
+            acc[4][k] += wo[0] * o[0];
+            acc[5][k] += wo[0] * o[1];
+            acc[6][k] += wo[0] * o[2];
+            acc[7][k] += wo[1] * o[1];
+            acc[8][k] += wo[1] * o[2];
+            acc[9][k] += wo[2] * o[2];
+            n.w[k] = w;
+            for a in 0..3 {
+                n.o[a][k] = o[a];
+            }
+        }
+        near.push(n);
     }
-    let neighbours = near.len().saturating_sub(1);
-    let mean = mean / sw;
+    let [sw, mx, my, mz, xx, xy, xz, yy, yz, zz] = acc.map(|l| reduce_lanes(&l));
+    let neighbours = count.saturating_sub(1);
     let inv = 1.0 / sw;
+    let mean = Vec3::new(mx, my, mz) * inv;
     let c = Mat3::from_cols(
         Vec3::new(xx, xy, xz) * inv - mean * mean.x,
         Vec3::new(xy, yy, yz) * inv - mean * mean.y,
@@ -470,17 +539,19 @@ fn kernel_of(
             // the normal n (the smallest axis).
             let n = p.axes[2];
             let inv_tau = 1.0 / (thickness * h);
-            let (mut sw, mut sum) = (0.0f32, 0.0f32);
-            for &(o, w) in near {
-                let t = o.dot(n);
-                let u = t * inv_tau;
-                // 0 outside the layer, |u| ≥ 1, without a branch.
-                let a = (1.0 - u * u).max(0.0);
-                let wg = w * (a * a);
-                sw += wg;
-                sum += wg * t;
+            let (mut sw, mut sum) = ([0.0f32; L], [0.0f32; L]);
+            for chunk in near.iter() {
+                for k in 0..L {
+                    let t = chunk.o[0][k] * n.x + chunk.o[1][k] * n.y + chunk.o[2][k] * n.z;
+                    let u = t * inv_tau;
+                    // 0 outside the layer, |u| ≥ 1, without a branch.
+                    let a = (1.0 - u * u).max(0.0);
+                    let wg = chunk.w[k] * (a * a);
+                    sw[k] += wg;
+                    sum[k] += wg * t;
+                }
             }
-            xi + params.smoothing * (sum / sw) * n
+            xi + params.smoothing * (reduce_lanes(&sum) / reduce_lanes(&sw)) * n
         }
         _ => xi + params.smoothing * mean,
     };
