@@ -403,9 +403,12 @@ pub fn kernels(
     params: &Anisotropy,
     out: &mut Vec<(Vec3, Ellipsoid)>,
 ) {
-    let h = grid.h() / params.radius;
-    let inv_r = 1.0 / grid.h();
-    let isolated = Ellipsoid::sphere(params.isolated_scale);
+    let pass = Pass {
+        params,
+        h: grid.h() / params.radius,
+        inv_r: 1.0 / grid.h(),
+        isolated: Ellipsoid::sphere(params.isolated_scale),
+    };
     thread_local! {
         /// One particle's neighbours in lanes, gathered in one scan of the
         /// grid and read by both passes.
@@ -419,19 +422,28 @@ pub fn kernels(
                 match simd_level() {
                     // SAFETY: `simd_level` never exceeds what the CPU supports.
                     Simd::Avx512 => unsafe {
-                        return kernel_avx512(nb, xi, near, params, h, inv_r, isolated);
+                        return kernel_avx512(nb, xi, near, &pass);
                     },
                     // SAFETY: as above.
                     Simd::Avx2 => unsafe {
-                        return kernel_avx2(nb, xi, near, params, h, inv_r, isolated);
+                        return kernel_avx2(nb, xi, near, &pass);
                     },
                     Simd::Baseline => {}
                 }
-                kernel_of(nb, xi, near, params, h, inv_r, isolated)
+                kernel_of(nb, xi, near, &pass)
             })
         },
         out,
     );
+}
+
+/// The kernel pass's parameters: the anisotropy's, the smoothing length h,
+/// 1/r for the neighbourhood's radius r, and an isolated particle's kernel.
+struct Pass<'a> {
+    params: &'a Anisotropy,
+    h: f32,
+    inv_r: f32,
+    isolated: Ellipsoid,
 }
 
 /// Up to 16 neighbours of a particle, one per lane: offsets x_j − x_i and
@@ -453,12 +465,9 @@ macro_rules! kernel_with {
             nb: Neighbourhood<'_>,
             xi: Vec3,
             near: &mut Vec<Near>,
-            params: &Anisotropy,
-            h: f32,
-            inv_r: f32,
-            isolated: Ellipsoid,
+            pass: &Pass<'_>,
         ) -> (Vec3, Ellipsoid) {
-            kernel_of(nb, xi, near, params, h, inv_r, isolated)
+            kernel_of(nb, xi, near, pass)
         }
     };
 }
@@ -467,7 +476,7 @@ kernel_with!(kernel_avx2, "avx2");
 kernel_with!(kernel_avx512, "avx512f,avx2");
 
 /// The smoothed centre and the kernel of the particle at `xi`, whose
-/// neighbours (itself included) within r = 1/`inv_r` are `nb`'s. Each sum is
+/// neighbours (itself included) within the pass's r are `nb`'s. Each sum is
 /// kept in 16 lanes (`sph-core`'s chunks of neighbours) and reduced by the
 /// grid's fixed tree, so every vector path gives bitwise the same kernels.
 // Lane loops index several arrays by lane, which is what vectorises.
@@ -477,12 +486,15 @@ fn kernel_of(
     nb: Neighbourhood<'_>,
     xi: Vec3,
     near: &mut Vec<Near>,
-    params: &Anisotropy,
-    h: f32,
-    inv_r: f32,
-    isolated: Ellipsoid,
+    pass: &Pass<'_>,
 ) -> (Vec3, Ellipsoid) {
     const L: usize = CHUNK_LANES;
+    let &Pass {
+        params,
+        h,
+        inv_r,
+        isolated,
+    } = pass;
     // Weighted mean and second moment about x_i (offsets are at most r, so
     // f32 sums of a few hundred terms are exact enough), the second moment
     // as its 6 distinct entries: [w, w o (3), w o oᵀ (6)].
