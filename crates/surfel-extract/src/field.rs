@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Poly6Sums, Result};
 
 use crate::anisotropy::{self, Anisotropy, Ellipsoid};
+use crate::ellipsoid_sums::{SlotKernel, ellipsoid_sums};
 
 /// Which surface field the particles make.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -105,9 +106,9 @@ pub struct ColourField {
     /// `Anisotropy::radius` × h) and its output, kept between refills.
     wide: Option<NeighbourGrid>,
     kernels: Vec<(Vec3, Ellipsoid)>,
-    /// Per slot of the grid, its particle's kernel shape and V det G times
-    /// poly6's constant: what the anisotropic sums read, in memory order.
-    slot_shapes: Vec<(Ellipsoid, f32)>,
+    /// Per slot of the grid, its particle's kernel as the anisotropic sums
+    /// read it, in memory order.
+    slot_kernels: Vec<SlotKernel>,
     surface: Surface,
     volumes: Vec<f32>,
     /// `volumes` in the grid's slot order, as its vectorised sums read them.
@@ -207,7 +208,7 @@ impl ColourField {
             grid: NeighbourGrid::build(&[], h).expect("an empty grid of h = 1 builds"),
             positions: Vec::new(),
             shapes: Vec::new(),
-            slot_shapes: Vec::new(),
+            slot_kernels: Vec::new(),
             wide: None,
             kernels: Vec::new(),
             surface: Surface::Isotropic,
@@ -231,7 +232,7 @@ impl ColourField {
         if result.is_err() {
             self.positions.clear();
             self.shapes.clear();
-            self.slot_shapes.clear();
+            self.slot_kernels.clear();
             self.volumes.clear();
             self.slot_volumes.clear();
             self.evaluations = Counter::default();
@@ -328,7 +329,7 @@ impl ColourField {
             .par_iter()
             .map(|&i| volumes[i as usize])
             .collect_into_vec(&mut self.slot_volumes);
-        self.slot_shapes.clear();
+        self.slot_kernels.clear();
         if !self.shapes.is_empty() {
             // W_poly6 = k (h² − r²)³.
             let k = poly6.value_r2(0.0) / (h * h).powi(3);
@@ -337,9 +338,11 @@ impl ColourField {
                 .par_iter()
                 .map(|&i| {
                     let e = shapes[i as usize];
-                    (e, volumes[i as usize] * e.det * k)
+                    let [xx, xy, xz, yy, yz, zz] = e.m;
+                    let a = volumes[i as usize] * e.det * k;
+                    [xx, xy, xz, yy, yz, zz, e.trace(), a]
                 })
-                .collect_into_vec(&mut self.slot_shapes);
+                .collect_into_vec(&mut self.slot_kernels);
         }
         Ok(())
     }
@@ -375,32 +378,14 @@ impl ColourField {
         nb: Neighbourhood<'_>,
     ) -> (Sample, [f32; 6], u32) {
         let h2 = self.h() * self.h();
-        let (mut s, mut second, mut count) = (Sample::default(), [0.0f32; 6], 0u32);
-        nb.for_each_slot(|k, d, _| {
-            count += 1;
-            if SECOND {
-                for (m, v) in second.iter_mut().zip([
-                    d.x * d.x,
-                    d.x * d.y,
-                    d.x * d.z,
-                    d.y * d.y,
-                    d.y * d.z,
-                    d.z * d.z,
-                ]) {
-                    *m += v;
-                }
-            }
-            let (e, a) = self.slot_shapes[k];
-            let md = e.apply(d);
-            // f = (h² − q)³, ∇f = −3t² · 2Md, ∇²f = 24t|Md|² − 6t² tr M,
-            // with t = h² − q; every term is 0 outside the kernel (t = 0),
-            // which the `max` makes so without a branch.
-            let t = (h2 - d.dot(md)).max(0.0);
-            s.c += a * t * t * t;
-            s.gradient += (a * -6.0 * t * t) * md;
-            s.laplacian += a * (24.0 * t * md.length_squared() - 6.0 * t * t * e.trace());
-        });
-        (s, second, count)
+        let sums = ellipsoid_sums::<SECOND>(nb, &self.slot_kernels, self.grid.len(), h2);
+        let [c, gx, gy, gz, laplacian] = sums.value;
+        let sample = Sample {
+            c,
+            gradient: Vec3::new(gx, gy, gz),
+            laplacian,
+        };
+        (sample, sums.second, sums.count)
     }
 
     /// The smoothing length.

@@ -31,6 +31,7 @@
 
 pub mod anisotropy;
 pub mod coverage;
+mod ellipsoid_sums;
 mod extractor;
 pub mod field;
 pub mod fill;
