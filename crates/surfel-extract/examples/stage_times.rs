@@ -5,11 +5,13 @@
 //! meant to leave the result as it is can be checked bitwise.
 //!
 //! ```sh
-//! cargo run --release -p surfel-extract --example stage_times [-- 100k] [anisotropic] [ITERATIONS] [RUNS]
+//! cargo run --release -p surfel-extract --example stage_times [-- 100k|drop] [anisotropic] [ITERATIONS] [RUNS]
 //! ```
 //!
 //! Defaults: the 2,250-particle frame, the isotropic field, 2 iterations,
-//! 21 runs.
+//! 21 runs. `drop` takes the demo's default scene instead
+//! (`assets/scenes/drop_into_pool.toml`, PBF) at 2 s, about 7,000 particles
+//! with its splash, at the scene's h.
 
 use sph_core::{Particles, Scene};
 use surfel_extract::{ExtractParams, Extractor, Surface, extract};
@@ -23,10 +25,18 @@ fn frame(a: f32, depth: f32, t: f32) -> Result<Particles, Box<dyn std::error::Er
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let (label, particles) = if args.iter().any(|a| a == "100k") {
-        ("100k", frame(0.37, 0.37, 0.1)?)
+    let (label, particles, h) = if args.iter().any(|a| a == "100k") {
+        ("100k", frame(0.37, 0.37, 0.1)?, 0.02)
+    } else if args.iter().any(|a| a == "drop") {
+        let scene = Scene::load(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../assets/scenes/drop_into_pool.toml"
+        ))?;
+        let mut world = scene.build_world()?;
+        world.advance(2.0)?;
+        ("drop", world.particles, scene.fluid.h)
     } else {
-        ("2k", frame(0.15, 0.05, 0.3)?)
+        ("2k", frame(0.15, 0.05, 0.3)?, 0.02)
     };
     let mut numbers = args.iter().filter_map(|a| a.parse::<u32>().ok());
     let iterations = numbers.next().unwrap_or(2);
@@ -39,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let params = ExtractParams {
         iterations,
         surface,
-        ..ExtractParams::new(0.02)
+        ..ExtractParams::new(h)
     };
     let out = extract(&particles, &params)?;
     // FNV-1a over every surfel's bits.
