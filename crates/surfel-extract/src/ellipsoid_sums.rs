@@ -14,6 +14,8 @@ use sph_core::Neighbourhood;
 #[cfg(target_arch = "x86_64")]
 use sph_core::{Simd, simd_level};
 
+use crate::anisotropy::Ellipsoid;
+
 /// Neighbours per buffer.
 const LANES: usize = 8;
 
@@ -21,6 +23,12 @@ const LANES: usize = 8;
 /// [xx, xy, xz, yy, yz, zz], then tr G², then V det G times poly6's
 /// constant.
 pub(crate) type SlotKernel = [f32; 8];
+
+/// The row of kernel `e` whose V det G times poly6's constant is `weight`.
+pub(crate) fn slot_kernel(e: &Ellipsoid, weight: f32) -> SlotKernel {
+    let [xx, xy, xz, yy, yz, zz] = e.m;
+    [xx, xy, xz, yy, yz, zz, e.trace(), weight]
+}
 
 /// The sums: c, ∇c (3), ∇²c, the second moment Σ d dᵀ of the offsets as
 /// [xx, xy, xz, yy, yz, zz] (zeros unless asked for), and the neighbours

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Poly6Sums, Result};
 
 use crate::anisotropy::{self, Anisotropy, Ellipsoid};
-use crate::ellipsoid_sums::{SlotKernel, ellipsoid_sums};
+use crate::ellipsoid_sums::{SlotKernel, ellipsoid_sums, slot_kernel};
 
 /// Which surface field the particles make.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -337,10 +337,8 @@ impl ColourField {
             order
                 .par_iter()
                 .map(|&i| {
-                    let e = shapes[i as usize];
-                    let [xx, xy, xz, yy, yz, zz] = e.m;
-                    let a = volumes[i as usize] * e.det * k;
-                    [xx, xy, xz, yy, yz, zz, e.trace(), a]
+                    let e = &shapes[i as usize];
+                    slot_kernel(e, volumes[i as usize] * e.det * k)
                 })
                 .collect_into_vec(&mut self.slot_kernels);
         }
