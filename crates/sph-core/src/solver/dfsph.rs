@@ -292,8 +292,6 @@ struct Model {
     inv_rho0: f32,
     /// W_poly6(0).
     w0: f32,
-    /// An offset beyond the kernels' support, for unused lanes.
-    far: f32,
 }
 
 impl Model {
@@ -311,7 +309,6 @@ impl Model {
             cubic,
             inv_rho0: 1.0 / params.rest_density,
             w0: cubic.coefficient(),
-            far: 2.0 * h,
         })
     }
 
@@ -335,7 +332,7 @@ impl Model {
         // Per lane: ρ, g by axis, Σ|G_ij|².
         let mut acc = [[0.0f32; LANES]; 5];
         for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
-            let c = Chunk::gather(xi, x, m, js, self.far);
+            let c = Chunk::gather(xi, x, m, js);
             let (w, s) = self.lanes.eval(&c.r2());
             let mut g = [[0.0f32; LANES]; 3];
             for l in 0..LANES {

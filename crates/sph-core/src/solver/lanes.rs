@@ -1,13 +1,18 @@
-//! The pair sums of the PBF and DFSPH stations, eight neighbours at a time: each
-//! chunk of a neighbour list is gathered into per-axis lanes, the kernels
-//! are evaluated lane by lane on whole arrays, and the sums are kept per
-//! lane and added in a fixed tree at the end, so the result depends on
-//! neither threads nor CPU. (Compiled for AVX2 as well, with a run-time
-//! switch like the grid's, the density solve measured no faster:
-//! `examples/pbf_stations.rs` at 3.4–3.7 ms per 10k substep either way, so
-//! there is one path.)
+//! The pair sums of the incompressible solvers, eight neighbours at a time:
+//! each chunk of a neighbour list is gathered into per-axis lanes, the
+//! kernels are evaluated lane by lane, and the sums are kept per lane and
+//! added in a fixed tree at the end, so the result depends on neither
+//! threads nor CPU.
+//!
+//! PBF's sums are written over [`F32x8`] lanes ([`Near`],
+//! [`LaneKernels::eval`]) and run through [`super::f32x8::par_map`], which
+//! compiles them for AVX2 where the CPU has it. DFSPH's are still plain
+//! arrays ([`Chunk`], [`LaneCubic`]) that the compiler vectorises as it can.
 
 use glam::Vec3;
+
+use super::f32x8::F32x8;
+
 
 use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 
@@ -15,8 +20,8 @@ use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 pub(super) const LANES: usize = 8;
 
 /// Up to [`LANES`] neighbours of one particle: offsets x_i − x_j per axis
-/// and masses. Unused lanes lie beyond h with no mass, so every kernel
-/// gives 0 there.
+/// and masses. Unused lanes repeat the chunk's first neighbour with no
+/// mass, so every sum weighted by the mass gets exact zeros there.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Chunk {
     pub(super) d: [[f32; LANES]; 3],
@@ -24,19 +29,22 @@ pub(super) struct Chunk {
 }
 
 impl Chunk {
-    /// The neighbours `js` (at most [`LANES`]) of the particle at `xi`;
-    /// `far` is an offset beyond the kernels' support.
+    /// The neighbours `js` (1 to [`LANES`] of them) of the particle at `xi`.
+    ///
+    /// The lanes are filled by a loop of fixed length, so the compiler keeps
+    /// them in registers and vectorises the arithmetic on them.
     #[inline(always)]
-    pub(super) fn gather(xi: Vec3, x: &[Vec3], m: &[f32], js: &[u32], far: f32) -> Self {
+    pub(super) fn gather(xi: Vec3, x: &[Vec3], m: &[f32], js: &[u32]) -> Self {
+        let (slots, weight) = lanes_of(js);
         let mut c = Chunk {
-            d: [[far; LANES]; 3],
+            d: [[0.0; LANES]; 3],
             m: [0.0; LANES],
         };
-        for (l, &j) in js.iter().enumerate() {
-            let j = j as usize;
+        for l in 0..LANES {
+            let j = slots[l] as usize;
             let r = xi - x[j];
             (c.d[0][l], c.d[1][l], c.d[2][l]) = (r.x, r.y, r.z);
-            c.m[l] = m[j];
+            c.m[l] = m[j] * weight[l];
         }
         c
     }
@@ -73,23 +81,62 @@ impl LaneKernels {
         }
     }
 
-    /// (W, s) per lane.
+    /// (W, s) per lane. Without branches: beyond h both kernels are 0
+    /// through the `max`es, and a coincident pair (r = 0) has a finite s
+    /// times a zero offset.
     #[inline(always)]
-    pub(super) fn eval(&self, r2: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
-        let mut w = [0.0; LANES];
-        let mut s = [0.0; LANES];
-        // Without branches, so that the loop is one vector operation per
-        // step: beyond h both kernels are 0 through the `max`es, and a
-        // coincident pair (r = 0) has a finite s times a zero offset.
-        for l in 0..LANES {
-            let d = (self.h2 - r2[l]).max(0.0);
-            w[l] = self.poly6 * d * d * d;
-            let len = r2[l].sqrt();
-            let t = (self.h - len).max(0.0);
-            s[l] = -self.spiky * t * t / len.max(self.tiny);
-        }
+    pub(super) fn eval<S: F32x8>(&self, r2: S) -> (S, S) {
+        let zero = S::splat(0.0);
+        let d = (S::splat(self.h2) - r2).max(zero);
+        let w = S::splat(self.poly6) * d * d * d;
+        let len = r2.sqrt();
+        let t = (S::splat(self.h) - len).max(zero);
+        let s = S::splat(-self.spiky) * t * t / len.max(S::splat(self.tiny));
         (w, s)
     }
+}
+
+/// Up to eight neighbours of one particle in lanes: offsets x_i − x_j per
+/// axis, masses, and the neighbours' indices. Unused lanes repeat the
+/// chunk's first neighbour with no mass, so every sum weighted by the mass
+/// gets exact zeros there.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Near<S> {
+    pub(super) d: [S; 3],
+    pub(super) m: S,
+    pub(super) slots: [u32; LANES],
+}
+
+impl<S: F32x8> Near<S> {
+    /// The neighbours `js` (1 to [`LANES`] of them) of the particle at
+    /// `xi`, from `rows` of (x, y, z, m) per particle ([`rows_of`]).
+    #[inline(always)]
+    pub(super) fn gather(xi: [f32; 4], rows: &[[f32; 4]], js: &[u32]) -> Self {
+        let (slots, weight) = lanes_of(js);
+        let [x, y, z, m] = S::gather_rows(rows, &slots);
+        Near {
+            d: [S::splat(xi[0]) - x, S::splat(xi[1]) - y, S::splat(xi[2]) - z],
+            m: m * S::from_array(weight),
+            slots,
+        }
+    }
+
+    /// |r|² per lane.
+    #[inline(always)]
+    pub(super) fn r2(&self) -> S {
+        let [x, y, z] = self.d;
+        x * x + y * y + z * z
+    }
+}
+
+/// `rows[i]` = (x_i, y_i, z_i, m_i): what [`Near::gather`] reads, one load
+/// per neighbour.
+pub(super) fn rows_of(x: &[Vec3], m: &[f32], rows: &mut Vec<[f32; 4]>) {
+    use rayon::prelude::*;
+    x.par_iter()
+        .zip(m)
+        .map(|(x, &m)| [x.x, x.y, x.z, m])
+        .collect_into_vec(rows);
 }
 
 /// The cubic spline's W and gradient factor s (∇W = s r) per lane, from
@@ -130,6 +177,17 @@ impl LaneCubic {
         }
         (w, s)
     }
+}
+
+/// A chunk's neighbours spread over the lanes, the first repeated in the
+/// unused ones, and each lane's weight: 1 for a neighbour, 0 for a repeat.
+#[inline(always)]
+pub(super) fn lanes_of(js: &[u32]) -> ([u32; LANES], [f32; LANES]) {
+    let mut slots = [js[0]; LANES];
+    let mut weight = [0.0; LANES];
+    slots[..js.len()].copy_from_slice(js);
+    weight[..js.len()].fill(1.0);
+    (slots, weight)
 }
 
 /// The lanes' sum, in a fixed tree.

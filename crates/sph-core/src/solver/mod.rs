@@ -21,6 +21,7 @@
 //! [`ExternalAcceleration`]).
 
 pub mod dfsph;
+mod f32x8;
 mod lanes;
 pub mod params;
 pub mod pbf;

@@ -69,13 +69,15 @@ use rayon::prelude::*;
 
 use super::params::FluidParams;
 use super::stations::{Boundaries, BuildGrid};
+use crate::NeighbourLists;
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
-use super::lanes::{Chunk, LANES, LaneKernels, total};
+use super::f32x8::{F32x8, LaneMap, par_map};
+use super::lanes::{LANES, LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::viscosity::{ImplicitViscosity, Update};
@@ -425,8 +427,6 @@ struct Model {
     lanes: LaneKernels,
     /// W_poly6(0).
     w0: f32,
-    /// An offset beyond the kernels' support, for unused lanes.
-    far: f32,
 }
 
 impl Model {
@@ -446,57 +446,33 @@ impl Model {
             inv_rho0: 1.0 / params.rest_density,
             lanes: LaneKernels::new(&poly6, &spiky, h),
             w0: poly6.value_r2(0.0),
-            far: 2.0 * h,
         })
     }
 
     /// Density ρ_i and the constraint's λ_i and D_i = 1/(Σ_k|∇_k C_i|² + ε)
-    /// (lines 9–11); writes each neighbour's (m_j/ρ0)∇W_ij and s_corr
-    /// weight into `pairs` (one per neighbour in `list`) for the
-    /// correction, which sees the same positions.
-    #[inline]
-    fn constraint(
-        &self,
-        i: usize,
-        x: &[Vec3],
-        m: &[f32],
-        list: &[u32],
-        pairs: &mut [Pair],
-    ) -> Constraint {
-        let xi = x[i];
-        let (rho_wall, wall) = self.walls.at(xi);
+    /// (lines 9–11), from `rows` of (x, m).
+    #[inline(always)]
+    fn constraint<S: F32x8>(&self, i: usize, rows: &[[f32; 4]], list: &[u32]) -> Constraint {
+        let xi = rows[i];
+        let (rho_wall, wall) = self.walls.at(Vec3::new(xi[0], xi[1], xi[2]));
+        let inv_rho0 = S::splat(self.inv_rho0);
         // Per lane: ρ, ∇_i C_i by axis, Σ|∇_j C_i|².
-        let mut acc = [[0.0f32; LANES]; 5];
-        let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
-        for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
-            let c = Chunk::gather(xi, x, m, js, self.far);
-            let (w, s) = self.lanes.eval(&c.r2());
-            let mut g = [[0.0f32; LANES]; 3];
-            for l in 0..LANES {
-                let f = s[l] * c.m[l] * self.inv_rho0;
-                for a in 0..3 {
-                    g[a][l] = c.d[a][l] * f;
-                    acc[1 + a][l] += g[a][l];
-                }
-                acc[0][l] += c.m[l] * w[l];
-                acc[4][l] += g[0][l] * g[0][l] + g[1][l] * g[1][l] + g[2][l] * g[2][l];
-            }
-            for (l, pair) in out.iter_mut().enumerate() {
-                let q = w[l] * self.inv_w_dq;
-                *pair = Pair {
-                    g: Vec3::new(g[0][l], g[1][l], g[2][l]),
-                    scorr: if k > 0.0 {
-                        k * (1..n).fold(q, |p, _| p * q)
-                    } else {
-                        0.0
-                    },
-                };
-            }
+        let mut acc = [S::splat(0.0); 5];
+        for js in list.chunks(LANES) {
+            let c = Near::<S>::gather(xi, rows, js);
+            let (w, s) = self.lanes.eval(c.r2());
+            let f = s * c.m * inv_rho0;
+            let g = c.d.map(|d| d * f);
+            acc[0] = acc[0] + c.m * w;
+            acc[1] = acc[1] + g[0];
+            acc[2] = acc[2] + g[1];
+            acc[3] = acc[3] + g[2];
+            acc[4] = acc[4] + (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
         }
-        let rho = rho_wall + m[i] * self.w0 + total(&acc[0]);
-        let grad_i = wall + Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
+        let rho = rho_wall + xi[3] * self.w0 + acc[0].sum();
+        let grad_i = wall + Vec3::new(acc[1].sum(), acc[2].sum(), acc[3].sum());
         let error = rho * self.inv_rho0 - 1.0;
-        let d = 1.0 / (grad_i.length_squared() + total(&acc[4]) + self.epsilon);
+        let d = 1.0 / (grad_i.length_squared() + acc[4].sum() + self.epsilon);
         Constraint {
             rho,
             lambda: -error.max(0.0) * d,
@@ -504,61 +480,112 @@ impl Model {
             wall,
         }
     }
-}
 
-impl Model {
-    /// The viscosity station's sums for particle i at the current positions:
-    /// density (with the walls), curl ω_i = Σ_j (m_j/ρ0)(v_j − v_i) × ∇W_ij
-    /// and XSPH mean Σ_j (m_j/ρ0)(v_j − v_i) W_ij; writes each neighbour's
-    /// (m_j/ρ0)∇W_ij into `grads`.
-    #[inline]
-    fn curl_and_mean(
+    /// The position correction Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr)
+    /// ∇W_ij plus the walls' λ_i ∇_i(ρ_wall/ρ0) (lines 12–13), from `rows`
+    /// of (x, m) and `coefs` of (λ, D) at the positions the constraints
+    /// were taken at.
+    #[inline(always)]
+    fn correction<S: F32x8>(
         &self,
         i: usize,
-        x: &[Vec3],
-        v: &[Vec3],
-        m: &[f32],
+        rows: &[[f32; 4]],
+        constraint: &Constraint,
+        coefs: &[[f32; 4]],
         list: &[u32],
-        grads: &mut [Vec3],
-    ) -> Sums {
-        let (xi, vi) = (x[i], v[i]);
-        // Per lane: ρ, curl by axis, mean by axis.
-        let mut acc = [[0.0f32; LANES]; 7];
-        for (js, out) in list.chunks(LANES).zip(grads.chunks_mut(LANES)) {
-            let c = Chunk::gather(xi, x, m, js, self.far);
-            let (w, s) = self.lanes.eval(&c.r2());
-            let mut u = [[0.0f32; LANES]; 3];
-            for (l, &j) in js.iter().enumerate() {
-                let vij = v[j as usize] - vi;
-                (u[0][l], u[1][l], u[2][l]) = (vij.x, vij.y, vij.z);
+    ) -> Vec3 {
+        let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
+        let (lambda_i, d_i) = (S::splat(constraint.lambda), S::splat(constraint.d));
+        let (inv_rho0, inv_w_dq) = (S::splat(self.inv_rho0), S::splat(self.inv_w_dq));
+        let (k, half) = (S::splat(k), S::splat(0.5));
+        let mut acc = [S::splat(0.0); 3];
+        for js in list.chunks(LANES) {
+            let c = Near::<S>::gather(rows[i], rows, js);
+            let [lambda_j, d_j, _, _] = S::gather_rows(coefs, &c.slots);
+            let (w, s) = self.lanes.eval(c.r2());
+            // k (W_ij/W(Δq))ⁿ, by n − 1 products.
+            let q = w * inv_w_dq;
+            let mut scorr = q;
+            for _ in 1..n {
+                scorr = scorr * q;
             }
-            let mut g = [[0.0f32; LANES]; 3];
-            for l in 0..LANES {
-                let vol = c.m[l] * self.inv_rho0;
-                let f = s[l] * vol;
-                for (g, d) in g.iter_mut().zip(&c.d) {
-                    g[l] = d[l] * f;
-                }
-                acc[0][l] += c.m[l] * w[l];
-                // v_ij × (m_j/ρ0)∇W_ij
-                acc[1][l] += u[1][l] * g[2][l] - u[2][l] * g[1][l];
-                acc[2][l] += u[2][l] * g[0][l] - u[0][l] * g[2][l];
-                acc[3][l] += u[0][l] * g[1][l] - u[1][l] * g[0][l];
-                for a in 0..3 {
-                    acc[4 + a][l] += u[a][l] * (vol * w[l]);
-                }
-            }
-            for (l, o) in out.iter_mut().enumerate() {
-                *o = Vec3::new(g[0][l], g[1][l], g[2][l]);
+            let f = s * c.m * inv_rho0;
+            let sum = lambda_i + lambda_j - k * scorr * half * (d_i + d_j);
+            for (acc, d) in acc.iter_mut().zip(c.d) {
+                *acc = *acc + d * f * sum;
             }
         }
-        let curl = Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
+        constraint.lambda * constraint.wall + Vec3::new(acc[0].sum(), acc[1].sum(), acc[2].sum())
+    }
+
+    /// The viscosity station's sums for particle i at the current positions,
+    /// from `rows` of (x, m) and velocity `vrows` of (v, 0): density (with
+    /// the walls), curl ω_i = Σ_j (m_j/ρ0)(v_j − v_i) × ∇W_ij and XSPH mean
+    /// Σ_j (m_j/ρ0)(v_j − v_i) W_ij.
+    #[inline(always)]
+    fn curl_and_mean<S: F32x8>(
+        &self,
+        i: usize,
+        rows: &[[f32; 4]],
+        vrows: &[[f32; 4]],
+        list: &[u32],
+    ) -> Sums {
+        let (xi, vi) = (rows[i], vrows[i]);
+        let inv_rho0 = S::splat(self.inv_rho0);
+        // Per lane: ρ, curl by axis, mean by axis.
+        let mut acc = [S::splat(0.0); 7];
+        for js in list.chunks(LANES) {
+            let c = Near::<S>::gather(xi, rows, js);
+            let (w, s) = self.lanes.eval(c.r2());
+            let [vx, vy, vz, _] = S::gather_rows(vrows, &c.slots);
+            let u = [vx - S::splat(vi[0]), vy - S::splat(vi[1]), vz - S::splat(vi[2])];
+            let vol = c.m * inv_rho0;
+            let f = s * vol;
+            let g = c.d.map(|d| d * f);
+            acc[0] = acc[0] + c.m * w;
+            // v_ij × (m_j/ρ0)∇W_ij
+            acc[1] = acc[1] + (u[1] * g[2] - u[2] * g[1]);
+            acc[2] = acc[2] + (u[2] * g[0] - u[0] * g[2]);
+            acc[3] = acc[3] + (u[0] * g[1] - u[1] * g[0]);
+            let vw = vol * w;
+            for a in 0..3 {
+                acc[4 + a] = acc[4 + a] + u[a] * vw;
+            }
+        }
+        let x = Vec3::new(xi[0], xi[1], xi[2]);
+        let curl = Vec3::new(acc[1].sum(), acc[2].sum(), acc[3].sum());
         Sums {
-            rho: self.walls.at(xi).0 + m[i] * self.w0 + total(&acc[0]),
+            rho: self.walls.at(x).0 + xi[3] * self.w0 + acc[0].sum(),
             curl,
             curl_len: curl.length(),
-            mean: Vec3::new(total(&acc[4]), total(&acc[5]), total(&acc[6])),
+            mean: Vec3::new(acc[4].sum(), acc[5].sum(), acc[6].sum()),
         }
+    }
+
+    /// η_i = Σ_j (m_j/ρ0)(|ω_j| − |ω_i|) ∇W_ij, the gradient of |ω| that
+    /// vorticity confinement pushes along, from `rows` of (x, m) and each
+    /// particle's |ω|.
+    #[inline(always)]
+    fn curl_gradient<S: F32x8>(
+        &self,
+        i: usize,
+        rows: &[[f32; 4]],
+        curl_len: &[f32],
+        list: &[u32],
+    ) -> Vec3 {
+        let inv_rho0 = S::splat(self.inv_rho0);
+        let wi = S::splat(curl_len[i]);
+        let mut acc = [S::splat(0.0); 3];
+        for js in list.chunks(LANES) {
+            let c = Near::<S>::gather(rows[i], rows, js);
+            let (_, s) = self.lanes.eval(c.r2());
+            let dw = S::gather(curl_len, &c.slots) - wi;
+            let f = s * c.m * inv_rho0;
+            for (acc, d) in acc.iter_mut().zip(c.d) {
+                *acc = *acc + d * f * dw;
+            }
+        }
+        Vec3::new(acc[0].sum(), acc[1].sum(), acc[2].sum())
     }
 }
 
@@ -570,14 +597,6 @@ struct Constraint {
     d: f32,
     /// ∇_i(ρ_wall/ρ0).
     wall: Vec3,
-}
-
-/// What the correction needs of a neighbour pair: (m_j/ρ0)∇W_ij and
-/// k (W_ij/W(Δq))ⁿ.
-#[derive(Debug, Clone, Copy, Default)]
-struct Pair {
-    g: Vec3,
-    scorr: f32,
 }
 
 /// Lines 8–19 (and 21): [`PbfParams::iterations`] Jacobi iterations of the
@@ -595,9 +614,45 @@ struct Pair {
 #[derive(Debug, Clone)]
 pub struct SolveDensity {
     model: Model,
+    /// (x, m) per particle.
+    rows: Vec<[f32; 4]>,
     constraints: Vec<Constraint>,
-    pairs: Vec<Pair>,
+    /// (λ, D) per particle.
+    coefs: Vec<[f32; 4]>,
     corrections: Vec<Vec3>,
+}
+
+/// The λ pass: every particle's [`Constraint`].
+struct Lambdas<'a> {
+    model: &'a Model,
+    rows: &'a [[f32; 4]],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneMap for Lambdas<'_> {
+    type Out = Constraint;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> Constraint {
+        self.model.constraint::<S>(i, self.rows, self.lists.of(i))
+    }
+}
+
+/// The Δp pass: every particle's position correction.
+struct Corrections<'a> {
+    model: &'a Model,
+    rows: &'a [[f32; 4]],
+    constraints: &'a [Constraint],
+    coefs: &'a [[f32; 4]],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneMap for Corrections<'_> {
+    type Out = Vec3;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> Vec3 {
+        let c = &self.constraints[i];
+        (self.model).correction::<S>(i, self.rows, c, self.coefs, self.lists.of(i))
+    }
 }
 
 impl SolveDensity {
@@ -612,8 +667,9 @@ impl SolveDensity {
     fn with_model(model: Model) -> Self {
         Self {
             model,
+            rows: Vec::new(),
             constraints: Vec::new(),
-            pairs: Vec::new(),
+            coefs: Vec::new(),
             corrections: Vec::new(),
         }
     }
@@ -629,31 +685,26 @@ impl Processor for SolveDensity {
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
         let (mut first, mut worst) = (None, 0.0f32);
         let n_particles = particles.len();
-        self.pairs.resize(lists.pairs(), Pair::default());
-        self.constraints.resize(n_particles, Constraint::default());
         for _ in 0..pbf.iterations {
             let f = particles.fields_mut();
-            let (x, m) = (&*f.positions, &*f.masses);
-            lists.par_map_rows(&mut self.constraints, &mut self.pairs, |i, list, pairs| {
-                model.constraint(i, x, m, list, pairs)
-            });
-            let (c, pairs) = (&self.constraints, &self.pairs);
+            rows_of(f.positions, f.masses, &mut self.rows);
+            let rows = &self.rows[..];
+            par_map(&Lambdas { model, rows, lists }, n_particles, &mut self.constraints);
+            let c = &self.constraints;
             worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
             first.get_or_insert(worst);
-            (0..n_particles)
-                .into_par_iter()
-                .map(|i| {
-                    let ci = c[i];
-                    let row = lists.row(i, pairs);
-                    let mut dp = ci.lambda * ci.wall;
-                    for (&j, p) in lists.of(i).iter().zip(row) {
-                        let cj = c[j as usize];
-                        let s = ci.lambda + cj.lambda - p.scorr * 0.5 * (ci.d + cj.d);
-                        dp += p.g * s;
-                    }
-                    dp
-                })
-                .collect_into_vec(&mut self.corrections);
+            c.par_iter()
+                .map(|c| [c.lambda, c.d, 0.0, 0.0])
+                .collect_into_vec(&mut self.coefs);
+            let coefs = &self.coefs[..];
+            let corrections = Corrections {
+                model,
+                rows,
+                constraints: c,
+                coefs,
+                lists,
+            };
+            par_map(&corrections, n_particles, &mut self.corrections);
             let b = model.walls.boundary();
             (f.positions.par_iter_mut())
                 .zip(f.velocities.par_iter_mut())
@@ -710,8 +761,47 @@ impl Processor for SolveDensity {
 #[derive(Debug, Clone)]
 pub struct VorticityXsph {
     model: Model,
+    /// (x, m) per particle.
+    rows: Vec<[f32; 4]>,
+    /// (v, 0) per particle.
+    vrows: Vec<[f32; 4]>,
     first: Vec<Sums>,
-    grads: Vec<Vec3>,
+    /// |ω| per particle.
+    curl_len: Vec<f32>,
+    /// η per particle (empty without vorticity confinement).
+    eta: Vec<Vec3>,
+}
+
+/// The viscosity station's first pass: every particle's [`Sums`].
+struct CurlSums<'a> {
+    model: &'a Model,
+    rows: &'a [[f32; 4]],
+    vrows: &'a [[f32; 4]],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneMap for CurlSums<'_> {
+    type Out = Sums;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> Sums {
+        (self.model).curl_and_mean::<S>(i, self.rows, self.vrows, self.lists.of(i))
+    }
+}
+
+/// The second pass: every particle's η, the gradient of |ω|.
+struct CurlGradients<'a> {
+    model: &'a Model,
+    rows: &'a [[f32; 4]],
+    curl_len: &'a [f32],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneMap for CurlGradients<'_> {
+    type Out = Vec3;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> Vec3 {
+        (self.model).curl_gradient::<S>(i, self.rows, self.curl_len, self.lists.of(i))
+    }
 }
 
 /// A particle's sums of the viscosity station's first pass.
@@ -735,8 +825,11 @@ impl VorticityXsph {
     fn with_model(model: Model) -> Self {
         Self {
             model,
+            rows: Vec::new(),
+            vrows: Vec::new(),
             first: Vec::new(),
-            grads: Vec::new(),
+            curl_len: Vec::new(),
+            eta: Vec::new(),
         }
     }
 }
@@ -755,33 +848,40 @@ impl Processor for VorticityXsph {
         };
         let eps = model.pbf.vorticity;
         let f = particles.fields_mut();
-        let (x, v, m) = (&*f.positions, &*f.velocities, &*f.masses);
-        // Density, curl and XSPH mean at once; each pair's (m_j/ρ0)∇W_ij
-        // kept for the vorticity's gradient of |ω|.
-        self.grads.resize(lists.pairs(), Vec3::ZERO);
-        self.first.resize(x.len(), Default::default());
-        lists.par_map_rows(&mut self.first, &mut self.grads, |i, list, grads| {
-            model.curl_and_mean(i, x, v, m, list, grads)
-        });
-        let (first, grads) = (&self.first, &self.grads);
-        // Each particle's velocity change reads only the first pass's sums,
-        // so it is added in place, with the density.
+        let n = f.positions.len();
+        rows_of(f.positions, f.masses, &mut self.rows);
+        (f.velocities.par_iter())
+            .map(|v| [v.x, v.y, v.z, 0.0])
+            .collect_into_vec(&mut self.vrows);
+        let (rows, vrows) = (&self.rows[..], &self.vrows[..]);
+        // Density, curl and XSPH mean at once.
+        par_map(&CurlSums { model, rows, vrows, lists }, n, &mut self.first);
+        let first = &self.first;
+        self.eta.clear();
+        if eps > 0.0 {
+            (first.par_iter())
+                .map(|s| s.curl_len)
+                .collect_into_vec(&mut self.curl_len);
+            let curl_len = &self.curl_len[..];
+            let gradients = CurlGradients {
+                model,
+                rows,
+                curl_len,
+                lists,
+            };
+            par_map(&gradients, n, &mut self.eta);
+        }
+        let eta = &self.eta;
+        // Each particle's velocity change reads only the sums above, so it
+        // is added in place, with the density.
         (f.velocities.par_iter_mut())
             .zip(f.densities.par_iter_mut())
             .enumerate()
             .for_each(|(i, (v, rho))| {
                 let Sums { curl, mean, .. } = first[i];
                 let mut dv = c * mean;
-                if eps > 0.0 {
-                    let row = lists.row(i, grads);
-                    let wi = first[i].curl_len;
-                    let mut eta = Vec3::ZERO;
-                    for (&j, &g) in lists.of(i).iter().zip(row) {
-                        eta += g * (first[j as usize].curl_len - wi);
-                    }
-                    if let Some(n) = eta.try_normalize() {
-                        dv += dt * eps * n.cross(curl);
-                    }
+                if let Some(n) = eta.get(i).and_then(|eta| eta.try_normalize()) {
+                    dv += dt * eps * n.cross(curl);
                 }
                 *v += dv;
                 *rho = first[i].rho;
