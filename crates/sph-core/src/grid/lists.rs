@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::NeighbourGrid;
+use super::{NeighbourGrid, scan};
 
 /// Particles per parallel task when building lists: a fixed size, so the
 /// result does not depend on the number of threads.
@@ -51,13 +51,22 @@ impl NeighbourLists {
                 let range = c * CHUNK..((c + 1) * CHUNK).min(n);
                 let mut counts = Vec::with_capacity(range.len());
                 let mut found = Vec::new();
+                let layout = &grid.layout;
+                let [xs, ys, zs] = &layout.coords;
+                let mut hits = [0u32; scan::HIT_CAPACITY];
                 for i in range {
                     let before = found.len();
-                    grid.for_each_neighbour(i, |j, _, _| {
-                        if j != i {
-                            found.push(j as u32);
-                        }
-                    });
+                    let own = layout.rank[i];
+                    let n = grid.neighbourhood(i);
+                    let mut scan = scan::Scan::new(n.centre, grid.h2, [xs, ys, zs], &n.rows);
+                    while !scan.done() {
+                        let hit = scan.fill(&mut hits, 0);
+                        found.extend(
+                            (hits[..hit].iter())
+                                .filter(|&&k| k != own)
+                                .map(|&k| layout.order[k as usize]),
+                        );
+                    }
                     counts.push((found.len() - before) as u32);
                 }
                 (counts, found)
