@@ -209,7 +209,13 @@ impl Boundary {
     /// Moves `x` to the nearest admitted position (when it is not one) and
     /// reflects the velocity component into the boundary there by
     /// `restitution` (0 removes it).
+    #[inline]
     pub fn resolve(&self, x: &mut Vec3, v: &mut Vec3) {
+        // Most particles of most scenes: nothing to do, said in two compares.
+        let inside = x.cmpge(self.domain.min).all() && x.cmple(self.domain.max).all();
+        if inside && self.obstacles.is_empty() {
+            return;
+        }
         // A few rounds settle corners where an obstacle meets a wall.
         for _ in 0..3 {
             let mut moved = false;
@@ -244,6 +250,7 @@ impl Boundary {
     /// Moves `x` to the nearest admitted position when it is not one, as
     /// [`Boundary::resolve`] does, without a velocity to reflect (position-based
     /// solvers derive the velocity from the motion afterwards).
+    #[inline]
     pub fn project(&self, x: &mut Vec3) {
         let mut v = Vec3::ZERO;
         self.resolve(x, &mut v);

@@ -217,16 +217,18 @@ pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
     out.resize(n, M::Out::default());
     #[cfg(target_arch = "x86_64")]
     let avx2 = simd_level() >= Simd::Avx2;
-    out.par_chunks_mut(BLOCK).enumerate().for_each(|(b, block)| {
-        let first = b * BLOCK;
-        #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: `simd_level` never exceeds what the CPU supports.
-            unsafe { fill_avx2(map, first, block) };
-            return;
-        }
-        fill::<Scalar, M>(map, first, block);
-    });
+    out.par_chunks_mut(BLOCK)
+        .enumerate()
+        .for_each(|(b, block)| {
+            let first = b * BLOCK;
+            #[cfg(target_arch = "x86_64")]
+            if avx2 {
+                // SAFETY: `simd_level` never exceeds what the CPU supports.
+                unsafe { fill_avx2(map, first, block) };
+                return;
+            }
+            fill::<Scalar, M>(map, first, block);
+        });
 }
 
 /// `block[k]` = particle `first + k`'s value, with lanes `S`.
@@ -245,6 +247,22 @@ fn fill<S: F32x8, M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
 #[target_feature(enable = "avx2")]
 unsafe fn fill_avx2<M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
     fill::<Avx2, M>(map, first, block);
+}
+
+/// `map`'s values for `n` particles with the plain lanes and, where the CPU
+/// has AVX2, with the AVX2 ones: what the solvers' tests compare.
+#[cfg(test)]
+pub(super) fn both_kinds<M: LaneMap>(map: &M, n: usize) -> (Vec<M::Out>, Option<Vec<M::Out>>) {
+    let mut scalar = vec![M::Out::default(); n];
+    fill::<Scalar, M>(map, 0, &mut scalar);
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        let mut avx2 = vec![M::Out::default(); n];
+        // SAFETY: checked just above.
+        unsafe { fill_avx2(map, 0, &mut avx2) };
+        return (scalar, Some(avx2));
+    }
+    (scalar, None)
 }
 
 #[cfg(test)]
@@ -279,7 +297,16 @@ mod tests {
                 b.max(a).to_array(),
                 a.sqrt().to_array(),
                 S::gather(values, slots).to_array(),
-                [S::splat(2.5).sum(), a.sum(), b.sum(), 0.0, 0.0, 0.0, 0.0, 0.0],
+                [
+                    S::splat(2.5).sum(),
+                    a.sum(),
+                    b.sum(),
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                    0.0,
+                ],
             ];
             out.extend(S::gather_rows(rows, slots).map(S::to_array));
             out
@@ -293,11 +320,19 @@ mod tests {
         };
         let scalar = run::<Scalar>(a, b, &rows, &values, &slots);
         assert_eq!(scalar[4][0], 1.5);
-        assert_eq!(scalar[4][1].to_bits(), 0.0f32.to_bits(), "max(-0, +0) is the second");
+        assert_eq!(
+            scalar[4][1].to_bits(),
+            0.0f32.to_bits(),
+            "max(-0, +0) is the second"
+        );
         assert!(scalar[4][4].is_nan(), "max(3, NaN) is the second");
         assert_eq!(scalar[4][3], 1.0, "max(NaN, 1) is the second");
         assert_eq!(scalar[9][1], 19.0 * 0.37, "gathered row 19, first entry");
-        assert_eq!(scalar[12][0], 3.0 * 0.37 + 3.0, "gathered row 3, last entry");
+        assert_eq!(
+            scalar[12][0],
+            3.0 * 0.37 + 3.0,
+            "gathered row 3, last entry"
+        );
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             #[target_feature(enable = "avx2")]

@@ -13,7 +13,6 @@ use glam::Vec3;
 
 use super::f32x8::F32x8;
 
-
 use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 
 /// Neighbours per chunk.
@@ -115,7 +114,11 @@ impl<S: F32x8> Near<S> {
         let (slots, weight) = lanes_of(js);
         let [x, y, z, m] = S::gather_rows(rows, &slots);
         Near {
-            d: [S::splat(xi[0]) - x, S::splat(xi[1]) - y, S::splat(xi[2]) - z],
+            d: [
+                S::splat(xi[0]) - x,
+                S::splat(xi[1]) - y,
+                S::splat(xi[2]) - z,
+            ],
             m: m * S::from_array(weight),
             slots,
         }

@@ -538,7 +538,11 @@ impl Model {
             let c = Near::<S>::gather(xi, rows, js);
             let (w, s) = self.lanes.eval(c.r2());
             let [vx, vy, vz, _] = S::gather_rows(vrows, &c.slots);
-            let u = [vx - S::splat(vi[0]), vy - S::splat(vi[1]), vz - S::splat(vi[2])];
+            let u = [
+                vx - S::splat(vi[0]),
+                vy - S::splat(vi[1]),
+                vz - S::splat(vi[2]),
+            ];
             let vol = c.m * inv_rho0;
             let f = s * vol;
             let g = c.d.map(|d| d * f);
@@ -689,7 +693,11 @@ impl Processor for SolveDensity {
             let f = particles.fields_mut();
             rows_of(f.positions, f.masses, &mut self.rows);
             let rows = &self.rows[..];
-            par_map(&Lambdas { model, rows, lists }, n_particles, &mut self.constraints);
+            par_map(
+                &Lambdas { model, rows, lists },
+                n_particles,
+                &mut self.constraints,
+            );
             let c = &self.constraints;
             worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
             first.get_or_insert(worst);
@@ -855,7 +863,16 @@ impl Processor for VorticityXsph {
             .collect_into_vec(&mut self.vrows);
         let (rows, vrows) = (&self.rows[..], &self.vrows[..]);
         // Density, curl and XSPH mean at once.
-        par_map(&CurlSums { model, rows, vrows, lists }, n, &mut self.first);
+        par_map(
+            &CurlSums {
+                model,
+                rows,
+                vrows,
+                lists,
+            },
+            n,
+            &mut self.first,
+        );
         let first = &self.first;
         self.eta.clear();
         if eps > 0.0 {
@@ -887,5 +904,152 @@ impl Processor for VorticityXsph {
                 *rho = first[i].rho;
             });
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::NeighbourGrid;
+    use crate::boundary::Aabb;
+    use crate::solver::f32x8::both_kinds;
+
+    /// The four lane passes give bitwise the same values with the plain and
+    /// the AVX2 lanes, and the λ pass's density is the plain sum
+    /// Σ m_j W(x_i − x_j) plus the walls' term.
+    #[test]
+    fn lane_passes_agree_across_kinds_and_with_plain_sums() {
+        let h = 0.04;
+        let params = FluidParams::water(h);
+        let pbf = PbfParams {
+            scorr_k: 0.1,
+            ..PbfParams::default()
+        };
+        // A jittered block resting on the domain's floor, so walls count.
+        let boundary = Boundary::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.3)));
+        let model = Model::new(params, pbf, boundary).unwrap();
+        let hash = |i: u32, k: u32| {
+            ((i.wrapping_mul(2_654_435_761) ^ k.wrapping_mul(40_503)) % 1000) as f32 / 1000.0
+        };
+        let mut x = Vec::new();
+        for i in 0..9u32 {
+            for j in 0..7u32 {
+                for k in 0..8u32 {
+                    let n = x.len() as u32;
+                    let jitter = Vec3::new(hash(n, 1), hash(n, 2), hash(n, 3)) - 0.5;
+                    x.push(Vec3::new(i as f32, j as f32, k as f32) * 0.02 + 0.004 * jitter + 0.002);
+                }
+            }
+        }
+        let n = x.len();
+        let m: Vec<f32> = (0..n)
+            .map(|i| 0.008 * (1.0 + 0.1 * hash(i as u32, 4)))
+            .collect();
+        let v: Vec<Vec3> = (0..n as u32)
+            .map(|i| Vec3::new(hash(i, 5), hash(i, 6), hash(i, 7)) - 0.5)
+            .collect();
+        let grid = NeighbourGrid::build(&x, h).unwrap();
+        let lists = NeighbourLists::build(&grid);
+        let (mut rows, mut vrows) = (Vec::new(), Vec::new());
+        rows_of(&x, &m, &mut rows);
+        rows_of(&v, &m, &mut vrows);
+        let (rows, vrows, lists) = (&rows[..], &vrows[..], &lists);
+        let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+
+        let (constraints, avx2) = both_kinds(
+            &Lambdas {
+                model: &model,
+                rows,
+                lists,
+            },
+            n,
+        );
+        let flat = |c: &[Constraint]| {
+            bits(
+                &c.iter()
+                    .flat_map(|c| [c.rho, c.lambda, c.d, c.wall.x, c.wall.y, c.wall.z])
+                    .collect::<Vec<_>>(),
+            )
+        };
+        if let Some(avx2) = avx2 {
+            assert_eq!(flat(&constraints), flat(&avx2));
+        }
+        let poly6 = Poly6::new(h).unwrap();
+        for (i, c) in constraints.iter().enumerate() {
+            let plain: f32 = (0..n)
+                .map(|j| m[j] * poly6.value_r2((x[i] - x[j]).length_squared()))
+                .sum();
+            let expected = plain + model.walls.at(x[i]).0;
+            assert!(
+                (c.rho - expected).abs() <= 1e-5 * expected,
+                "particle {i}: {} against {expected}",
+                c.rho
+            );
+        }
+        assert!(
+            constraints.iter().any(|c| c.lambda < 0.0),
+            "some particles compressed"
+        );
+
+        let coefs: Vec<[f32; 4]> = constraints
+            .iter()
+            .map(|c| [c.lambda, c.d, 0.0, 0.0])
+            .collect();
+        let corrections = Corrections {
+            model: &model,
+            rows,
+            constraints: &constraints,
+            coefs: &coefs,
+            lists,
+        };
+        let vecs = |v: &[Vec3]| bits(&v.iter().flat_map(|v| v.to_array()).collect::<Vec<_>>());
+        let (dp, avx2) = both_kinds(&corrections, n);
+        if let Some(avx2) = avx2 {
+            assert_eq!(vecs(&dp), vecs(&avx2));
+        }
+        assert!(dp.iter().any(|d| d.length() > 0.0));
+
+        let (sums, avx2) = both_kinds(
+            &CurlSums {
+                model: &model,
+                rows,
+                vrows,
+                lists,
+            },
+            n,
+        );
+        let flat = |s: &[Sums]| {
+            bits(
+                &s.iter()
+                    .flat_map(|s| {
+                        [
+                            s.rho, s.curl.x, s.curl.y, s.curl.z, s.mean.x, s.mean.y, s.mean.z,
+                        ]
+                    })
+                    .collect::<Vec<_>>(),
+            )
+        };
+        if let Some(avx2) = avx2 {
+            assert_eq!(flat(&sums), flat(&avx2));
+        }
+        for (s, c) in sums.iter().zip(&constraints) {
+            assert_eq!(
+                s.rho.to_bits(),
+                c.rho.to_bits(),
+                "both passes sum the same density"
+            );
+        }
+        let curl_len: Vec<f32> = sums.iter().map(|s| s.curl_len).collect();
+        let gradients = CurlGradients {
+            model: &model,
+            rows,
+            curl_len: &curl_len,
+            lists,
+        };
+        let (eta, avx2) = both_kinds(&gradients, n);
+        if let Some(avx2) = avx2 {
+            assert_eq!(vecs(&eta), vecs(&avx2));
+        }
+        assert!(eta.iter().any(|e| e.length() > 0.0));
     }
 }
