@@ -10,6 +10,9 @@ use super::{NeighbourGrid, scan};
 /// result does not depend on the number of threads.
 const CHUNK: usize = 512;
 
+/// Neighbours per chunk of [`NeighbourLists::lanes`].
+pub(crate) const LANES: usize = 8;
+
 /// For each particle, the particles within h of it (itself excluded) when the
 /// lists were built, in the grid's fixed query order: compressed rows, one
 /// per particle.
@@ -27,6 +30,8 @@ const CHUNK: usize = 512;
 pub struct NeighbourLists {
     /// Row `i` is `neighbours[start[i]..start[i + 1]]`.
     start: Vec<u32>,
+    /// The rows, then [`LANES`] zeros when there is a particle, so that a
+    /// row's last chunk of [`LANES`] can be read whole.
     neighbours: Vec<u32>,
 }
 
@@ -60,12 +65,23 @@ impl NeighbourLists {
                     let n = grid.neighbourhood(i);
                     let mut scan = scan::Scan::new(n.centre, grid.h2, [xs, ys, zs], &n.rows);
                     while !scan.done() {
-                        let hit = scan.fill(&mut hits, 0);
-                        found.extend(
-                            (hits[..hit].iter())
-                                .filter(|&&k| k != own)
-                                .map(|&k| layout.order[k as usize]),
-                        );
+                        let count = scan.fill(&mut hits, 0);
+                        let hit = &hits[..count];
+                        if grid.by_slot {
+                            // Slots are particles: copy the hits whole, then
+                            // take the particle itself out.
+                            let at = found.len();
+                            found.extend_from_slice(hit);
+                            if let Some(k) = found[at..].iter().position(|&k| k == own) {
+                                found.remove(at + k);
+                            }
+                        } else {
+                            found.extend(
+                                (hit.iter())
+                                    .filter(|&&k| k != own)
+                                    .map(|&k| layout.order[k as usize]),
+                            );
+                        }
                     }
                     counts.push((found.len() - before) as u32);
                 }
@@ -84,6 +100,9 @@ impl NeighbourLists {
                 self.start.push(end);
             }
             self.neighbours.extend_from_slice(found);
+        }
+        if n > 0 {
+            self.neighbours.extend([0; LANES]);
         }
     }
 
@@ -156,7 +175,24 @@ impl NeighbourLists {
 
     /// Number of (ordered) neighbour pairs: the sum of every list's length.
     pub fn pairs(&self) -> usize {
-        self.neighbours.len()
+        self.start.last().map_or(0, |&end| end as usize)
+    }
+
+    /// The neighbours of particle `i` in chunks of [`LANES`] indices, with
+    /// how many of each chunk are `i`'s (1 to [`LANES`]): the last chunk
+    /// runs on into the next row or the padding, valid indices that a lane
+    /// sum must weight by 0. Reading whole chunks spares the lane code a
+    /// copy of variable length, which cost as much as the kernels.
+    ///
+    /// # Panics
+    /// If `i >= self.len()`.
+    #[inline(always)]
+    pub(crate) fn lanes(&self, i: usize) -> impl Iterator<Item = (&[u32; LANES], usize)> {
+        let (lo, hi) = (self.start[i] as usize, self.start[i + 1] as usize);
+        (lo..hi).step_by(LANES).map(move |at| {
+            let chunk = self.neighbours[at..at + LANES].try_into();
+            (chunk.expect("rows are padded"), (hi - at).min(LANES))
+        })
     }
 }
 

@@ -34,6 +34,8 @@ pub(super) trait F32x8:
     fn max(self, other: Self) -> Self;
     /// Per lane √.
     fn sqrt(self) -> Self;
+    /// 1 in the first `count` lanes, 0 in the others.
+    fn first(count: usize) -> Self;
     /// Lane l gets `values[slots[l]]`.
     ///
     /// # Panics
@@ -99,6 +101,10 @@ impl F32x8 for Scalar {
     #[inline(always)]
     fn sqrt(self) -> Self {
         Scalar(self.0.map(f32::sqrt))
+    }
+    #[inline(always)]
+    fn first(count: usize) -> Self {
+        Scalar(std::array::from_fn(|l| if l < count { 1.0 } else { 0.0 }))
     }
     #[inline(always)]
     fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
@@ -169,6 +175,18 @@ mod avx2 {
         #[inline(always)]
         fn sqrt(self) -> Self {
             Avx2(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn first(count: usize) -> Self {
+            const LANE: [f32; 8] = [0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0];
+            // Lane l < count, as floats (exact for these small integers).
+            let below = unsafe {
+                _mm256_cmp_ps::<_CMP_LT_OQ>(
+                    _mm256_loadu_ps(LANE.as_ptr()),
+                    _mm256_set1_ps(count.min(8) as f32),
+                )
+            };
+            Avx2(unsafe { _mm256_and_ps(below, _mm256_set1_ps(1.0)) })
         }
         #[inline(always)]
         fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
@@ -297,6 +315,9 @@ mod tests {
                 b.max(a).to_array(),
                 a.sqrt().to_array(),
                 S::gather(values, slots).to_array(),
+                S::first(3).to_array(),
+                S::first(8).to_array(),
+                S::first(1).to_array(),
                 [
                     S::splat(2.5).sum(),
                     a.sum(),
@@ -327,9 +348,11 @@ mod tests {
         );
         assert!(scalar[4][4].is_nan(), "max(3, NaN) is the second");
         assert_eq!(scalar[4][3], 1.0, "max(NaN, 1) is the second");
-        assert_eq!(scalar[9][1], 19.0 * 0.37, "gathered row 19, first entry");
+        assert_eq!(scalar[8], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(scalar[9], [1.0; 8]);
+        assert_eq!(scalar[12][1], 19.0 * 0.37, "gathered row 19, first entry");
         assert_eq!(
-            scalar[12][0],
+            scalar[15][0],
             3.0 * 0.37 + 3.0,
             "gathered row 3, last entry"
         );

@@ -96,9 +96,9 @@ impl LaneKernels {
 }
 
 /// Up to eight neighbours of one particle in lanes: offsets x_i − x_j per
-/// axis, masses, and the neighbours' indices. Unused lanes repeat the
-/// chunk's first neighbour with no mass, so every sum weighted by the mass
-/// gets exact zeros there.
+/// axis, masses, and the neighbours' indices. Unused lanes hold other
+/// particles with no mass, so every sum weighted by the mass gets exact
+/// zeros there.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Near<S> {
     pub(super) d: [S; 3],
@@ -107,20 +107,26 @@ pub(super) struct Near<S> {
 }
 
 impl<S: F32x8> Near<S> {
-    /// The neighbours `js` (1 to [`LANES`] of them) of the particle at
-    /// `xi`, from `rows` of (x, y, z, m) per particle ([`rows_of`]).
+    /// A chunk of neighbours of the particle at `xi`, from `rows` of
+    /// (x, y, z, m) per particle ([`rows_of`]): `slots` as
+    /// [`crate::NeighbourLists::lanes`] gives them, the first `count` of
+    /// them the particle's (the others get no mass).
     #[inline(always)]
-    pub(super) fn gather(xi: [f32; 4], rows: &[[f32; 4]], js: &[u32]) -> Self {
-        let (slots, weight) = lanes_of(js);
-        let [x, y, z, m] = S::gather_rows(rows, &slots);
+    pub(super) fn gather(
+        xi: [f32; 4],
+        rows: &[[f32; 4]],
+        slots: &[u32; LANES],
+        count: usize,
+    ) -> Self {
+        let [x, y, z, m] = S::gather_rows(rows, slots);
         Near {
             d: [
                 S::splat(xi[0]) - x,
                 S::splat(xi[1]) - y,
                 S::splat(xi[2]) - z,
             ],
-            m: m * S::from_array(weight),
-            slots,
+            m: m * S::first(count),
+            slots: *slots,
         }
     }
 

@@ -77,7 +77,7 @@ use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
 use super::f32x8::{F32x8, LaneMap, par_map};
-use super::lanes::{LANES, LaneKernels, Near, rows_of};
+use super::lanes::{LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::viscosity::{ImplicitViscosity, Update};
@@ -452,14 +452,19 @@ impl Model {
     /// Density ρ_i and the constraint's λ_i and D_i = 1/(Σ_k|∇_k C_i|² + ε)
     /// (lines 9–11), from `rows` of (x, m).
     #[inline(always)]
-    fn constraint<S: F32x8>(&self, i: usize, rows: &[[f32; 4]], list: &[u32]) -> Constraint {
+    fn constraint<S: F32x8>(
+        &self,
+        i: usize,
+        rows: &[[f32; 4]],
+        lists: &NeighbourLists,
+    ) -> Constraint {
         let xi = rows[i];
         let (rho_wall, wall) = self.walls.at(Vec3::new(xi[0], xi[1], xi[2]));
         let inv_rho0 = S::splat(self.inv_rho0);
         // Per lane: ρ, ∇_i C_i by axis, Σ|∇_j C_i|².
         let mut acc = [S::splat(0.0); 5];
-        for js in list.chunks(LANES) {
-            let c = Near::<S>::gather(xi, rows, js);
+        for (slots, count) in lists.lanes(i) {
+            let c = Near::<S>::gather(xi, rows, slots, count);
             let (w, s) = self.lanes.eval(c.r2());
             let f = s * c.m * inv_rho0;
             let g = c.d.map(|d| d * f);
@@ -492,15 +497,15 @@ impl Model {
         rows: &[[f32; 4]],
         constraint: &Constraint,
         coefs: &[[f32; 4]],
-        list: &[u32],
+        lists: &NeighbourLists,
     ) -> Vec3 {
         let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
         let (lambda_i, d_i) = (S::splat(constraint.lambda), S::splat(constraint.d));
         let (inv_rho0, inv_w_dq) = (S::splat(self.inv_rho0), S::splat(self.inv_w_dq));
         let (k, half) = (S::splat(k), S::splat(0.5));
         let mut acc = [S::splat(0.0); 3];
-        for js in list.chunks(LANES) {
-            let c = Near::<S>::gather(rows[i], rows, js);
+        for (slots, count) in lists.lanes(i) {
+            let c = Near::<S>::gather(rows[i], rows, slots, count);
             let [lambda_j, d_j, _, _] = S::gather_rows(coefs, &c.slots);
             let (w, s) = self.lanes.eval(c.r2());
             // k (W_ij/W(Δq))ⁿ, by n − 1 products.
@@ -528,14 +533,14 @@ impl Model {
         i: usize,
         rows: &[[f32; 4]],
         vrows: &[[f32; 4]],
-        list: &[u32],
+        lists: &NeighbourLists,
     ) -> Sums {
         let (xi, vi) = (rows[i], vrows[i]);
         let inv_rho0 = S::splat(self.inv_rho0);
         // Per lane: ρ, curl by axis, mean by axis.
         let mut acc = [S::splat(0.0); 7];
-        for js in list.chunks(LANES) {
-            let c = Near::<S>::gather(xi, rows, js);
+        for (slots, count) in lists.lanes(i) {
+            let c = Near::<S>::gather(xi, rows, slots, count);
             let (w, s) = self.lanes.eval(c.r2());
             let [vx, vy, vz, _] = S::gather_rows(vrows, &c.slots);
             let u = [
@@ -575,13 +580,13 @@ impl Model {
         i: usize,
         rows: &[[f32; 4]],
         curl_len: &[f32],
-        list: &[u32],
+        lists: &NeighbourLists,
     ) -> Vec3 {
         let inv_rho0 = S::splat(self.inv_rho0);
         let wi = S::splat(curl_len[i]);
         let mut acc = [S::splat(0.0); 3];
-        for js in list.chunks(LANES) {
-            let c = Near::<S>::gather(rows[i], rows, js);
+        for (slots, count) in lists.lanes(i) {
+            let c = Near::<S>::gather(rows[i], rows, slots, count);
             let (_, s) = self.lanes.eval(c.r2());
             let dw = S::gather(curl_len, &c.slots) - wi;
             let f = s * c.m * inv_rho0;
@@ -637,7 +642,7 @@ impl LaneMap for Lambdas<'_> {
     type Out = Constraint;
     #[inline(always)]
     fn particle<S: F32x8>(&self, i: usize) -> Constraint {
-        self.model.constraint::<S>(i, self.rows, self.lists.of(i))
+        self.model.constraint::<S>(i, self.rows, self.lists)
     }
 }
 
@@ -655,7 +660,7 @@ impl LaneMap for Corrections<'_> {
     #[inline(always)]
     fn particle<S: F32x8>(&self, i: usize) -> Vec3 {
         let c = &self.constraints[i];
-        (self.model).correction::<S>(i, self.rows, c, self.coefs, self.lists.of(i))
+        (self.model).correction::<S>(i, self.rows, c, self.coefs, self.lists)
     }
 }
 
@@ -792,7 +797,7 @@ impl LaneMap for CurlSums<'_> {
     type Out = Sums;
     #[inline(always)]
     fn particle<S: F32x8>(&self, i: usize) -> Sums {
-        (self.model).curl_and_mean::<S>(i, self.rows, self.vrows, self.lists.of(i))
+        (self.model).curl_and_mean::<S>(i, self.rows, self.vrows, self.lists)
     }
 }
 
@@ -808,7 +813,7 @@ impl LaneMap for CurlGradients<'_> {
     type Out = Vec3;
     #[inline(always)]
     fn particle<S: F32x8>(&self, i: usize) -> Vec3 {
-        (self.model).curl_gradient::<S>(i, self.rows, self.curl_len, self.lists.of(i))
+        (self.model).curl_gradient::<S>(i, self.rows, self.curl_len, self.lists)
     }
 }
 
