@@ -387,8 +387,9 @@ fn retain_vec<T>(v: &mut Vec<T>, keep: &[bool]) {
     v.retain(|_| *k.next().unwrap_or(&false));
 }
 
-fn permute_vec<T: Clone>(v: &mut Vec<T>, order: &[u32]) {
-    *v = order.iter().map(|&o| v[o as usize].clone()).collect();
+fn permute_vec<T: Clone + Send + Sync>(v: &mut Vec<T>, order: &[u32]) {
+    use rayon::prelude::*;
+    *v = order.par_iter().map(|&o| v[o as usize].clone()).collect();
 }
 
 /// A type-erased attribute column.

@@ -68,12 +68,14 @@ impl NeighbourLists {
                         let count = scan.fill(&mut hits, 0);
                         let hit = &hits[..count];
                         if grid.by_slot {
-                            // Slots are particles: copy the hits whole, then
-                            // take the particle itself out.
-                            let at = found.len();
-                            found.extend_from_slice(hit);
-                            if let Some(k) = found[at..].iter().position(|&k| k == own) {
-                                found.remove(at + k);
+                            // Slots are particles: copy the hits around the
+                            // particle itself.
+                            match hit.iter().position(|&k| k == own) {
+                                Some(k) => {
+                                    found.extend_from_slice(&hit[..k]);
+                                    found.extend_from_slice(&hit[k + 1..]);
+                                }
+                                None => found.extend_from_slice(hit),
                             }
                         } else {
                             found.extend(
@@ -89,21 +91,28 @@ impl NeighbourLists {
             })
             .collect();
         self.start.clear();
-        self.neighbours.clear();
         self.start.reserve(n + 1);
         self.start.push(0);
         let mut total = 0u64;
-        for (counts, found) in &chunks {
-            for &c in counts {
-                total += u64::from(c);
-                let end = u32::try_from(total).expect("fewer than 2³² neighbour pairs");
-                self.start.push(end);
-            }
-            self.neighbours.extend_from_slice(found);
+        for &c in chunks.iter().flat_map(|(counts, _)| counts) {
+            total += u64::from(c);
+            let end = u32::try_from(total).expect("fewer than 2³² neighbour pairs");
+            self.start.push(end);
         }
-        if n > 0 {
-            self.neighbours.extend([0; LANES]);
+        // The chunks' rows copied into place in parallel, then the padding.
+        self.neighbours.clear();
+        self.neighbours
+            .resize(total as usize + if n > 0 { LANES } else { 0 }, 0);
+        let mut rest = &mut self.neighbours[..total as usize];
+        let mut pieces = Vec::with_capacity(chunks.len());
+        for (_, found) in &chunks {
+            let (piece, tail) = std::mem::take(&mut rest).split_at_mut(found.len());
+            pieces.push((piece, found));
+            rest = tail;
         }
+        pieces
+            .into_par_iter()
+            .for_each(|(piece, found)| piece.copy_from_slice(found));
     }
 
     /// Sets `out[i] = f(i, neighbours of i, row i of pairs)` for every
