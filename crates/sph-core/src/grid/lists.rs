@@ -50,12 +50,15 @@ impl NeighbourLists {
     /// at usual neighbour counts); the indices are 32-bit.
     pub fn rebuild(&mut self, grid: &NeighbourGrid) {
         let n = grid.len();
+        // Room for as many neighbours per particle as last time and a few
+        // more, so that a block's buffer rarely grows.
+        let per_particle = self.pairs().div_ceil(self.len().max(1)) + 8;
         let chunks: Vec<(Vec<u32>, Vec<u32>)> = (0..n.div_ceil(CHUNK))
             .into_par_iter()
             .map(|c| {
                 let range = c * CHUNK..((c + 1) * CHUNK).min(n);
                 let mut counts = Vec::with_capacity(range.len());
-                let mut found = Vec::new();
+                let mut found = Vec::with_capacity(range.len() * per_particle);
                 let layout = &grid.layout;
                 let [xs, ys, zs] = &layout.coords;
                 let mut hits = [0u32; scan::HIT_CAPACITY];
