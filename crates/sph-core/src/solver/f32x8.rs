@@ -41,11 +41,12 @@ pub(super) trait F32x8:
     /// # Panics
     /// If a slot is out of bounds.
     fn gather(values: &[f32], slots: &[u32; 8]) -> Self;
-    /// Four lanes sets, lane l of set k getting `rows[slots[l]][k]`.
+    /// Four lane sets, lane l of set k getting `rows[slots[l]][k]`: the
+    /// first four floats of rows of `W` ≥ 4.
     ///
     /// # Panics
     /// If a slot is out of bounds.
-    fn gather_rows(rows: &[[f32; 4]], slots: &[u32; 8]) -> [Self; 4];
+    fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4];
 
     /// The lanes' sum, in a fixed tree.
     #[inline(always)]
@@ -111,7 +112,8 @@ impl F32x8 for Scalar {
         Scalar(slots.map(|s| values[s as usize]))
     }
     #[inline(always)]
-    fn gather_rows(rows: &[[f32; 4]], slots: &[u32; 8]) -> [Self; 4] {
+    fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
+        const { assert!(W >= 4) };
         let r = slots.map(|s| rows[s as usize]);
         std::array::from_fn(|k| Scalar(std::array::from_fn(|l| r[l][k])))
     }
@@ -193,7 +195,9 @@ mod avx2 {
             Self::from_array(slots.map(|s| values[s as usize]))
         }
         #[inline(always)]
-        fn gather_rows(rows: &[[f32; 4]], slots: &[u32; 8]) -> [Self; 4] {
+        fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
+            // The load reads a row's first four floats.
+            const { assert!(W >= 4) };
             // Rows l and l + 4 share a register (low and high half), then a
             // 4×4 transpose in each half.
             let row = |l: usize| unsafe { _mm_loadu_ps(rows[slots[l] as usize].as_ptr()) };

@@ -488,17 +488,18 @@ impl Model {
 
     /// The position correction Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr)
     /// ∇W_ij plus the walls' λ_i ∇_i(ρ_wall/ρ0) (lines 12–13), from `rows`
-    /// of (x, m) and `coefs` of (λ, D) at the positions the constraints
-    /// were taken at.
+    /// of (x, m) at the positions the constraints were taken at.
     #[inline(always)]
     fn correction<S: F32x8>(
         &self,
         i: usize,
         rows: &[[f32; 4]],
-        constraint: &Constraint,
-        coefs: &[[f32; 4]],
+        constraints: &[Constraint],
         lists: &NeighbourLists,
     ) -> Vec3 {
+        let constraint = &constraints[i];
+        // Each constraint's (λ, D) read as the first two floats of a row.
+        let coefs: &[[f32; 6]] = bytemuck::cast_slice(constraints);
         let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
         let (lambda_i, d_i) = (S::splat(constraint.lambda), S::splat(constraint.d));
         let (inv_rho0, inv_w_dq) = (S::splat(self.inv_rho0), S::splat(self.inv_w_dq));
@@ -598,12 +599,14 @@ impl Model {
     }
 }
 
-/// One particle's density constraint.
-#[derive(Debug, Clone, Copy, Default)]
+/// One particle's density constraint. λ and D lead, so that the Δp pass
+/// gathers them as a row's first floats.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct Constraint {
-    rho: f32,
     lambda: f32,
     d: f32,
+    rho: f32,
     /// ∇_i(ρ_wall/ρ0).
     wall: Vec3,
 }
@@ -626,8 +629,6 @@ pub struct SolveDensity {
     /// (x, m) per particle.
     rows: Vec<[f32; 4]>,
     constraints: Vec<Constraint>,
-    /// (λ, D) per particle.
-    coefs: Vec<[f32; 4]>,
     corrections: Vec<Vec3>,
 }
 
@@ -651,7 +652,6 @@ struct Corrections<'a> {
     model: &'a Model,
     rows: &'a [[f32; 4]],
     constraints: &'a [Constraint],
-    coefs: &'a [[f32; 4]],
     lists: &'a NeighbourLists,
 }
 
@@ -659,8 +659,7 @@ impl LaneMap for Corrections<'_> {
     type Out = Vec3;
     #[inline(always)]
     fn particle<S: F32x8>(&self, i: usize) -> Vec3 {
-        let c = &self.constraints[i];
-        (self.model).correction::<S>(i, self.rows, c, self.coefs, self.lists)
+        (self.model).correction::<S>(i, self.rows, self.constraints, self.lists)
     }
 }
 
@@ -678,7 +677,6 @@ impl SolveDensity {
             model,
             rows: Vec::new(),
             constraints: Vec::new(),
-            coefs: Vec::new(),
             corrections: Vec::new(),
         }
     }
@@ -694,9 +692,9 @@ impl Processor for SolveDensity {
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
         let (mut first, mut worst) = (None, 0.0f32);
         let n_particles = particles.len();
-        for _ in 0..pbf.iterations {
-            let f = particles.fields_mut();
-            rows_of(f.positions, f.masses, &mut self.rows);
+        let f = particles.fields_mut();
+        rows_of(f.positions, f.masses, &mut self.rows);
+        for iteration in 0..pbf.iterations {
             let rows = &self.rows[..];
             par_map(
                 &Lambdas { model, rows, lists },
@@ -704,29 +702,32 @@ impl Processor for SolveDensity {
                 &mut self.constraints,
             );
             let c = &self.constraints;
-            worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
-            first.get_or_insert(worst);
-            c.par_iter()
-                .map(|c| [c.lambda, c.d, 0.0, 0.0])
-                .collect_into_vec(&mut self.coefs);
-            let coefs = &self.coefs[..];
+            // The solve's headway: the largest density at the first and the
+            // last iteration.
+            if iteration == 0 || iteration + 1 == pbf.iterations {
+                worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
+                first.get_or_insert(worst);
+            }
             let corrections = Corrections {
                 model,
                 rows,
                 constraints: c,
-                coefs,
                 lists,
             };
             par_map(&corrections, n_particles, &mut self.corrections);
+            // Each particle moves by its correction and out of walls, its
+            // velocity by that motion over Δt, and its row follows.
             let b = model.walls.boundary();
             (f.positions.par_iter_mut())
                 .zip(f.velocities.par_iter_mut())
                 .zip(self.corrections.par_iter())
-                .for_each(|((x, v), &dp)| {
+                .zip(self.rows.par_iter_mut())
+                .for_each(|(((x, v), &dp), row)| {
                     *x += dp;
                     let free = *x;
                     b.project(x);
                     *v += (dp + (*x - free)) / dt;
+                    (row[0], row[1], row[2]) = (x.x, x.y, x.z);
                 });
         }
         (particles.densities_mut().par_iter_mut())
@@ -996,15 +997,10 @@ mod tests {
             "some particles compressed"
         );
 
-        let coefs: Vec<[f32; 4]> = constraints
-            .iter()
-            .map(|c| [c.lambda, c.d, 0.0, 0.0])
-            .collect();
         let corrections = Corrections {
             model: &model,
             rows,
             constraints: &constraints,
-            coefs: &coefs,
             lists,
         };
         let vecs = |v: &[Vec3]| bits(&v.iter().flat_map(|v| v.to_array()).collect::<Vec<_>>());

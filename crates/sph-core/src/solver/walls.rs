@@ -61,6 +61,13 @@ impl Walls {
     /// `wall(d)` at distance d.
     #[inline]
     fn united(&self, x: Vec3, wall: impl Fn(f32) -> (f32, f32)) -> (f32, Vec3) {
+        // Far from every wall (the bulk of most scenes): nothing, said in
+        // two compares, as the walls' loop below would say it.
+        let (b, h) = (&self.boundary, Vec3::splat(self.kernel.h()));
+        let far = (x - b.domain.min).cmpge(h).all() && (b.domain.max - x).cmpge(h).all();
+        if far && b.obstacles.is_empty() {
+            return (0.0, Vec3::ZERO);
+        }
         // Up to 8 walls (6 domain walls and obstacles): (1 − f_k, ∇f_k).
         let mut walls = [(1.0f32, Vec3::ZERO); 8];
         let mut count = 0;
