@@ -190,20 +190,22 @@ impl NeighbourLists {
         self.start.last().map_or(0, |&end| end as usize)
     }
 
-    /// The neighbours of particle `i` in chunks of [`LANES`] indices, with
-    /// how many of each chunk are `i`'s (1 to [`LANES`]): the last chunk
-    /// runs on into the next row or the padding, valid indices that a lane
-    /// sum must weight by 0. Reading whole chunks spares the lane code a
-    /// copy of variable length, which cost as much as the kernels.
+    /// The neighbours of particle `i` in chunks of [`LANES`] indices: each
+    /// chunk's place in the rows (where its per-pair data starts, see
+    /// [`NeighbourLists::row`]), its indices, and how many of them are
+    /// `i`'s (1 to [`LANES`]). The last chunk runs on into the next row or
+    /// the padding, valid indices that a lane sum must weight by 0. Reading
+    /// whole chunks spares the lane code a copy of variable length, which
+    /// cost as much as the kernels.
     ///
     /// # Panics
     /// If `i >= self.len()`.
     #[inline(always)]
-    pub(crate) fn lanes(&self, i: usize) -> impl Iterator<Item = (&[u32; LANES], usize)> {
+    pub(crate) fn lanes(&self, i: usize) -> impl Iterator<Item = (usize, &[u32; LANES], usize)> {
         let (lo, hi) = (self.start[i] as usize, self.start[i + 1] as usize);
         (lo..hi).step_by(LANES).map(move |at| {
             let chunk = self.neighbours[at..at + LANES].try_into();
-            (chunk.expect("rows are padded"), (hi - at).min(LANES))
+            (at, chunk.expect("rows are padded"), (hi - at).min(LANES))
         })
     }
 }

@@ -88,6 +88,7 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 use rayon::prelude::*;
 
+use super::f32x8::{F32x8, LaneMap, par_map};
 use super::lanes::{Chunk, LANES, LaneCubic, total};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
@@ -531,6 +532,8 @@ impl Processor for Factors {
         lists.par_map_rows(factors, pairs, |i, list, pairs| {
             model.factor(i, x, m, list, pairs)
         });
+        // Padding, so that a row's last chunk of G_ij reads as eight lanes.
+        pairs.extend([Vec3::ZERO; PAIR_PADDING]);
         (f.densities.par_iter_mut())
             .zip(factors.par_iter())
             .for_each(|(rho, c)| *rho = c.rho);
@@ -556,8 +559,13 @@ struct Solve {
     rows: Vec<Row>,
     /// κ_i (m²/s²), warm start included.
     kappa: Vec<f32>,
-    /// The pressure accelerations of κ.
-    accelerations: Vec<Vec3>,
+    /// The pressure accelerations of κ, as rows (a, 0).
+    accelerations: Vec<[f32; 4]>,
+    /// Σ_j (u_i − u_j)·G_ij per particle, of the velocities or the
+    /// accelerations.
+    products: Vec<f32>,
+    /// The velocities as rows (v, 0).
+    vrows: Vec<[f32; 4]>,
     /// The density solve's record of the divergence solve's κ_i.
     applied: Vec<f32>,
     /// The last spacing and its [`relaxation`].
@@ -573,6 +581,8 @@ impl Solve {
             rows: Vec::new(),
             kappa: Vec::new(),
             accelerations: Vec::new(),
+            products: Vec::new(),
+            vrows: Vec::new(),
             applied: Vec::new(),
             relaxation: None,
         }
@@ -589,7 +599,7 @@ impl Solve {
         let n = particles.len();
         let shared = lock(&self.shared);
         let (factors, pairs) = (&shared.factors, &shared.pairs);
-        if factors.len() != n || pairs.len() != lists.pairs() {
+        if factors.len() != n || pairs.len() != lists.pairs() + PAIR_PADDING {
             return Err(Error::Pipeline {
                 processor: target.name(),
                 reason: "needs this step's factors: put the `factors` station after `neighbours` and before it, with no processor between that adds, removes or moves particles",
@@ -625,6 +635,16 @@ impl Solve {
         // compresses, 0 elsewhere.
         let inv_rho0 = model.inv_rho0;
         let v = &*f.velocities;
+        (v.par_iter())
+            .map(|v| [v.x, v.y, v.z, 0.0])
+            .collect_into_vec(&mut self.vrows);
+        let products = PairProducts {
+            lists,
+            pairs,
+            values: &self.vrows,
+        };
+        par_map(&products, n, &mut self.products);
+        let rates = &self.products;
         self.rows.resize(n, Row::default());
         (self.rows.par_iter_mut())
             .zip(self.kappa.par_iter_mut())
@@ -632,10 +652,7 @@ impl Solve {
             .for_each(|(i, (row, k))| {
                 let c = factors[i];
                 let vi = v[i];
-                let mut rate = 0.0;
-                for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
-                    rate += (vi - v[j as usize]).dot(*g);
-                }
+                let rate = rates[i];
                 *row = match target {
                     Target::Divergence => Row {
                         wall: c.wall,
@@ -662,13 +679,25 @@ impl Solve {
         };
         let (mut iterations, mut first) = (0, None);
         let error = loop {
-            accelerations(lists, factors, pairs, &self.kappa, &mut self.accelerations);
+            let pressure = PressureAccelerations {
+                lists,
+                factors,
+                pairs,
+                kappa: &self.kappa,
+            };
+            par_map(&pressure, n, &mut self.accelerations);
             // (Aκ)_i = Δt² (Σ_j (a_i − a_j)·G_ij + a_i·∇f_i): the density
             // change the pressure accelerations make over the step. Each κ_i
             // moves by ω times its Jacobi step towards (Aκ)_i = b_i,
             // projected to κ_i ≥ 0; e_i = max((Aκ)_i − b_i, 0) is the
             // compression left, summed in fixed chunks.
-            let (a, rows) = (&self.accelerations, &self.rows);
+            let products = PairProducts {
+                lists,
+                pairs,
+                values: &self.accelerations,
+            };
+            par_map(&products, n, &mut self.products);
+            let (a, rows, products) = (&self.accelerations, &self.rows, &self.products);
             let sums: Vec<f64> = (self.kappa.par_chunks_mut(MEAN_CHUNK))
                 .enumerate()
                 .map(|(chunk, ks)| {
@@ -676,11 +705,8 @@ impl Solve {
                     for (l, k) in ks.iter_mut().enumerate() {
                         let i = chunk * MEAN_CHUNK + l;
                         let row = rows[i];
-                        let ai = a[i];
-                        let mut ak = ai.dot(row.wall);
-                        for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
-                            ak += (ai - a[j as usize]).dot(*g);
-                        }
+                        let ai = Vec3::new(a[i][0], a[i][1], a[i][2]);
+                        let ak = ai.dot(row.wall) + products[i];
                         let residual = row.source - dt * dt * ak;
                         sum += f64::from((-residual).max(0.0));
                         *k = (*k - omega * residual * row.alpha / (dt * dt)).max(0.0);
@@ -707,9 +733,16 @@ impl Solve {
         };
         // v ← v + Δt a(κ).
         let kappa = &self.kappa;
-        f.velocities.par_iter_mut().enumerate().for_each(|(i, v)| {
-            *v += dt * acceleration(i, lists, factors, pairs, kappa);
-        });
+        let pressure = PressureAccelerations {
+            lists,
+            factors,
+            pairs,
+            kappa,
+        };
+        par_map(&pressure, n, &mut self.accelerations);
+        (f.velocities.par_iter_mut())
+            .zip(self.accelerations.par_iter())
+            .for_each(|(v, a)| *v += dt * Vec3::new(a[0], a[1], a[2]));
         if error > tolerance {
             ctx.counters.unconverged += 1;
         }
@@ -753,35 +786,62 @@ impl Solve {
     }
 }
 
-/// Particle i's pressure acceleration under `kappa`:
+/// Rows of G_ij padded at the end, so that a row's last chunk of eight
+/// reads whole ([`F32x8::load_vec3s`] reads one vector past the eighth).
+const PAIR_PADDING: usize = LANES + 1;
+
+/// Every particle's pressure acceleration under `kappa`, as a row (a, 0):
 /// a_i = −(κ_i g_i + Σ_j κ_j G_ij) = −Σ_j V_j (κ_i + κ_j)∇W_ij − κ_i ∇f_i.
-#[inline]
-fn acceleration(
-    i: usize,
-    lists: &NeighbourLists,
-    factors: &[Factor],
-    pairs: &[Vec3],
-    kappa: &[f32],
-) -> Vec3 {
-    let mut a = kappa[i] * factors[i].grad;
-    for (&j, g) in lists.of(i).iter().zip(lists.row(i, pairs)) {
-        a += kappa[j as usize] * *g;
-    }
-    -a
+struct PressureAccelerations<'a> {
+    lists: &'a NeighbourLists,
+    factors: &'a [Factor],
+    /// G_ij, laid out as the rows, padded.
+    pairs: &'a [Vec3],
+    kappa: &'a [f32],
 }
 
-/// Every particle's [`acceleration`] into `out`.
-fn accelerations(
-    lists: &NeighbourLists,
-    factors: &[Factor],
-    pairs: &[Vec3],
-    kappa: &[f32],
-    out: &mut Vec<Vec3>,
-) {
-    (0..kappa.len())
-        .into_par_iter()
-        .map(|i| acceleration(i, lists, factors, pairs, kappa))
-        .collect_into_vec(out);
+impl LaneMap for PressureAccelerations<'_> {
+    type Out = [f32; 4];
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> [f32; 4] {
+        let mut sum = [S::splat(0.0); 3];
+        for (at, slots, count) in self.lists.lanes(i) {
+            let g = S::load_vec3s(&self.pairs[at..]);
+            let k = S::gather(self.kappa, slots) * S::first(count);
+            for (sum, g) in sum.iter_mut().zip(g) {
+                *sum = *sum + k * g;
+            }
+        }
+        let a = -(self.kappa[i] * self.factors[i].grad + Vec3::from(sum.map(S::sum)));
+        [a.x, a.y, a.z, 0.0]
+    }
+}
+
+/// Σ_j (u_i − u_j)·G_ij for every particle, from rows (u, ·) of a vector
+/// per particle (velocities or accelerations).
+struct PairProducts<'a> {
+    lists: &'a NeighbourLists,
+    /// G_ij, laid out as the rows, padded.
+    pairs: &'a [Vec3],
+    values: &'a [[f32; 4]],
+}
+
+impl LaneMap for PairProducts<'_> {
+    type Out = f32;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> f32 {
+        let ui = self.values[i];
+        let mut sum = S::splat(0.0);
+        for (at, slots, count) in self.lists.lanes(i) {
+            let [gx, gy, gz] = S::load_vec3s(&self.pairs[at..]);
+            let [ux, uy, uz, _] = S::gather_rows(self.values, slots);
+            let dot = (S::splat(ui[0]) - ux) * gx
+                + (S::splat(ui[1]) - uy) * gy
+                + (S::splat(ui[2]) - uz) * gz;
+            sum = sum + dot * S::first(count);
+        }
+        sum.sum()
+    }
 }
 
 /// Algorithm 2: velocities corrected until the density would change by at

@@ -16,6 +16,7 @@
 
 use std::ops::{Add, Div, Mul, Sub};
 
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::grid::{Simd, simd_level};
@@ -47,6 +48,13 @@ pub(super) trait F32x8:
     /// # Panics
     /// If a slot is out of bounds.
     fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4];
+
+    /// Lanes of x, y and z of `v[0..8]`.
+    ///
+    /// # Panics
+    /// If `v` holds fewer than 9 vectors (the AVX2 kind reads each as four
+    /// floats).
+    fn load_vec3s(v: &[Vec3]) -> [Self; 3];
 
     /// The lanes' sum, in a fixed tree.
     #[inline(always)]
@@ -117,6 +125,11 @@ impl F32x8 for Scalar {
         let r = slots.map(|s| rows[s as usize]);
         std::array::from_fn(|k| Scalar(std::array::from_fn(|l| r[l][k])))
     }
+    #[inline(always)]
+    fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
+        let v = &v[..9];
+        std::array::from_fn(|k| Scalar(std::array::from_fn(|l| v[l][k])))
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -126,6 +139,8 @@ pub(super) use avx2::Avx2;
 mod avx2 {
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Sub};
+
+    use glam::Vec3;
 
     use super::F32x8;
 
@@ -198,23 +213,38 @@ mod avx2 {
         fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
             // The load reads a row's first four floats.
             const { assert!(W >= 4) };
-            // Rows l and l + 4 share a register (low and high half), then a
-            // 4×4 transpose in each half.
             let row = |l: usize| unsafe { _mm_loadu_ps(rows[slots[l] as usize].as_ptr()) };
-            let pair = |l: usize| unsafe {
-                _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4))
-            };
-            let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
-            unsafe {
-                let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpacklo_ps(r2, r3));
-                let (t2, t3) = (_mm256_unpackhi_ps(r0, r1), _mm256_unpackhi_ps(r2, r3));
-                [
-                    Avx2(_mm256_shuffle_ps::<0x44>(t0, t1)),
-                    Avx2(_mm256_shuffle_ps::<0xEE>(t0, t1)),
-                    Avx2(_mm256_shuffle_ps::<0x44>(t2, t3)),
-                    Avx2(_mm256_shuffle_ps::<0xEE>(t2, t3)),
-                ]
-            }
+            transpose(row)
+        }
+        #[inline(always)]
+        fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
+            // Vector l read as four floats: its own three and the next's x.
+            let v = &v[..9];
+            let row = |l: usize| unsafe { _mm_loadu_ps(v[l..].as_ptr().cast::<f32>()) };
+            let [x, y, z, _] = transpose(row);
+            [x, y, z]
+        }
+    }
+
+    /// Four lane sets from eight rows of four floats, lane l of set k
+    /// getting `row(l)[k]`.
+    #[inline(always)]
+    fn transpose(row: impl Fn(usize) -> __m128) -> [Avx2; 4] {
+        // Rows l and l + 4 share a register (low and high half), then a
+        // 4×4 transpose in each half.
+        let pair = |l: usize| unsafe {
+            _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4))
+        };
+        let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
+        unsafe {
+            let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpacklo_ps(r2, r3));
+            let (t2, t3) = (_mm256_unpackhi_ps(r0, r1), _mm256_unpackhi_ps(r2, r3));
+            [
+                Avx2(_mm256_shuffle_ps::<0x44>(t0, t1)),
+                Avx2(_mm256_shuffle_ps::<0xEE>(t0, t1)),
+                Avx2(_mm256_shuffle_ps::<0x44>(t2, t3)),
+                Avx2(_mm256_shuffle_ps::<0xEE>(t2, t3)),
+            ]
         }
     }
 }
@@ -334,6 +364,8 @@ mod tests {
                 ],
             ];
             out.extend(S::gather_rows(rows, slots).map(S::to_array));
+            let v: Vec<Vec3> = rows.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect();
+            out.extend(S::load_vec3s(&v[5..]).map(S::to_array));
             out
         }
         // Bits, with every NaN one pattern: a NaN's sign and payload are
@@ -355,6 +387,8 @@ mod tests {
         assert_eq!(scalar[8], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
         assert_eq!(scalar[9], [1.0; 8]);
         assert_eq!(scalar[12][1], 19.0 * 0.37, "gathered row 19, first entry");
+        assert_eq!(scalar[16][0], 5.0 * 0.37, "vector 5's x in lane 0");
+        assert_eq!(scalar[18][7], 12.0 * 0.37 + 2.0, "vector 12's z in lane 7");
         assert_eq!(
             scalar[15][0],
             3.0 * 0.37 + 3.0,

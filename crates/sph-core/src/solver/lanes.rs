@@ -6,8 +6,10 @@
 //!
 //! PBF's sums are written over [`F32x8`] lanes ([`Near`],
 //! [`LaneKernels::eval`]) and run through [`super::f32x8::par_map`], which
-//! compiles them for AVX2 where the CPU has it. DFSPH's are still plain
-//! arrays ([`Chunk`], [`LaneCubic`]) that the compiler vectorises as it can.
+//! compiles them for AVX2 where the CPU has it; so are DFSPH's solve loops.
+//! DFSPH's factor pass, which stores each pair's gradient for its solves,
+//! still sums plain arrays ([`Chunk`], [`LaneCubic`]) that the compiler
+//! vectorises as it can.
 
 use glam::Vec3;
 

@@ -463,7 +463,7 @@ impl Model {
         let inv_rho0 = S::splat(self.inv_rho0);
         // Per lane: ρ, ∇_i C_i by axis, Σ|∇_j C_i|².
         let mut acc = [S::splat(0.0); 5];
-        for (slots, count) in lists.lanes(i) {
+        for (_, slots, count) in lists.lanes(i) {
             let c = Near::<S>::gather(xi, rows, slots, count);
             let (w, s) = self.lanes.eval(c.r2());
             let f = s * c.m * inv_rho0;
@@ -505,7 +505,7 @@ impl Model {
         let (inv_rho0, inv_w_dq) = (S::splat(self.inv_rho0), S::splat(self.inv_w_dq));
         let (k, half) = (S::splat(k), S::splat(0.5));
         let mut acc = [S::splat(0.0); 3];
-        for (slots, count) in lists.lanes(i) {
+        for (_, slots, count) in lists.lanes(i) {
             let c = Near::<S>::gather(rows[i], rows, slots, count);
             let [lambda_j, d_j, _, _] = S::gather_rows(coefs, &c.slots);
             let (w, s) = self.lanes.eval(c.r2());
@@ -540,7 +540,7 @@ impl Model {
         let inv_rho0 = S::splat(self.inv_rho0);
         // Per lane: ρ, curl by axis, mean by axis.
         let mut acc = [S::splat(0.0); 7];
-        for (slots, count) in lists.lanes(i) {
+        for (_, slots, count) in lists.lanes(i) {
             let c = Near::<S>::gather(xi, rows, slots, count);
             let (w, s) = self.lanes.eval(c.r2());
             let [vx, vy, vz, _] = S::gather_rows(vrows, &c.slots);
@@ -586,7 +586,7 @@ impl Model {
         let inv_rho0 = S::splat(self.inv_rho0);
         let wi = S::splat(curl_len[i]);
         let mut acc = [S::splat(0.0); 3];
-        for (slots, count) in lists.lanes(i) {
+        for (_, slots, count) in lists.lanes(i) {
             let c = Near::<S>::gather(rows[i], rows, slots, count);
             let (_, s) = self.lanes.eval(c.r2());
             let dw = S::gather(curl_len, &c.slots) - wi;
