@@ -133,7 +133,7 @@ impl F32x8 for Scalar {
 }
 
 #[cfg(target_arch = "x86_64")]
-pub(super) use avx2::Avx2;
+use avx2::Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
@@ -147,7 +147,7 @@ mod avx2 {
     /// Eight lanes in one AVX2 register. Only code compiled with AVX2
     /// enabled (under [`super::par_map`]'s dispatch) makes one.
     #[derive(Debug, Clone, Copy)]
-    pub(in crate::solver) struct Avx2(__m256);
+    pub(super) struct Avx2(__m256);
 
     macro_rules! avx_op {
         ($trait:ident, $fn:ident, $intrinsic:ident) => {
@@ -167,9 +167,11 @@ mod avx2 {
     avx_op!(Div, div, _mm256_div_ps);
 
     // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
-    // is available, and the functions that make one from nothing (`splat`,
-    // `from_array`, the gathers) are called only by code `par_map` runs
-    // after checking for it.
+    // is available. The type is private to `f32x8.rs`, and the only code
+    // that names it is `fill_avx2` (an `unsafe fn` that `par_map` and
+    // `both_kinds` call after checking for AVX2) and a test that checks
+    // first, so the functions that make one from nothing (`splat`,
+    // `from_array`, `first`, the gathers and loads) run only there.
     impl F32x8 for Avx2 {
         #[inline(always)]
         fn splat(v: f32) -> Self {
