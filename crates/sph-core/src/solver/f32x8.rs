@@ -1,13 +1,15 @@
-//! Eight f32 lanes, written once and compiled twice: for AVX2 ([`Avx2`],
-//! one 256-bit register) and for any CPU ([`Scalar`], an array the compiler
-//! may or may not vectorise). The solvers' pair sums are generic over
-//! [`F32x8`] and run through [`par_map`], which picks the AVX2 lanes where
-//! [`simd_level`] allows.
+//! Eight f32 lanes, written once and compiled three ways: for AVX2 (`Avx2`,
+//! one 256-bit register), for any x86-64 CPU (`Sse2`, two 128-bit
+//! registers) and for any CPU ([`Scalar`], an array the compiler may or may
+//! not vectorise). The solvers' pair sums are generic over [`F32x8`] and
+//! run through [`par_map`], which picks the AVX2 lanes where [`simd_level`]
+//! allows, else SSE2 on x86-64 (`SPH_SIMD=baseline` included), else the
+//! plain arrays.
 //!
-//! Both kinds do the same IEEE operations in the same order (add, subtract,
-//! multiply, divide and square root are correctly rounded in both, and
-//! [`F32x8::max`] is `a > b ? a : b` in both, as `maxps` is), so every CPU
-//! gets bitwise the same results. The compiler does not vectorise the
+//! Every kind does the same IEEE operations in the same order (add,
+//! subtract, multiply, divide and square root are correctly rounded in
+//! each, and [`F32x8::max`] is `a > b ? a : b` in each, as `maxps` is), so
+//! every CPU gets bitwise the same results. The compiler does not vectorise the
 //! scalar kind's square roots and divisions for SSE2, and left the eight
 //! lanes in 128-bit halves with AVX2 enabled, so the AVX2 kind is written
 //! with intrinsics: the PBF density solve took 2.3 times less time per pair
@@ -64,8 +66,10 @@ pub(super) trait F32x8:
     }
 }
 
-/// Eight lanes as an array: the lanes for a CPU without AVX2.
+/// Eight lanes as an array: the lanes of CPUs other than x86-64, and the
+/// reference the tests hold the other kinds to (on x86-64 only they use it).
 #[derive(Debug, Clone, Copy)]
+#[cfg_attr(all(target_arch = "x86_64", not(test)), allow(dead_code))]
 pub(super) struct Scalar([f32; 8]);
 
 macro_rules! scalar_op {
@@ -169,7 +173,7 @@ mod avx2 {
     // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
     // is available. The type is private to `f32x8.rs`, and the only code
     // that names it is `fill_avx2` (an `unsafe fn` that `par_map` and
-    // `both_kinds` call after checking for AVX2) and a test that checks
+    // `every_kind` call after checking for AVX2) and a test that checks
     // first, so the functions that make one from nothing (`splat`,
     // `from_array`, `first`, the gathers and loads) run only there.
     impl F32x8 for Avx2 {
@@ -251,6 +255,123 @@ mod avx2 {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+use sse2::Sse2;
+
+#[cfg(target_arch = "x86_64")]
+mod sse2 {
+    use std::arch::x86_64::*;
+    use std::ops::{Add, Div, Mul, Sub};
+
+    use glam::Vec3;
+
+    use super::F32x8;
+
+    /// Eight lanes in two SSE2 registers: the lanes of every x86-64 CPU
+    /// without AVX2 (SSE2 is part of x86-64, so no check is needed).
+    #[derive(Debug, Clone, Copy)]
+    pub(super) struct Sse2([__m128; 2]);
+
+    macro_rules! sse_op {
+        ($trait:ident, $fn:ident, $intrinsic:ident) => {
+            impl $trait for Sse2 {
+                type Output = Self;
+                #[inline(always)]
+                fn $fn(self, o: Self) -> Self {
+                    let [a, b] = self.0;
+                    let [c, d] = o.0;
+                    // SAFETY: see the impl below.
+                    Sse2(unsafe { [$intrinsic(a, c), $intrinsic(b, d)] })
+                }
+            }
+        };
+    }
+    sse_op!(Add, add, _mm_add_ps);
+    sse_op!(Sub, sub, _mm_sub_ps);
+    sse_op!(Mul, mul, _mm_mul_ps);
+    sse_op!(Div, div, _mm_div_ps);
+
+    // SAFETY (every `unsafe` block of this module): SSE and SSE2 are part
+    // of every x86-64 target, and the loads and stores touch only the
+    // arrays and rows named, as in the AVX2 kind.
+    impl F32x8 for Sse2 {
+        #[inline(always)]
+        fn splat(v: f32) -> Self {
+            Sse2([unsafe { _mm_set1_ps(v) }; 2])
+        }
+        #[inline(always)]
+        fn from_array(a: [f32; 8]) -> Self {
+            let (lo, hi) = a.split_at(4);
+            unsafe { Sse2([_mm_loadu_ps(lo.as_ptr()), _mm_loadu_ps(hi.as_ptr())]) }
+        }
+        #[inline(always)]
+        fn to_array(self) -> [f32; 8] {
+            let mut a = [0.0; 8];
+            let (lo, hi) = a.split_at_mut(4);
+            unsafe {
+                _mm_storeu_ps(lo.as_mut_ptr(), self.0[0]);
+                _mm_storeu_ps(hi.as_mut_ptr(), self.0[1]);
+            }
+            a
+        }
+        #[inline(always)]
+        fn max(self, o: Self) -> Self {
+            Sse2(unsafe { [_mm_max_ps(self.0[0], o.0[0]), _mm_max_ps(self.0[1], o.0[1])] })
+        }
+        #[inline(always)]
+        fn sqrt(self) -> Self {
+            Sse2(self.0.map(|r| unsafe { _mm_sqrt_ps(r) }))
+        }
+        #[inline(always)]
+        fn first(count: usize) -> Self {
+            unsafe {
+                let lane = |l: f32| _mm_setr_ps(l, l + 1.0, l + 2.0, l + 3.0);
+                let n = _mm_set1_ps(count.min(8) as f32);
+                let one = _mm_set1_ps(1.0);
+                Sse2([0.0, 4.0].map(|l| _mm_and_ps(_mm_cmplt_ps(lane(l), n), one)))
+            }
+        }
+        #[inline(always)]
+        fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
+            Self::from_array(slots.map(|s| values[s as usize]))
+        }
+        #[inline(always)]
+        fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
+            // The load reads a row's first four floats.
+            const { assert!(W >= 4) };
+            let row = |l: usize| unsafe { _mm_loadu_ps(rows[slots[l] as usize].as_ptr()) };
+            transpose(row)
+        }
+        #[inline(always)]
+        fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
+            // Vector l read as four floats: its own three and the next's x.
+            let v = &v[..9];
+            let row = |l: usize| unsafe { _mm_loadu_ps(v[l..].as_ptr().cast::<f32>()) };
+            let [x, y, z, _] = transpose(row);
+            [x, y, z]
+        }
+    }
+
+    /// Four lane sets from eight rows of four floats, lane l of set k
+    /// getting `row(l)[k]`: a 4×4 transpose of rows 0–3 and one of 4–7.
+    #[inline(always)]
+    fn transpose(row: impl Fn(usize) -> __m128) -> [Sse2; 4] {
+        let half = |base: usize| unsafe {
+            let (r0, r1, r2, r3) = (row(base), row(base + 1), row(base + 2), row(base + 3));
+            let (t0, t1) = (_mm_unpacklo_ps(r0, r1), _mm_unpacklo_ps(r2, r3));
+            let (t2, t3) = (_mm_unpackhi_ps(r0, r1), _mm_unpackhi_ps(r2, r3));
+            [
+                _mm_movelh_ps(t0, t1),
+                _mm_movehl_ps(t1, t0),
+                _mm_movelh_ps(t2, t3),
+                _mm_movehl_ps(t3, t2),
+            ]
+        };
+        let (lo, hi) = (half(0), half(4));
+        std::array::from_fn(|k| Sse2([lo[k], hi[k]]))
+    }
+}
+
 /// A per-particle computation written over lanes of any kind.
 pub(super) trait LaneMap: Sync {
     /// What it gives per particle.
@@ -281,6 +402,9 @@ pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
                 unsafe { fill_avx2(map, first, block) };
                 return;
             }
+            #[cfg(target_arch = "x86_64")]
+            fill::<Sse2, M>(map, first, block);
+            #[cfg(not(target_arch = "x86_64"))]
             fill::<Scalar, M>(map, first, block);
         });
 }
@@ -303,20 +427,26 @@ unsafe fn fill_avx2<M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
     fill::<Avx2, M>(map, first, block);
 }
 
-/// `map`'s values for `n` particles with the plain lanes and, where the CPU
-/// has AVX2, with the AVX2 ones: what the solvers' tests compare.
+/// `map`'s values for `n` particles with every kind of lanes this CPU
+/// runs, the plain arrays first: what the solvers' tests compare.
 #[cfg(test)]
-pub(super) fn both_kinds<M: LaneMap>(map: &M, n: usize) -> (Vec<M::Out>, Option<Vec<M::Out>>) {
-    let mut scalar = vec![M::Out::default(); n];
-    fill::<Scalar, M>(map, 0, &mut scalar);
+pub(super) fn every_kind<M: LaneMap>(map: &M, n: usize) -> Vec<(&'static str, Vec<M::Out>)> {
+    let run = |fill: &dyn Fn(&mut [M::Out])| {
+        let mut out = vec![M::Out::default(); n];
+        fill(&mut out);
+        out
+    };
+    #[allow(unused_mut)]
+    let mut kinds = vec![("plain", run(&|out| fill::<Scalar, M>(map, 0, out)))];
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        let mut avx2 = vec![M::Out::default(); n];
-        // SAFETY: checked just above.
-        unsafe { fill_avx2(map, 0, &mut avx2) };
-        return (scalar, Some(avx2));
+    {
+        kinds.push(("sse2", run(&|out| fill::<Sse2, M>(map, 0, out))));
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: checked just above.
+            kinds.push(("avx2", run(&|out| unsafe { fill_avx2(map, 0, out) })));
+        }
     }
-    (scalar, None)
+    kinds
 }
 
 #[cfg(test)]
@@ -395,6 +525,11 @@ mod tests {
             scalar[15][0],
             3.0 * 0.37 + 3.0,
             "gathered row 3, last entry"
+        );
+        #[cfg(target_arch = "x86_64")]
+        assert_eq!(
+            bits(run::<Sse2>(a, b, &rows, &values, &slots)),
+            bits(scalar.clone())
         );
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {

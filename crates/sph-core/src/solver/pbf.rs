@@ -918,10 +918,10 @@ mod tests {
     use super::*;
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
-    use crate::solver::f32x8::both_kinds;
+    use crate::solver::f32x8::every_kind;
 
-    /// The four lane passes give bitwise the same values with the plain and
-    /// the AVX2 lanes, and the λ pass's density is the plain sum
+    /// The four lane passes give bitwise the same values with every kind of
+    /// lanes (plain, SSE2, AVX2), and the λ pass's density is the plain sum
     /// Σ m_j W(x_i − x_j) plus the walls' term.
     #[test]
     fn lane_passes_agree_across_kinds_and_with_plain_sums() {
@@ -961,15 +961,19 @@ mod tests {
         rows_of(&v, &m, &mut vrows);
         let (rows, vrows, lists) = (&rows[..], &vrows[..], &lists);
         let bits = |v: &[f32]| v.iter().map(|f| f.to_bits()).collect::<Vec<_>>();
+        // Every kind's values, bit for bit those of the plain arrays.
+        fn agreed<T>(kinds: Vec<(&str, Vec<T>)>, bits: impl Fn(&[T]) -> Vec<u32>) -> Vec<T> {
+            let mut kinds = kinds.into_iter();
+            let (_, plain) = kinds.next().expect("the plain kind");
+            for (name, values) in kinds {
+                assert!(
+                    bits(&values) == bits(&plain),
+                    "{name} differs from the plain lanes"
+                );
+            }
+            plain
+        }
 
-        let (constraints, avx2) = both_kinds(
-            &Lambdas {
-                model: &model,
-                rows,
-                lists,
-            },
-            n,
-        );
         let flat = |c: &[Constraint]| {
             bits(
                 &c.iter()
@@ -977,9 +981,12 @@ mod tests {
                     .collect::<Vec<_>>(),
             )
         };
-        if let Some(avx2) = avx2 {
-            assert_eq!(flat(&constraints), flat(&avx2));
-        }
+        let lambdas = Lambdas {
+            model: &model,
+            rows,
+            lists,
+        };
+        let constraints = agreed(every_kind(&lambdas, n), flat);
         let poly6 = Poly6::new(h).unwrap();
         for (i, c) in constraints.iter().enumerate() {
             let plain: f32 = (0..n)
@@ -1004,21 +1011,9 @@ mod tests {
             lists,
         };
         let vecs = |v: &[Vec3]| bits(&v.iter().flat_map(|v| v.to_array()).collect::<Vec<_>>());
-        let (dp, avx2) = both_kinds(&corrections, n);
-        if let Some(avx2) = avx2 {
-            assert_eq!(vecs(&dp), vecs(&avx2));
-        }
+        let dp = agreed(every_kind(&corrections, n), vecs);
         assert!(dp.iter().any(|d| d.length() > 0.0));
 
-        let (sums, avx2) = both_kinds(
-            &CurlSums {
-                model: &model,
-                rows,
-                vrows,
-                lists,
-            },
-            n,
-        );
         let flat = |s: &[Sums]| {
             bits(
                 &s.iter()
@@ -1030,9 +1025,13 @@ mod tests {
                     .collect::<Vec<_>>(),
             )
         };
-        if let Some(avx2) = avx2 {
-            assert_eq!(flat(&sums), flat(&avx2));
-        }
+        let curl_sums = CurlSums {
+            model: &model,
+            rows,
+            vrows,
+            lists,
+        };
+        let sums = agreed(every_kind(&curl_sums, n), flat);
         for (s, c) in sums.iter().zip(&constraints) {
             assert_eq!(
                 s.rho.to_bits(),
@@ -1047,10 +1046,7 @@ mod tests {
             curl_len: &curl_len,
             lists,
         };
-        let (eta, avx2) = both_kinds(&gradients, n);
-        if let Some(avx2) = avx2 {
-            assert_eq!(vecs(&eta), vecs(&avx2));
-        }
+        let eta = agreed(every_kind(&gradients, n), vecs);
         assert!(eta.iter().any(|e| e.length() > 0.0));
     }
 }
