@@ -389,6 +389,15 @@ fn bad_parameters_are_errors_naming_the_field() {
         ("pbf.scorr_n", PbfParams { scorr_n: 0, ..d }),
         ("pbf.scorr_dq", PbfParams { scorr_dq: 0.0, ..d }),
         ("pbf.scorr_dq", PbfParams { scorr_dq: 1.5, ..d }),
+        // Each fine alone; together s_corr would overflow f32 at r = 0.
+        (
+            "pbf.scorr_dq",
+            PbfParams {
+                scorr_n: 16,
+                scorr_dq: 0.95,
+                ..d
+            },
+        ),
         (
             "pbf.vorticity",
             PbfParams {

@@ -283,6 +283,19 @@ impl PbfParams {
             dq > 0.0 && dq < 1.0,
             "must lie in (0, 1) (a fraction of h)",
         )?;
+        // s_corr's largest ratio W(0)/W(Δq h) = 1/(1 − Δq²)³, raised to the
+        // n, must stay far inside f32 (a pair at r = 0 reaches it).
+        let largest = (f64::from(self.scorr_n) * -3.0 * (1.0 - f64::from(dq).powi(2)).ln()).exp();
+        if largest >= 1e30 {
+            return Err(Error::InvalidParameter {
+                name: "pbf.scorr_dq",
+                value: format!(
+                    "{dq} (with scorr_n = {}: (W(0)/W(Δq h))ⁿ = {largest:.1e})",
+                    self.scorr_n
+                ),
+                reason: "with scorr_n makes s_corr overflow f32 for close pairs: lower scorr_dq or scorr_n",
+            });
+        }
         let v = self.vorticity;
         check(
             "pbf.vorticity",
@@ -501,6 +514,8 @@ impl Model {
         // Each constraint's (λ, D) read as the first two floats of a row.
         let coefs: &[[f32; 6]] = bytemuck::cast_slice(constraints);
         let (k, n) = (self.pbf.scorr_k, self.pbf.scorr_n);
+        // s_corr off (the default) adds nothing: skip it.
+        let scorr_on = k > 0.0;
         let (lambda_i, d_i) = (S::splat(constraint.lambda), S::splat(constraint.d));
         let (inv_rho0, inv_w_dq) = (S::splat(self.inv_rho0), S::splat(self.inv_w_dq));
         let (k, half) = (S::splat(k), S::splat(0.5));
@@ -509,14 +524,18 @@ impl Model {
             let c = Near::<S>::gather(rows[i], rows, slots, count);
             let [lambda_j, d_j, _, _] = S::gather_rows(coefs, &c.slots);
             let (w, s) = self.lanes.eval(c.r2());
-            // k (W_ij/W(Δq))ⁿ, by n − 1 products.
-            let q = w * inv_w_dq;
-            let mut scorr = q;
-            for _ in 1..n {
-                scorr = scorr * q;
+            let mut sum = lambda_i + lambda_j;
+            if scorr_on {
+                // k (W_ij/W(Δq))ⁿ, by n − 1 products; 0 in unused lanes,
+                // which may hold a particle at r = 0.
+                let q = w * inv_w_dq * S::first(count);
+                let mut scorr = q;
+                for _ in 1..n {
+                    scorr = scorr * q;
+                }
+                sum = sum - k * scorr * half * (d_i + d_j);
             }
             let f = s * c.m * inv_rho0;
-            let sum = lambda_i + lambda_j - k * scorr * half * (d_i + d_j);
             for (acc, d) in acc.iter_mut().zip(c.d) {
                 *acc = *acc + d * f * sum;
             }
