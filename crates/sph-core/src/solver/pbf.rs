@@ -123,6 +123,9 @@ pub struct PbfParams {
     /// s_corr's exponent n. Default 4 (the paper's).
     pub scorr_n: u32,
     /// s_corr's Δq as a fraction of h. Default 0.2 (the paper: 0.1 to 0.3).
+    /// With [`Self::scorr_n`] it must keep (W(0)/W(Δq h))ⁿ = (1 − Δq²)^(−3n)
+    /// below 10³⁰, so that s_corr of a pair at r = 0 stays in f32's range
+    /// (every Δq up to 0.99 at the default n = 4).
     pub scorr_dq: f32,
     /// Vorticity confinement ε (m/s): the acceleration ε N × ω, with ω the
     /// velocity's curl and N the direction towards larger |ω|. It gives back
