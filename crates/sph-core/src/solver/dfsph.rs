@@ -88,8 +88,8 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::f32x8::{F32x8, LaneMap, par_map};
-use super::lanes::{Chunk, LANES, LaneCubic, total};
+use super::f32x8::{F32x8, LaneMap, LaneRowMap, par_map, par_map_rows};
+use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
 use super::viscosity::{ImplicitViscosity, Update};
@@ -261,6 +261,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
         .push(Factors {
             model: model.clone(),
             shared: shared.clone(),
+            rows: Vec::new(),
         })
         .push(DivergenceSolve(Solve::new(
             model.clone(),
@@ -322,45 +323,61 @@ impl Model {
     }
 
     /// Particle i's density (with the walls), α_i, g_i and the walls'
-    /// ∇f_i at the current positions; writes each neighbour's
-    /// G_ij = (m_j/ρ0)∇W_ij into `pairs`.
-    #[inline]
-    fn factor(&self, i: usize, x: &[Vec3], m: &[f32], list: &[u32], pairs: &mut [Vec3]) -> Factor {
-        let xi = x[i];
+    /// ∇f_i at the current positions, from `rows` of (x, m); writes each
+    /// neighbour's G_ij = (m_j/ρ0)∇W_ij into `pairs` (i's row).
+    #[inline(always)]
+    fn factor<S: F32x8>(
+        &self,
+        i: usize,
+        rows: &[[f32; 4]],
+        lists: &NeighbourLists,
+        pairs: &mut [Vec3],
+    ) -> Factor {
+        let xi = rows[i];
+        let (x, mi) = (Vec3::new(xi[0], xi[1], xi[2]), xi[3]);
         // The walls continue the particle's lattice: spacing V_i^⅓.
-        let spacing = (m[i] * self.inv_rho0).cbrt();
-        let (rho_wall, wall) = self.walls.at_layers(xi, spacing);
-        // Per lane: ρ, g by axis, Σ|G_ij|².
-        let mut acc = [[0.0f32; LANES]; 5];
-        for (js, out) in list.chunks(LANES).zip(pairs.chunks_mut(LANES)) {
-            let c = Chunk::gather(xi, x, m, js);
-            let (w, s) = self.lanes.eval(&c.r2());
-            let mut g = [[0.0f32; LANES]; 3];
-            for l in 0..LANES {
-                let f = s[l] * c.m[l] * self.inv_rho0;
-                for a in 0..3 {
-                    g[a][l] = c.d[a][l] * f;
-                    acc[1 + a][l] += g[a][l];
-                }
-                acc[0][l] += c.m[l] * w[l];
-                acc[4][l] += g[0][l] * g[0][l] + g[1][l] * g[1][l] + g[2][l] * g[2][l];
-            }
+        let spacing = (mi * self.inv_rho0).cbrt();
+        let (rho_wall, wall) = self.walls.at_layers(x, spacing);
+        let inv_rho0 = S::splat(self.inv_rho0);
+        let mut sums = DensitySums::new();
+        for (chunk, (_, slots, count)) in lists.lanes(i).enumerate() {
+            let c = Near::<S>::gather(xi, rows, slots, count);
+            let (w, s) = self.lanes.eval(c.r2());
+            let [gx, gy, gz] = sums.add(&c, w, s, inv_rho0).map(S::to_array);
+            let out = &mut pairs[chunk * LANES..][..count];
             for (l, o) in out.iter_mut().enumerate() {
-                *o = Vec3::new(g[0][l], g[1][l], g[2][l]);
+                *o = Vec3::new(gx[l], gy[l], gz[l]);
             }
         }
-        let rho = rho_wall + m[i] * self.w0 + total(&acc[0]);
-        let grad = wall + Vec3::new(total(&acc[1]), total(&acc[2]), total(&acc[3]));
-        let sum = grad.length_squared() + total(&acc[4]);
+        let (rho_sum, grad_sum, squares) = sums.finish();
+        let rho = rho_wall + mi * self.w0 + rho_sum;
+        let grad = wall + grad_sum;
+        let sum = grad.length_squared() + squares;
         Factor {
             rho,
             alpha: self.inverse(sum),
             grad,
             wall,
             fraction: rho_wall * self.inv_rho0,
-            pairs: total(&acc[4]),
+            pairs: squares,
             spacing,
         }
+    }
+}
+
+/// Every particle's [`Factor`], each row of G_ij written on the way.
+struct FactorPass<'a> {
+    model: &'a Model,
+    rows: &'a [[f32; 4]],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneRowMap for FactorPass<'_> {
+    type Out = Factor;
+    type Pair = Vec3;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize, pairs: &mut [Vec3]) -> Factor {
+        self.model.factor::<S>(i, self.rows, self.lists, pairs)
     }
 }
 
@@ -514,6 +531,8 @@ fn lock(shared: &Shared) -> std::sync::MutexGuard<'_, Linearisation> {
 pub struct Factors {
     model: Arc<Model>,
     shared: Shared,
+    /// (x, m) per particle.
+    rows: Vec<[f32; 4]>,
 }
 
 impl Processor for Factors {
@@ -526,12 +545,15 @@ impl Processor for Factors {
         let mut shared = lock(&self.shared);
         let Linearisation { factors, pairs } = &mut *shared;
         let f = particles.fields_mut();
-        let (x, m) = (&*f.positions, &*f.masses);
+        rows_of(f.positions, f.masses, &mut self.rows);
         pairs.resize(lists.pairs(), Vec3::ZERO);
-        factors.resize(x.len(), Factor::default());
-        lists.par_map_rows(factors, pairs, |i, list, pairs| {
-            model.factor(i, x, m, list, pairs)
-        });
+        factors.resize(f.positions.len(), Factor::default());
+        let pass = FactorPass {
+            model,
+            rows: &self.rows,
+            lists,
+        };
+        par_map_rows(&pass, lists, factors, pairs);
         // Padding, so that a row's last chunk of G_ij reads as eight lanes.
         pairs.extend([Vec3::ZERO; PAIR_PADDING]);
         (f.densities.par_iter_mut())

@@ -21,6 +21,7 @@ use std::ops::{Add, Div, Mul, Sub};
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::NeighbourLists;
 use crate::grid::{Simd, simd_level};
 
 /// Eight f32 lanes.
@@ -173,7 +174,8 @@ mod avx2 {
     // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
     // is available. The type is private to `f32x8.rs`, and the only code
     // that names it is `fill_avx2` (an `unsafe fn` that `par_map` and
-    // `every_kind` call after checking for AVX2) and a test that checks
+    // `every_kind` call after checking for AVX2; `row_avx2`, which
+    // `par_map_rows` calls so) and a test that checks
     // first, so the functions that make one from nothing (`splat`,
     // `from_array`, `first`, the gathers and loads) run only there.
     impl F32x8 for Avx2 {
@@ -407,6 +409,57 @@ pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
             #[cfg(not(target_arch = "x86_64"))]
             fill::<Scalar, M>(map, first, block);
         });
+}
+
+/// A per-particle computation over lanes of any kind that also writes a
+/// value per neighbour pair, into the particle's row (laid out as
+/// [`NeighbourLists::row`] lays them out).
+pub(super) trait LaneRowMap: Sync {
+    /// What it gives per particle.
+    type Out: Send;
+    /// What it writes per pair.
+    type Pair: Send;
+    /// Particle `i`'s value, computed with lanes `S`; `pairs` is its row.
+    fn particle<S: F32x8>(&self, i: usize, pairs: &mut [Self::Pair]) -> Self::Out;
+}
+
+/// Sets `out[i]` and row i of `pairs` by `map` for every particle of
+/// `lists`, in parallel ([`NeighbourLists::par_map_rows`]), with the best
+/// lanes as [`par_map`] picks them, chosen per particle.
+///
+/// # Panics
+/// As [`NeighbourLists::par_map_rows`]: unless `out` holds a value per
+/// particle and `pairs` one per pair.
+pub(super) fn par_map_rows<M: LaneRowMap>(
+    map: &M,
+    lists: &NeighbourLists,
+    out: &mut [M::Out],
+    pairs: &mut [M::Pair],
+) {
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = simd_level() >= Simd::Avx2;
+    lists.par_map_rows(out, pairs, |i, _, row| {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if avx2 {
+                // SAFETY: `simd_level` never exceeds what the CPU supports.
+                return unsafe { row_avx2(map, i, row) };
+            }
+            map.particle::<Sse2>(i, row)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        map.particle::<Scalar>(i, row)
+    });
+}
+
+/// [`LaneRowMap::particle`] with the AVX2 lanes, compiled with AVX2.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn row_avx2<M: LaneRowMap>(map: &M, i: usize, row: &mut [M::Pair]) -> M::Out {
+    map.particle::<Avx2>(i, row)
 }
 
 /// `block[k]` = particle `first + k`'s value, with lanes `S`.

@@ -4,12 +4,11 @@
 //! added in a fixed tree at the end, so the result depends on neither
 //! threads nor CPU.
 //!
-//! PBF's sums are written over [`F32x8`] lanes ([`Near`],
-//! [`LaneKernels::eval`]) and run through [`super::f32x8::par_map`], which
-//! compiles them for AVX2 where the CPU has it; so are DFSPH's solve loops.
-//! DFSPH's factor pass, which stores each pair's gradient for its solves,
-//! still sums plain arrays ([`Chunk`], [`LaneCubic`]) that the compiler
-//! vectorises as it can.
+//! The sums are written over [`F32x8`] lanes: here the chunk's gather
+//! ([`Near`]) and the kernels per lane ([`LaneKernels`] for PBF,
+//! [`LaneCubic`] for DFSPH); the passes run through
+//! [`super::f32x8::par_map`] and [`super::f32x8::par_map_rows`], which pick
+//! the lanes the CPU has.
 
 use glam::Vec3;
 
@@ -19,44 +18,6 @@ use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 
 /// Neighbours per chunk.
 pub(super) const LANES: usize = 8;
-
-/// Up to [`LANES`] neighbours of one particle: offsets x_i − x_j per axis
-/// and masses. Unused lanes repeat the chunk's first neighbour with no
-/// mass, so every sum weighted by the mass gets exact zeros there.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Chunk {
-    pub(super) d: [[f32; LANES]; 3],
-    pub(super) m: [f32; LANES],
-}
-
-impl Chunk {
-    /// The neighbours `js` (1 to [`LANES`] of them) of the particle at `xi`.
-    ///
-    /// The lanes are filled by a loop of fixed length, so the compiler keeps
-    /// them in registers and vectorises the arithmetic on them.
-    #[inline(always)]
-    pub(super) fn gather(xi: Vec3, x: &[Vec3], m: &[f32], js: &[u32]) -> Self {
-        let (slots, weight) = lanes_of(js);
-        let mut c = Chunk {
-            d: [[0.0; LANES]; 3],
-            m: [0.0; LANES],
-        };
-        for l in 0..LANES {
-            let j = slots[l] as usize;
-            let r = xi - x[j];
-            (c.d[0][l], c.d[1][l], c.d[2][l]) = (r.x, r.y, r.z);
-            c.m[l] = m[j] * weight[l];
-        }
-        c
-    }
-
-    /// |r|² per lane.
-    #[inline(always)]
-    pub(super) fn r2(&self) -> [f32; LANES] {
-        let [x, y, z] = &self.d;
-        std::array::from_fn(|l| x[l] * x[l] + y[l] * y[l] + z[l] * z[l])
-    }
-}
 
 /// Poly6 W and the spiky gradient's factor s (∇W_spiky = s r) per lane, from
 /// |r|²: the same formulas as [`Poly6::value_r2`] and
@@ -140,6 +101,46 @@ impl<S: F32x8> Near<S> {
     }
 }
 
+/// The per-lane sums of a density constraint over a particle's neighbours
+/// j (PBF's λ pass, DFSPH's factors): ρ = Σ m_j W_ij, the gradient
+/// Σ G_ij and Σ |G_ij|², with G_ij = (m_j/ρ0)∇W_ij.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct DensitySums<S> {
+    /// ρ, G by axis, |G|², per lane.
+    acc: [S; 5],
+}
+
+impl<S: F32x8> DensitySums<S> {
+    #[inline(always)]
+    pub(super) fn new() -> Self {
+        Self {
+            acc: [S::splat(0.0); 5],
+        }
+    }
+
+    /// Adds a chunk of neighbours `c` with its kernel values `w` and
+    /// gradient factors `s` (∇W = s r); returns its G_ij by axis.
+    #[inline(always)]
+    pub(super) fn add(&mut self, c: &Near<S>, w: S, s: S, inv_rho0: S) -> [S; 3] {
+        let acc = &mut self.acc;
+        let f = s * c.m * inv_rho0;
+        let g = c.d.map(|d| d * f);
+        acc[0] = acc[0] + c.m * w;
+        acc[1] = acc[1] + g[0];
+        acc[2] = acc[2] + g[1];
+        acc[3] = acc[3] + g[2];
+        acc[4] = acc[4] + (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+        g
+    }
+
+    /// (Σ m_j W_ij, Σ G_ij, Σ |G_ij|²), each lane sum in the fixed tree.
+    #[inline(always)]
+    pub(super) fn finish(self) -> (f32, Vec3, f32) {
+        let [rho, x, y, z, squares] = self.acc.map(S::sum);
+        (rho, Vec3::new(x, y, z), squares)
+    }
+}
+
 /// `rows[i]` = (x_i, y_i, z_i, m_i): what [`Near::gather`] reads, one load
 /// per neighbour.
 pub(super) fn rows_of(x: &[Vec3], m: &[f32], rows: &mut Vec<[f32; 4]>) {
@@ -175,34 +176,15 @@ impl LaneCubic {
     /// (W, s) per lane. Beyond h both are 0 through the `max`es; a
     /// coincident pair (r = 0) has a finite s times a zero offset.
     #[inline(always)]
-    pub(super) fn eval(&self, r2: &[f32; LANES]) -> ([f32; LANES], [f32; LANES]) {
-        let mut w = [0.0; LANES];
-        let mut s = [0.0; LANES];
-        for l in 0..LANES {
-            let len = r2[l].sqrt();
-            let q = len * self.inv_h;
-            let a = (1.0 - q).max(0.0);
-            let b = (0.5 - q).max(0.0);
-            w[l] = self.k * (2.0 * a * a * a - 8.0 * b * b * b);
-            s[l] = self.k * self.inv_h * (24.0 * b * b - 6.0 * a * a) / len.max(self.tiny);
-        }
+    pub(super) fn eval<S: F32x8>(&self, r2: S) -> (S, S) {
+        let zero = S::splat(0.0);
+        let len = r2.sqrt();
+        let q = len * S::splat(self.inv_h);
+        let a = (S::splat(1.0) - q).max(zero);
+        let b = (S::splat(0.5) - q).max(zero);
+        let w = S::splat(self.k) * (S::splat(2.0) * a * a * a - S::splat(8.0) * b * b * b);
+        let s = S::splat(self.k * self.inv_h) * (S::splat(24.0) * b * b - S::splat(6.0) * a * a)
+            / len.max(S::splat(self.tiny));
         (w, s)
     }
-}
-
-/// A chunk's neighbours spread over the lanes, the first repeated in the
-/// unused ones, and each lane's weight: 1 for a neighbour, 0 for a repeat.
-#[inline(always)]
-pub(super) fn lanes_of(js: &[u32]) -> ([u32; LANES], [f32; LANES]) {
-    let mut slots = [js[0]; LANES];
-    let mut weight = [0.0; LANES];
-    slots[..js.len()].copy_from_slice(js);
-    weight[..js.len()].fill(1.0);
-    (slots, weight)
-}
-
-/// The lanes' sum, in a fixed tree.
-#[inline(always)]
-pub(super) fn total(a: &[f32; LANES]) -> f32 {
-    ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]))
 }

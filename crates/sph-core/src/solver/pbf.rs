@@ -77,7 +77,7 @@ use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
 use super::f32x8::{F32x8, LaneMap, par_map};
-use super::lanes::{LaneKernels, Near, rows_of};
+use super::lanes::{DensitySums, LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::viscosity::{ImplicitViscosity, Update};
@@ -477,23 +477,18 @@ impl Model {
         let xi = rows[i];
         let (rho_wall, wall) = self.walls.at(Vec3::new(xi[0], xi[1], xi[2]));
         let inv_rho0 = S::splat(self.inv_rho0);
-        // Per lane: ρ, ∇_i C_i by axis, Σ|∇_j C_i|².
-        let mut acc = [S::splat(0.0); 5];
+        // ρ, ∇_i C_i and Σ|∇_j C_i|² (∇_j C_i = −G_ij).
+        let mut sums = DensitySums::new();
         for (_, slots, count) in lists.lanes(i) {
             let c = Near::<S>::gather(xi, rows, slots, count);
             let (w, s) = self.lanes.eval(c.r2());
-            let f = s * c.m * inv_rho0;
-            let g = c.d.map(|d| d * f);
-            acc[0] = acc[0] + c.m * w;
-            acc[1] = acc[1] + g[0];
-            acc[2] = acc[2] + g[1];
-            acc[3] = acc[3] + g[2];
-            acc[4] = acc[4] + (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]);
+            sums.add(&c, w, s, inv_rho0);
         }
-        let rho = rho_wall + xi[3] * self.w0 + acc[0].sum();
-        let grad_i = wall + Vec3::new(acc[1].sum(), acc[2].sum(), acc[3].sum());
+        let (rho_sum, grad_sum, squares) = sums.finish();
+        let rho = rho_wall + xi[3] * self.w0 + rho_sum;
+        let grad_i = wall + grad_sum;
         let error = rho * self.inv_rho0 - 1.0;
-        let d = 1.0 / (grad_i.length_squared() + acc[4].sum() + self.epsilon);
+        let d = 1.0 / (grad_i.length_squared() + squares + self.epsilon);
         Constraint {
             rho,
             lambda: -error.max(0.0) * d,
