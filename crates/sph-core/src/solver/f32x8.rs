@@ -40,24 +40,41 @@ pub(super) trait F32x8:
     fn sqrt(self) -> Self;
     /// 1 in the first `count` lanes, 0 in the others.
     fn first(count: usize) -> Self;
+    /// Four lane sets from eight rows of four floats, lane l of set k
+    /// getting `row(l)[k]`: what the gathers below are made of.
+    fn transpose<'a>(row: impl Fn(usize) -> &'a [f32; 4]) -> [Self; 4];
+
     /// Lane l gets `values[slots[l]]`.
     ///
     /// # Panics
     /// If a slot is out of bounds.
-    fn gather(values: &[f32], slots: &[u32; 8]) -> Self;
+    #[inline(always)]
+    fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
+        Self::from_array(slots.map(|s| values[s as usize]))
+    }
+
     /// Four lane sets, lane l of set k getting `rows[slots[l]][k]`: the
     /// first four floats of rows of `W` ≥ 4.
     ///
     /// # Panics
     /// If a slot is out of bounds.
-    fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4];
+    #[inline(always)]
+    fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
+        const { assert!(W >= 4) };
+        Self::transpose(|l| first_four(&rows[slots[l] as usize]))
+    }
 
-    /// Lanes of x, y and z of `v[0..8]`.
+    /// Lanes of x, y and z of `v[0..8]`, each vector read as four floats
+    /// (its own three and the next one's x).
     ///
     /// # Panics
-    /// If `v` holds fewer than 9 vectors (the AVX2 kind reads each as four
-    /// floats).
-    fn load_vec3s(v: &[Vec3]) -> [Self; 3];
+    /// If `v` holds fewer than 9 vectors.
+    #[inline(always)]
+    fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
+        let floats: &[f32] = bytemuck::cast_slice(&v[..9]);
+        let [x, y, z, _] = Self::transpose(|l| first_four(&floats[3 * l..]));
+        [x, y, z]
+    }
 
     /// The lanes' sum, in a fixed tree.
     #[inline(always)]
@@ -65,6 +82,15 @@ pub(super) trait F32x8:
         let a = self.to_array();
         ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]))
     }
+}
+
+/// The first four floats of `values`.
+///
+/// # Panics
+/// If there are fewer than four.
+#[inline(always)]
+fn first_four(values: &[f32]) -> &[f32; 4] {
+    values[..4].try_into().expect("four floats")
 }
 
 /// Eight lanes as an array: the lanes of CPUs other than x86-64, and the
@@ -121,19 +147,9 @@ impl F32x8 for Scalar {
         Scalar(std::array::from_fn(|l| if l < count { 1.0 } else { 0.0 }))
     }
     #[inline(always)]
-    fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
-        Scalar(slots.map(|s| values[s as usize]))
-    }
-    #[inline(always)]
-    fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
-        const { assert!(W >= 4) };
-        let r = slots.map(|s| rows[s as usize]);
-        std::array::from_fn(|k| Scalar(std::array::from_fn(|l| r[l][k])))
-    }
-    #[inline(always)]
-    fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
-        let v = &v[..9];
-        std::array::from_fn(|k| Scalar(std::array::from_fn(|l| v[l][k])))
+    fn transpose<'a>(row: impl Fn(usize) -> &'a [f32; 4]) -> [Self; 4] {
+        let rows: [[f32; 4]; 8] = std::array::from_fn(|l| *row(l));
+        std::array::from_fn(|k| Scalar(std::array::from_fn(|l| rows[l][k])))
     }
 }
 
@@ -144,8 +160,6 @@ use avx2::Avx2;
 mod avx2 {
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Sub};
-
-    use glam::Vec3;
 
     use super::F32x8;
 
@@ -173,11 +187,11 @@ mod avx2 {
 
     // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
     // is available. The type is private to `f32x8.rs`, and the only code
-    // that names it is `fill_avx2` (an `unsafe fn` that `par_map` and
-    // `every_kind` call after checking for AVX2; `row_avx2`, which
-    // `par_map_rows` calls so) and a test that checks
-    // first, so the functions that make one from nothing (`splat`,
-    // `from_array`, `first`, the gathers and loads) run only there.
+    // that names it is `fill_avx2` and `row_avx2` (`unsafe fn`s that
+    // `par_map`, `par_map_rows` and `every_kind` call after checking for
+    // AVX2) and a test that checks first, so the functions that make one
+    // from nothing (`splat`, `from_array`, `first`, `transpose`) run only
+    // there. The loads read whole `[f32; 4]`s and arrays of eight.
     impl F32x8 for Avx2 {
         #[inline(always)]
         fn splat(v: f32) -> Self {
@@ -214,45 +228,25 @@ mod avx2 {
             Avx2(unsafe { _mm256_and_ps(below, _mm256_set1_ps(1.0)) })
         }
         #[inline(always)]
-        fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
-            Self::from_array(slots.map(|s| values[s as usize]))
-        }
-        #[inline(always)]
-        fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
-            // The load reads a row's first four floats.
-            const { assert!(W >= 4) };
-            let row = |l: usize| unsafe { _mm_loadu_ps(rows[slots[l] as usize].as_ptr()) };
-            transpose(row)
-        }
-        #[inline(always)]
-        fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
-            // Vector l read as four floats: its own three and the next's x.
-            let v = &v[..9];
-            let row = |l: usize| unsafe { _mm_loadu_ps(v[l..].as_ptr().cast::<f32>()) };
-            let [x, y, z, _] = transpose(row);
-            [x, y, z]
-        }
-    }
-
-    /// Four lane sets from eight rows of four floats, lane l of set k
-    /// getting `row(l)[k]`.
-    #[inline(always)]
-    fn transpose(row: impl Fn(usize) -> __m128) -> [Avx2; 4] {
-        // Rows l and l + 4 share a register (low and high half), then a
-        // 4×4 transpose in each half.
-        let pair = |l: usize| unsafe {
-            _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4))
-        };
-        let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
-        unsafe {
-            let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpacklo_ps(r2, r3));
-            let (t2, t3) = (_mm256_unpackhi_ps(r0, r1), _mm256_unpackhi_ps(r2, r3));
-            [
-                Avx2(_mm256_shuffle_ps::<0x44>(t0, t1)),
-                Avx2(_mm256_shuffle_ps::<0xEE>(t0, t1)),
-                Avx2(_mm256_shuffle_ps::<0x44>(t2, t3)),
-                Avx2(_mm256_shuffle_ps::<0xEE>(t2, t3)),
-            ]
+        fn transpose<'a>(row: impl Fn(usize) -> &'a [f32; 4]) -> [Self; 4] {
+            // SAFETY: each row holds four floats.
+            let row = |l: usize| unsafe { _mm_loadu_ps(row(l).as_ptr()) };
+            // Rows l and l + 4 share a register (low and high half), then a
+            // 4×4 transpose in each half.
+            let pair = |l: usize| unsafe {
+                _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(row(l)), row(l + 4))
+            };
+            let (r0, r1, r2, r3) = (pair(0), pair(1), pair(2), pair(3));
+            unsafe {
+                let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpacklo_ps(r2, r3));
+                let (t2, t3) = (_mm256_unpackhi_ps(r0, r1), _mm256_unpackhi_ps(r2, r3));
+                [
+                    Avx2(_mm256_shuffle_ps::<0x44>(t0, t1)),
+                    Avx2(_mm256_shuffle_ps::<0xEE>(t0, t1)),
+                    Avx2(_mm256_shuffle_ps::<0x44>(t2, t3)),
+                    Avx2(_mm256_shuffle_ps::<0xEE>(t2, t3)),
+                ]
+            }
         }
     }
 }
@@ -264,8 +258,6 @@ use sse2::Sse2;
 mod sse2 {
     use std::arch::x86_64::*;
     use std::ops::{Add, Div, Mul, Sub};
-
-    use glam::Vec3;
 
     use super::F32x8;
 
@@ -334,43 +326,23 @@ mod sse2 {
             }
         }
         #[inline(always)]
-        fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
-            Self::from_array(slots.map(|s| values[s as usize]))
+        fn transpose<'a>(row: impl Fn(usize) -> &'a [f32; 4]) -> [Self; 4] {
+            // SAFETY: each row holds four floats.
+            let row = |l: usize| unsafe { _mm_loadu_ps(row(l).as_ptr()) };
+            let half = |base: usize| unsafe {
+                let (r0, r1, r2, r3) = (row(base), row(base + 1), row(base + 2), row(base + 3));
+                let (t0, t1) = (_mm_unpacklo_ps(r0, r1), _mm_unpacklo_ps(r2, r3));
+                let (t2, t3) = (_mm_unpackhi_ps(r0, r1), _mm_unpackhi_ps(r2, r3));
+                [
+                    _mm_movelh_ps(t0, t1),
+                    _mm_movehl_ps(t1, t0),
+                    _mm_movelh_ps(t2, t3),
+                    _mm_movehl_ps(t3, t2),
+                ]
+            };
+            let (lo, hi) = (half(0), half(4));
+            std::array::from_fn(|k| Sse2([lo[k], hi[k]]))
         }
-        #[inline(always)]
-        fn gather_rows<const W: usize>(rows: &[[f32; W]], slots: &[u32; 8]) -> [Self; 4] {
-            // The load reads a row's first four floats.
-            const { assert!(W >= 4) };
-            let row = |l: usize| unsafe { _mm_loadu_ps(rows[slots[l] as usize].as_ptr()) };
-            transpose(row)
-        }
-        #[inline(always)]
-        fn load_vec3s(v: &[Vec3]) -> [Self; 3] {
-            // Vector l read as four floats: its own three and the next's x.
-            let v = &v[..9];
-            let row = |l: usize| unsafe { _mm_loadu_ps(v[l..].as_ptr().cast::<f32>()) };
-            let [x, y, z, _] = transpose(row);
-            [x, y, z]
-        }
-    }
-
-    /// Four lane sets from eight rows of four floats, lane l of set k
-    /// getting `row(l)[k]`: a 4×4 transpose of rows 0–3 and one of 4–7.
-    #[inline(always)]
-    fn transpose(row: impl Fn(usize) -> __m128) -> [Sse2; 4] {
-        let half = |base: usize| unsafe {
-            let (r0, r1, r2, r3) = (row(base), row(base + 1), row(base + 2), row(base + 3));
-            let (t0, t1) = (_mm_unpacklo_ps(r0, r1), _mm_unpacklo_ps(r2, r3));
-            let (t2, t3) = (_mm_unpackhi_ps(r0, r1), _mm_unpackhi_ps(r2, r3));
-            [
-                _mm_movelh_ps(t0, t1),
-                _mm_movehl_ps(t1, t0),
-                _mm_movelh_ps(t2, t3),
-                _mm_movehl_ps(t3, t2),
-            ]
-        };
-        let (lo, hi) = (half(0), half(4));
-        std::array::from_fn(|k| Sse2([lo[k], hi[k]]))
     }
 }
 
