@@ -362,7 +362,7 @@ const BLOCK: usize = 256;
 /// the AVX2 lanes where [`simd_level`] allows (every kind gives bitwise the
 /// same values).
 pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
-    out.clear();
+    // Every value is written below; the memory is only sized here.
     out.resize(n, M::Out::default());
     #[cfg(target_arch = "x86_64")]
     let avx2 = simd_level() >= Simd::Avx2;
