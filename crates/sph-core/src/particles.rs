@@ -49,6 +49,17 @@ pub struct Particles {
     colour_gradients: Vec<Vec3>,
     colour_laplacians: Vec<f32>,
     extra: BTreeMap<String, Box<dyn Column>>,
+    /// The memory of the last permutation's old columns, which the next one
+    /// fills (fresh columns every substep cost page faults).
+    spare: Spare,
+}
+
+/// A spare column of each built-in type, for [`Particles::permute`].
+#[derive(Default)]
+struct Spare {
+    ids: Vec<u64>,
+    vec3s: Vec<Vec3>,
+    f32s: Vec<f32>,
 }
 
 /// Mutable views of every built-in field at once, for processors that read some
@@ -281,15 +292,24 @@ impl Particles {
                 }
             }
         }
-        permute_vec(&mut self.ids, order);
-        permute_vec(&mut self.positions, order);
-        permute_vec(&mut self.velocities, order);
-        permute_vec(&mut self.accelerations, order);
-        permute_vec(&mut self.densities, order);
-        permute_vec(&mut self.pressures, order);
-        permute_vec(&mut self.masses, order);
-        permute_vec(&mut self.colour_gradients, order);
-        permute_vec(&mut self.colour_laplacians, order);
+        let spare = &mut self.spare;
+        permute_vec(&mut self.ids, order, &mut spare.ids);
+        for v in [
+            &mut self.positions,
+            &mut self.velocities,
+            &mut self.accelerations,
+            &mut self.colour_gradients,
+        ] {
+            permute_vec(v, order, &mut spare.vec3s);
+        }
+        for v in [
+            &mut self.densities,
+            &mut self.pressures,
+            &mut self.masses,
+            &mut self.colour_laplacians,
+        ] {
+            permute_vec(v, order, &mut spare.f32s);
+        }
         for column in self.extra.values_mut() {
             column.permute(order);
         }
@@ -366,6 +386,7 @@ impl Clone for Particles {
                 .iter()
                 .map(|(k, v)| (k.clone(), v.clone_box()))
                 .collect(),
+            spare: Spare::default(),
         }
     }
 }
@@ -387,9 +408,14 @@ fn retain_vec<T>(v: &mut Vec<T>, keep: &[bool]) {
     v.retain(|_| *k.next().unwrap_or(&false));
 }
 
-fn permute_vec<T: Clone + Send + Sync>(v: &mut Vec<T>, order: &[u32]) {
+/// `v` reordered by `order`, written into `spare`'s memory; `spare` gets
+/// the old column's.
+fn permute_vec<T: Clone + Send + Sync>(v: &mut Vec<T>, order: &[u32], spare: &mut Vec<T>) {
     use rayon::prelude::*;
-    *v = order.par_iter().map(|&o| v[o as usize].clone()).collect();
+    (order.par_iter())
+        .map(|&o| v[o as usize].clone())
+        .collect_into_vec(spare);
+    std::mem::swap(v, spare);
 }
 
 /// A type-erased attribute column.
@@ -416,7 +442,7 @@ impl<T: Clone + Send + Sync + 'static> Column for TypedColumn<T> {
         retain_vec(&mut self.data, keep);
     }
     fn permute(&mut self, order: &[u32]) {
-        permute_vec(&mut self.data, order);
+        permute_vec(&mut self.data, order, &mut Vec::new());
     }
     fn type_name(&self) -> &'static str {
         std::any::type_name::<T>()

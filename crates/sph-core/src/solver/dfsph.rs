@@ -343,7 +343,8 @@ impl Model {
         for (chunk, (_, slots, count)) in lists.lanes(i).enumerate() {
             let c = Near::<S>::gather(xi, rows, slots, count);
             let (w, s) = self.lanes.eval(c.r2());
-            let [gx, gy, gz] = sums.add(&c, w, s, inv_rho0).map(S::to_array);
+            let [gx, gy, gz] = sums.add(&c, w, s, inv_rho0);
+            let (gx, gy, gz) = (gx.to_array(), gy.to_array(), gz.to_array());
             let out = &mut pairs[chunk * LANES..][..count];
             for (l, o) in out.iter_mut().enumerate() {
                 *o = Vec3::new(gx[l], gy[l], gz[l]);

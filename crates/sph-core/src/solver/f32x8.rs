@@ -50,7 +50,8 @@ pub(super) trait F32x8:
     /// If a slot is out of bounds.
     #[inline(always)]
     fn gather(values: &[f32], slots: &[u32; 8]) -> Self {
-        Self::from_array(slots.map(|s| values[s as usize]))
+        let v = |l: usize| values[slots[l] as usize];
+        Self::from_array([v(0), v(1), v(2), v(3), v(4), v(5), v(6), v(7)])
     }
 
     /// Four lane sets, lane l of set k getting `rows[slots[l]][k]`: the

@@ -124,7 +124,9 @@ impl<S: F32x8> DensitySums<S> {
     pub(super) fn add(&mut self, c: &Near<S>, w: S, s: S, inv_rho0: S) -> [S; 3] {
         let acc = &mut self.acc;
         let f = s * c.m * inv_rho0;
-        let g = c.d.map(|d| d * f);
+        // No closures here: a closure is compiled apart from the caller's
+        // target features, so its intrinsics would become calls.
+        let g = [c.d[0] * f, c.d[1] * f, c.d[2] * f];
         acc[0] = acc[0] + c.m * w;
         acc[1] = acc[1] + g[0];
         acc[2] = acc[2] + g[1];
@@ -136,8 +138,12 @@ impl<S: F32x8> DensitySums<S> {
     /// (Σ m_j W_ij, Σ G_ij, Σ |G_ij|²), each lane sum in the fixed tree.
     #[inline(always)]
     pub(super) fn finish(self) -> (f32, Vec3, f32) {
-        let [rho, x, y, z, squares] = self.acc.map(S::sum);
-        (rho, Vec3::new(x, y, z), squares)
+        let [rho, x, y, z, squares] = self.acc;
+        (
+            rho.sum(),
+            Vec3::new(x.sum(), y.sum(), z.sum()),
+            squares.sum(),
+        )
     }
 }
 

@@ -568,7 +568,7 @@ impl Model {
             ];
             let vol = c.m * inv_rho0;
             let f = s * vol;
-            let g = c.d.map(|d| d * f);
+            let g = [c.d[0] * f, c.d[1] * f, c.d[2] * f];
             acc[0] = acc[0] + c.m * w;
             // v_ij × (m_j/ρ0)∇W_ij
             acc[1] = acc[1] + (u[1] * g[2] - u[2] * g[1]);
