@@ -5,8 +5,13 @@
 //! closer than h, as in the `spray` example), every 0.1 s: its largest
 //! value and the mean.
 //!
+//! A setting is SUBSTEPSxITERATIONS, optionally followed by `@ω` (the
+//! over-relaxation) and `/c` (XSPH's c); what it leaves out takes the
+//! defaults ([`sph_core::PbfParams`]). `5x2@1/0.01` is the paper's plain
+//! Jacobi and XSPH at 5 substeps of 2 iterations.
+//!
 //! ```text
-//! cargo run --release -p sph-core --example pbf_substeps [-- 6x3 4x4 3x6 ...]
+//! cargo run --release -p sph-core --example pbf_substeps [-- 5x2 6x3@1/0.01 5x2@1.3 ...]
 //! ```
 
 mod common;
@@ -19,12 +24,12 @@ use sph_core::{PbfParams, Scene, SolverKind};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut settings: Vec<String> = std::env::args().skip(1).collect();
     if settings.is_empty() {
-        settings = ["6x3", "4x4", "3x6", "3x3", "2x6"]
+        settings = ["6x3@1/0.01", "5x2@1/0.01", "5x2@1.3", "5x2", "4x2", "3x3"]
             .map(String::from)
             .to_vec();
     }
     println!(
-        "{:>9} {:>9} {:>12} {:>10} {:>10} {:>8} {:>13} {:>14}",
+        "{:>12} {:>9} {:>12} {:>10} {:>10} {:>8} {:>13} {:>14}",
         "setting",
         "particles",
         "wall s/s",
@@ -35,20 +40,31 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "spray mean %"
     );
     for setting in settings {
-        let parse = || -> Option<(u32, u32)> {
-            let (s, i) = setting.split_once('x')?;
-            Some((s.parse().ok()?, i.parse().ok()?))
-        };
-        let (substeps, iterations) =
-            parse().ok_or(format!("{setting}: expected SUBSTEPSxITERATIONS, e.g. 6x3"))?;
         let mut scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf);
         let frame = 1.0 / 60.0;
-        scene.solver.pbf = Some(PbfParams {
-            substeps,
-            iterations,
-            max_dt: frame / substeps as f32,
-            ..scene.pbf_params()
-        });
+        let defaults = scene.pbf_params();
+        let parse = || -> Option<PbfParams> {
+            let (counts, rest) = setting.split_once('@').unwrap_or((&setting, ""));
+            let (omega, c) = rest.split_once('/').unwrap_or((rest, ""));
+            let (s, i) = counts.split_once('x')?;
+            let substeps: u32 = s.parse().ok()?;
+            let value = |v: &str, default: f32| match v {
+                "" => Some(default),
+                v => v.parse().ok(),
+            };
+            Some(PbfParams {
+                substeps,
+                iterations: i.parse().ok()?,
+                over_relaxation: value(omega, defaults.over_relaxation)?,
+                xsph: value(c, defaults.xsph)?,
+                max_dt: frame / substeps as f32,
+                ..defaults
+            })
+        };
+        let pbf = parse().ok_or(format!(
+            "{setting}: expected SUBSTEPSxITERATIONS[@OMEGA][/XSPH], e.g. 5x2@1.4/0.05"
+        ))?;
+        scene.solver.pbf = Some(pbf);
         let mut world = scene.build_world()?;
         let (mut wall, mut avg, mut max, mut clamped) = (0.0, 0.0f64, 0.0f32, 0);
         let mut spray = Vec::new();
@@ -66,7 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         }
         println!(
-            "{:>9} {:>9} {:>12.3} {:>10.3} {:>10.1} {:>8} {:>13.2} {:>14.2}",
+            "{:>12} {:>9} {:>12.3} {:>10.3} {:>10.1} {:>8} {:>13.2} {:>14.2}",
             setting,
             world.particles.len(),
             wall,

@@ -213,9 +213,14 @@ impl Boundary {
     pub fn resolve(&self, x: &mut Vec3, v: &mut Vec3) {
         // Most particles of most scenes: nothing to do, said in two compares.
         let inside = x.cmpge(self.domain.min).all() && x.cmple(self.domain.max).all();
-        if inside && self.obstacles.is_empty() {
-            return;
+        if !inside || !self.obstacles.is_empty() {
+            self.resolve_outside(x, v);
         }
+    }
+
+    /// [`Self::resolve`] for a point outside the domain or with obstacles.
+    #[inline(never)]
+    fn resolve_outside(&self, x: &mut Vec3, v: &mut Vec3) {
         // A few rounds settle corners where an obstacle meets a wall.
         for _ in 0..3 {
             let mut moved = false;
@@ -259,6 +264,7 @@ impl Boundary {
     /// Calls `f(d, n)` for each wall surface within `h` of the admitted point `x`:
     /// its distance `d` and its normal `n` pointing into the fluid. Curved and
     /// box obstacles are taken locally as the plane at their nearest point.
+    #[inline(always)]
     pub fn for_each_wall_within(&self, x: Vec3, h: f32, mut f: impl FnMut(f32, Vec3)) {
         for a in 0..3 {
             let mut n = Vec3::ZERO;

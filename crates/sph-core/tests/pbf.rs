@@ -216,29 +216,73 @@ fn free_cluster_keeps_its_momentum() {
             })
     };
     let before = momentum(&particles);
-    let pbf = PbfParams {
-        vorticity: 0.0,
-        ..PbfParams::default()
-    };
-    let mut world = unbounded(particles, params, pbf);
-    let mut moved = 0.0f32;
-    for _ in 0..30 {
-        let r = world.advance(1.0 / 60.0).unwrap();
-        assert_eq!(r.clamped, 0);
-        moved = moved.max(r.density_error_max);
-    }
-    let after = momentum(&world.particles);
-    // The scale: total mass × the mean speed.
-    let scale = world.particles.total_mass() * 0.1;
-    for a in 0..3 {
-        assert!(
-            (after[a] - before[a]).abs() < 1e-6 * scale,
-            "axis {a}: {} → {}",
-            before[a],
-            after[a]
+    // Plain and over-relaxed Jacobi: ω scales each antisymmetric pair term.
+    for over_relaxation in [1.0, 1.25] {
+        let pbf = PbfParams {
+            vorticity: 0.0,
+            over_relaxation,
+            ..PbfParams::default()
+        };
+        let mut world = unbounded(particles.clone(), params, pbf);
+        let mut moved = 0.0f32;
+        for _ in 0..30 {
+            let r = world.advance(1.0 / 60.0).unwrap();
+            assert_eq!(r.clamped, 0);
+            moved = moved.max(r.density_error_max);
+        }
+        let after = momentum(&world.particles);
+        // The scale: total mass × the mean speed.
+        let scale = world.particles.total_mass() * 0.1;
+        for a in 0..3 {
+            assert!(
+                (after[a] - before[a]).abs() < 1e-6 * scale,
+                "ω = {over_relaxation}, axis {a}: {} → {}",
+                before[a],
+                after[a]
+            );
+        }
+        println!(
+            "ω = {over_relaxation}: momentum {before:?} → {after:?}; largest density error {moved}"
         );
     }
-    println!("momentum {before:?} → {after:?}; largest density error {moved}");
+}
+
+/// Over-relaxation lowers the density error at the same iterations: a
+/// tank 25 particles deep at 3 × 3, settled for 2 s, averaged over the
+/// third (measured: 1.52 % at ω = 1, 1.08 % at 1.25, with rms speeds at
+/// rest of 0.18 and 0.23 m/s; `pbf_convergence`).
+#[test]
+fn over_relaxation_lowers_the_density_error() {
+    let settle = |over_relaxation| {
+        let scene = tank(
+            0.3,
+            0.5,
+            PbfParams {
+                over_relaxation,
+                ..PbfParams::default()
+            },
+        );
+        let boundary = scene.boundary();
+        let mut world = scene.build_world().unwrap();
+        let mut error = 0.0f32;
+        for frame in 0..180 {
+            let r = world.advance(1.0 / 60.0).unwrap();
+            if frame >= 120 {
+                error += r.density_error_avg / 60.0;
+            }
+        }
+        assert!(contained(&world, &boundary));
+        (error, rms_speed(&world.particles))
+    };
+    let (plain, plain_rms) = settle(1.0);
+    let (over, over_rms) = settle(1.25);
+    println!(
+        "density error {:.3} % at ω = 1, {:.3} % at 1.25; rms speed {plain_rms:.3}, {over_rms:.3} m/s",
+        100.0 * plain,
+        100.0 * over
+    );
+    assert!(over < 0.8 * plain, "{over} against {plain}");
+    assert!(over_rms < 0.3, "rms speed {over_rms} m/s");
 }
 
 /// Bitwise the same particles for 1, 2 and 4 threads, with XSPH and with
@@ -412,6 +456,27 @@ fn bad_parameters_are_errors_naming_the_field() {
                 ..d
             },
         ),
+        (
+            "pbf.over_relaxation",
+            PbfParams {
+                over_relaxation: 0.0,
+                ..d
+            },
+        ),
+        (
+            "pbf.over_relaxation",
+            PbfParams {
+                over_relaxation: 2.0,
+                ..d
+            },
+        ),
+        (
+            "pbf.over_relaxation",
+            PbfParams {
+                over_relaxation: f32::NAN,
+                ..d
+            },
+        ),
         ("pbf.xsph", PbfParams { xsph: 2.0, ..d }),
         (
             "pbf.xsph",
@@ -550,11 +615,11 @@ fn a_user_processor_after_forces_acts_in_pbf() {
 
 /// Without a `[solver.pbf]` table a scene derives PBF's substeps from its
 /// fluid's height and particle size: 3 per 60 Hz frame for the demo's dam
-/// break (h = 0.04 m), 6 for `dam-break-fine` (h = 0.02 m), every substep
-/// at most h/2 of a fall from the column's top.
+/// break (h = 0.04 m), 5 for `dam-break-fine` (h = 0.02 m), every substep
+/// at most 0.6 h of a fall from the column's top.
 #[test]
 fn scenes_without_a_pbf_table_derive_their_substeps() {
-    for (spacing, substeps) in [(0.02, 3), (0.01, 6)] {
+    for (spacing, substeps) in [(0.02, 3), (0.01, 5)] {
         let scene = Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Pbf);
         assert_eq!(scene.solver.pbf, None);
         let p = scene.pbf_params();

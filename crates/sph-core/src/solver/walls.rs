@@ -43,7 +43,7 @@ impl Walls {
     /// from them, where WCSPH's sum Σ f_k counts the region behind two walls
     /// twice (see [`crate::boundary`]). Pushing against that excess is what
     /// would empty the edges of a tank.
-    #[inline]
+    #[inline(always)]
     pub(crate) fn at(&self, x: Vec3) -> (f32, Vec3) {
         self.united(x, |d| self.kernel.fraction_and_density(d))
     }
@@ -59,7 +59,7 @@ impl Walls {
 
     /// The union of the walls within h of `x`, each of fraction and slope
     /// `wall(d)` at distance d.
-    #[inline]
+    #[inline(always)]
     fn united(&self, x: Vec3, wall: impl Fn(f32) -> (f32, f32)) -> (f32, Vec3) {
         // Far from every wall (the bulk of most scenes): nothing, said in
         // two compares, as the walls' loop below would say it.
