@@ -220,10 +220,12 @@ impl Layout {
             .collect_into_vec(&mut keys);
         // The input splits into a few chunks, one per thread, scattered in
         // parallel: chunk c writes key k's particles from the slot where chunks
-        // before it ended, so the sort stays stable. One histogram per chunk.
+        // before it ended, so the sort stays stable. One histogram per chunk,
+        // of at least 4,096 particles (the grid of a 10,000-particle PBF
+        // substep took 0.29 ms in two chunks against 0.35 ms in one).
         let chunks = rayon::current_num_threads()
             .clamp(1, 8)
-            .min(n.div_ceil(1 << 15))
+            .min(n.div_ceil(1 << 12))
             .max(1);
         let chunk_len = n.div_ceil(chunks).max(1);
         next.resize_with(n.div_ceil(chunk_len), Vec::new);
