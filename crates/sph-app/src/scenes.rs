@@ -16,8 +16,8 @@ pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
 /// Built-in scenes, in key order (keys 1–7). The first five run PBF, the
 /// real-time solver, with the parameters `Scene::pbf_params` derives (3
-/// iterations, and 3 substeps per 60 Hz frame, 6 for `dam-break-fine`, so
-/// that a fall through the fluid's height moves at most h/2 per substep);
+/// iterations, and 3 substeps per 60 Hz frame, 5 for `dam-break-fine`, so
+/// that a fall through the fluid's height moves at most 0.6 h per substep);
 /// the last two DFSPH, the accurate one, with physical viscosities: water
 /// (1e-3 Pa·s) and honey (50 Pa·s). `--solver` runs any with another.
 pub const BUILT_IN: [BuiltIn; 7] = [

@@ -214,13 +214,14 @@ impl Boundary {
         // Most particles of most scenes: nothing to do, said in two compares.
         let inside = x.cmpge(self.domain.min).all() && x.cmple(self.domain.max).all();
         if !inside || !self.obstacles.is_empty() {
-            self.resolve_outside(x, v);
+            self.resolve_slow(x, v);
         }
     }
 
-    /// [`Self::resolve`] for a point outside the domain or with obstacles.
+    /// [`Self::resolve`] for a point outside the domain, or any point when
+    /// there are obstacles.
     #[inline(never)]
-    fn resolve_outside(&self, x: &mut Vec3, v: &mut Vec3) {
+    fn resolve_slow(&self, x: &mut Vec3, v: &mut Vec3) {
         // A few rounds settle corners where an obstacle meets a wall.
         for _ in 0..3 {
             let mut moved = false;

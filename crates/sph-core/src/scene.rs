@@ -694,7 +694,7 @@ impl Scene {
     /// PBF's parameters: the `[solver.pbf]` table's, or without one
     /// [`PbfParams::for_fall`] from the highest block top or emitter
     /// above the floor, at the scene's frame rate (what the built-in scenes
-    /// run: 3 substeps per 60 Hz frame at h = 0.04 m, 6 for
+    /// run: 3 substeps per 60 Hz frame at h = 0.04 m, 5 for
     /// `dam-break-fine`'s 0.02 m).
     pub fn pbf_params(&self) -> PbfParams {
         self.solver.pbf.unwrap_or_else(|| {

@@ -527,7 +527,7 @@ mod tests {
         let cell = |p: Vec3| p.floor().as_ivec3().to_array();
         let bounds = Bounds::of(&positions, cell).unwrap();
         let total = bounds.total().unwrap();
-        // Four threads: the scatter runs in four chunks (n ≥ 3 · 2¹⁵).
+        // Four threads: the scatter runs in four chunks (n ≥ 3 · 2¹²).
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(4)
             .build()

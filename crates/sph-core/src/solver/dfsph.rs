@@ -835,7 +835,8 @@ impl LaneMap for PressureAccelerations<'_> {
                 *sum = *sum + k * g;
             }
         }
-        let a = -(self.kappa[i] * self.factors[i].grad + Vec3::from(sum.map(S::sum)));
+        let [x, y, z] = sum;
+        let a = -(self.kappa[i] * self.factors[i].grad + Vec3::new(x.sum(), y.sum(), z.sum()));
         [a.x, a.y, a.z, 0.0]
     }
 }
@@ -920,6 +921,67 @@ impl Processor for Advect {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::NeighbourGrid;
+    use crate::boundary::Aabb;
+    use crate::solver::f32x8::every_kind_rows;
+
+    /// The factor pass gives bitwise the same factors and G_ij with every
+    /// kind of lanes (plain arrays, SSE2, AVX2, AVX2 with AVX-512VL's
+    /// registers), on a jittered block with unequal masses resting on the
+    /// floor, so the walls count.
+    #[test]
+    fn factor_pass_agrees_across_kinds() {
+        let h = 0.04;
+        let params = FluidParams::water(h);
+        let boundary = Boundary::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.3)));
+        let model = Model::new(params, DfsphParams::default(), boundary).unwrap();
+        let hash = |i: u32, k: u32| {
+            ((i.wrapping_mul(2_654_435_761) ^ k.wrapping_mul(40_503)) % 1000) as f32 / 1000.0
+        };
+        let mut x = Vec::new();
+        for i in 0..9u32 {
+            for j in 0..7u32 {
+                for k in 0..8u32 {
+                    let n = x.len() as u32;
+                    let jitter = Vec3::new(hash(n, 1), hash(n, 2), hash(n, 3)) - 0.5;
+                    x.push(Vec3::new(i as f32, j as f32, k as f32) * 0.02 + 0.004 * jitter + 0.002);
+                }
+            }
+        }
+        let m: Vec<f32> = (0..x.len())
+            .map(|i| 0.008 * (1.0 + 0.1 * hash(i as u32, 4)))
+            .collect();
+        let grid = NeighbourGrid::build(&x, h).unwrap();
+        let lists = NeighbourLists::build(&grid);
+        let mut rows = Vec::new();
+        rows_of(&x, &m, &mut rows);
+        let pass = FactorPass {
+            model: &model,
+            rows: &rows,
+            lists: &lists,
+        };
+        let kinds = every_kind_rows(&pass, &lists);
+        assert!(kinds.len() >= 2, "at least the plain and one vector kind");
+        let bits = |factors: &[Factor], pairs: &[Vec3]| {
+            let mut b: Vec<u32> = Vec::new();
+            for f in factors {
+                b.extend([f.rho, f.alpha, f.fraction, f.pairs, f.spacing].map(f32::to_bits));
+                b.extend(f.grad.to_array().map(f32::to_bits));
+                b.extend(f.wall.to_array().map(f32::to_bits));
+            }
+            b.extend(pairs.iter().flat_map(|g| g.to_array().map(f32::to_bits)));
+            b
+        };
+        let (_, plain_factors, plain_pairs) = &kinds[0];
+        let plain = bits(plain_factors, plain_pairs);
+        assert!(plain_pairs.iter().any(|g| g.length() > 0.0));
+        for (name, factors, pairs) in &kinds[1..] {
+            assert!(
+                bits(factors, pairs) == plain,
+                "{name} differs from the plain lanes"
+            );
+        }
+    }
 
     /// λ_max of the lattice's Jacobi matrix, against the values of an
     /// independent sweep (a 24³ grid over [0, 2π)³, in Python): 2.81 at

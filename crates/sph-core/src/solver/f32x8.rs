@@ -3,8 +3,9 @@
 //! registers) and for any CPU ([`Scalar`], an array the compiler may or may
 //! not vectorise). The solvers' pair sums are generic over [`F32x8`] and
 //! run through [`par_map`], which picks the AVX2 lanes where [`simd_level`]
-//! allows, else SSE2 on x86-64 (`SPH_SIMD=baseline` included), else the
-//! plain arrays.
+//! allows (compiled with AVX-512VL's 32 registers where the CPU has them:
+//! [`wide_registers`]), else SSE2 on x86-64 (`SPH_SIMD=baseline`
+//! included), else the plain arrays.
 //!
 //! Every kind does the same IEEE operations in the same order (add,
 //! subtract, multiply, divide and square root are correctly rounded in
@@ -188,9 +189,11 @@ mod avx2 {
 
     // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
     // is available. The type is private to `f32x8.rs`, and the only code
-    // that names it is `fill_avx2` and `row_avx2` (`unsafe fn`s that
-    // `par_map`, `par_map_rows` and `every_kind` call after checking for
-    // AVX2) and a test that checks first, so the functions that make one
+    // that names it is `fill_avx2`, `row_avx2`, `fill_avx512vl` and
+    // `row_avx512vl` (`unsafe fn`s that `par_map`, `par_map_rows`,
+    // `every_kind` and `every_kind_rows` call after checking for AVX2, or
+    // for AVX-512VL with [`wide_registers`]) and a test that checks first,
+    // so the functions that make one
     // from nothing (`splat`, `from_array`, `first`, `transpose`) run only
     // there. The loads read whole `[f32; 4]`s and arrays of eight.
     impl F32x8 for Avx2 {
@@ -464,7 +467,9 @@ unsafe fn row_avx512vl<M: LaneRowMap>(map: &M, i: usize, row: &mut [M::Pair]) ->
 /// an operation differently, not change it.
 #[cfg(target_arch = "x86_64")]
 fn wide_registers() -> bool {
-    simd_level() >= Simd::Avx512 && std::arch::is_x86_feature_detected!("avx512vl")
+    use std::arch::is_x86_feature_detected as has;
+    // AVX-512F implies FMA and F16C to the compiler: a VM could hide them.
+    simd_level() >= Simd::Avx512 && has!("avx512vl") && has!("fma") && has!("f16c")
 }
 
 /// `block[k]` = particle `first + k`'s value, with lanes `S`.
@@ -520,6 +525,57 @@ pub(super) fn every_kind<M: LaneMap>(map: &M, n: usize) -> Vec<(&'static str, Ve
                 "avx2+avx512vl",
                 run(&|out| unsafe { fill_avx512vl(map, 0, out) }),
             ));
+        }
+    }
+    kinds
+}
+
+/// One kind of lanes' run of a [`LaneRowMap`]: its name, the values per
+/// particle and the rows of per-pair values.
+#[cfg(test)]
+pub(super) type KindRows<M> = (
+    &'static str,
+    Vec<<M as LaneRowMap>::Out>,
+    Vec<<M as LaneRowMap>::Pair>,
+);
+
+/// `map`'s values and rows for every particle of `lists` with every kind
+/// of lanes this CPU runs, the plain arrays first: what the solvers' tests
+/// compare for the passes that write per-pair data.
+#[cfg(test)]
+pub(super) fn every_kind_rows<M: LaneRowMap>(map: &M, lists: &NeighbourLists) -> Vec<KindRows<M>>
+where
+    M::Pair: Clone + Default,
+{
+    type Particle<'a, M> =
+        &'a dyn Fn(usize, &mut [<M as LaneRowMap>::Pair]) -> <M as LaneRowMap>::Out;
+    let run = |particle: Particle<'_, M>| {
+        let mut pairs = vec![M::Pair::default(); lists.pairs()];
+        let mut out = Vec::with_capacity(lists.len());
+        let mut rest = &mut pairs[..];
+        for i in 0..lists.len() {
+            let (row, tail) = std::mem::take(&mut rest).split_at_mut(lists.of(i).len());
+            out.push(particle(i, row));
+            rest = tail;
+        }
+        (out, pairs)
+    };
+    let mut kinds = Vec::new();
+    let (out, pairs) = run(&|i, row| map.particle::<Scalar>(i, row));
+    kinds.push(("plain", out, pairs));
+    #[cfg(target_arch = "x86_64")]
+    {
+        let (out, pairs) = run(&|i, row| map.particle::<Sse2>(i, row));
+        kinds.push(("sse2", out, pairs));
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: checked just above.
+            let (out, pairs) = run(&|i, row| unsafe { row_avx2(map, i, row) });
+            kinds.push(("avx2", out, pairs));
+        }
+        if wide_registers() {
+            // SAFETY: checked just above.
+            let (out, pairs) = run(&|i, row| unsafe { row_avx512vl(map, i, row) });
+            kinds.push(("avx2+avx512vl", out, pairs));
         }
     }
     kinds

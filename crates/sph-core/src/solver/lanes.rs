@@ -124,8 +124,9 @@ impl<S: F32x8> DensitySums<S> {
     pub(super) fn add(&mut self, c: &Near<S>, w: S, s: S, inv_rho0: S) -> [S; 3] {
         let acc = &mut self.acc;
         let f = s * c.m * inv_rho0;
-        // No closures here: a closure is compiled apart from the caller's
-        // target features, so its intrinsics would become calls.
+        // Element by element, not `array::map`: the closure it takes is
+        // compiled apart from the caller's target features and `map` is not
+        // inlined, so the lanes' intrinsics would become calls.
         let g = [c.d[0] * f, c.d[1] * f, c.d[2] * f];
         acc[0] = acc[0] + c.m * w;
         acc[1] = acc[1] + g[0];
