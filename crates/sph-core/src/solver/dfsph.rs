@@ -924,6 +924,7 @@ mod tests {
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
     use crate::solver::f32x8::every_kind_rows;
+    use crate::solver::lanes::jittered_block;
 
     /// The factor pass gives bitwise the same factors and G_ij with every
     /// kind of lanes (plain arrays, SSE2, AVX2, AVX2 with AVX-512VL's
@@ -935,22 +936,7 @@ mod tests {
         let params = FluidParams::water(h);
         let boundary = Boundary::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.3)));
         let model = Model::new(params, DfsphParams::default(), boundary).unwrap();
-        let hash = |i: u32, k: u32| {
-            ((i.wrapping_mul(2_654_435_761) ^ k.wrapping_mul(40_503)) % 1000) as f32 / 1000.0
-        };
-        let mut x = Vec::new();
-        for i in 0..9u32 {
-            for j in 0..7u32 {
-                for k in 0..8u32 {
-                    let n = x.len() as u32;
-                    let jitter = Vec3::new(hash(n, 1), hash(n, 2), hash(n, 3)) - 0.5;
-                    x.push(Vec3::new(i as f32, j as f32, k as f32) * 0.02 + 0.004 * jitter + 0.002);
-                }
-            }
-        }
-        let m: Vec<f32> = (0..x.len())
-            .map(|i| 0.008 * (1.0 + 0.1 * hash(i as u32, 4)))
-            .collect();
+        let (x, m, _) = jittered_block();
         let grid = NeighbourGrid::build(&x, h).unwrap();
         let lists = NeighbourLists::build(&grid);
         let mut rows = Vec::new();

@@ -973,6 +973,7 @@ mod tests {
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
     use crate::solver::f32x8::every_kind;
+    use crate::solver::lanes::jittered_block;
 
     /// The four lane passes give bitwise the same values with every kind of
     /// lanes (plain, SSE2, AVX2), and the λ pass's density is the plain sum
@@ -988,26 +989,8 @@ mod tests {
         // A jittered block resting on the domain's floor, so walls count.
         let boundary = Boundary::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.3)));
         let model = Model::new(params, pbf, boundary).unwrap();
-        let hash = |i: u32, k: u32| {
-            ((i.wrapping_mul(2_654_435_761) ^ k.wrapping_mul(40_503)) % 1000) as f32 / 1000.0
-        };
-        let mut x = Vec::new();
-        for i in 0..9u32 {
-            for j in 0..7u32 {
-                for k in 0..8u32 {
-                    let n = x.len() as u32;
-                    let jitter = Vec3::new(hash(n, 1), hash(n, 2), hash(n, 3)) - 0.5;
-                    x.push(Vec3::new(i as f32, j as f32, k as f32) * 0.02 + 0.004 * jitter + 0.002);
-                }
-            }
-        }
+        let (x, m, v) = jittered_block();
         let n = x.len();
-        let m: Vec<f32> = (0..n)
-            .map(|i| 0.008 * (1.0 + 0.1 * hash(i as u32, 4)))
-            .collect();
-        let v: Vec<Vec3> = (0..n as u32)
-            .map(|i| Vec3::new(hash(i, 5), hash(i, 6), hash(i, 7)) - 0.5)
-            .collect();
         let grid = NeighbourGrid::build(&x, h).unwrap();
         let lists = NeighbourLists::build(&grid);
         let (mut rows, mut vrows) = (Vec::new(), Vec::new());
