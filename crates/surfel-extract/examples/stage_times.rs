@@ -71,6 +71,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         out.stats.surfels,
         out.stats.filled,
     );
+    let s = &out.stats;
+    println!(
+        "  {} surface particles, {} all around, {} droplets; {} initial surfels, {} discarded; evaluations: {} in the initial guess, {} in refinement and hole closing",
+        s.surface_particles,
+        s.all_around,
+        s.droplets,
+        s.initial,
+        s.discarded,
+        s.particle_evaluations,
+        s.evaluations,
+    );
     // Both ways interleaved, run for run: the one-shot `extract` (fresh
     // memory every call) and an `Extractor` kept across calls.
     let mut extractor = Extractor::new();
