@@ -23,8 +23,15 @@ use super::simd::{Simd, simd_level};
 /// or NaN value): the AVX2 and SSE2 paths load whole 8- and 4-lane chunks.
 pub(super) const PADDING: usize = 7;
 
-/// Hit buffer size; a fill stops while at least one 16-lane chunk still fits.
+/// Hit buffer size of the scans that keep a buffer for many neighbourhoods
+/// or carry chunks across fills; a fill stops while at least one 16-lane
+/// chunk still fits, whatever the buffer's size.
 pub(super) const HIT_CAPACITY: usize = 256;
+
+/// Hit buffer size of a one-off scan ([`super::Neighbourhood::for_each_slot`]):
+/// a neighbourhood of h holds a few dozen hits, and each query zeroes its
+/// buffer, which at 256 entries took 3 % of an anisotropic extraction.
+pub(super) const QUERY_CAPACITY: usize = 64;
 
 /// The widest chunk any path writes.
 const MAX_LANES: usize = 16;
@@ -76,7 +83,13 @@ impl<'a> Scan<'a> {
     /// than the capacity does not mean the scan is done, see [`Scan::done`].
     /// Where a fill stops depends on the path's chunk width.
     #[inline]
-    pub(super) fn fill(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
+    pub(super) fn fill<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
+        const {
+            assert!(
+                N >= 2 * MAX_LANES,
+                "room for a chunk carried over and one more"
+            )
+        };
         assert!(start <= MAX_LANES, "at most one chunk carried over");
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `simd_level` never exceeds what the CPU supports (AVX-512F and
@@ -97,17 +110,17 @@ impl<'a> Scan<'a> {
     /// at `hits[n..]` and returns the new count; the first chunk appends at
     /// `hits[start..]`.
     #[inline(always)]
-    fn drive<const LANES: usize>(
+    fn drive<const LANES: usize, const N: usize>(
         &mut self,
-        hits: &mut [u32; HIT_CAPACITY],
+        hits: &mut [u32; N],
         start: usize,
-        mut chunk: impl FnMut(usize, usize, &mut [u32; HIT_CAPACITY], usize) -> usize,
+        mut chunk: impl FnMut(usize, usize, &mut [u32; N], usize) -> usize,
     ) -> usize {
         let mut n = start;
         while self.row < self.rows.len() {
             let end = self.rows[self.row].end as usize;
             while self.slot < end {
-                if n > HIT_CAPACITY - MAX_LANES {
+                if n > N - MAX_LANES {
                     return n;
                 }
                 n = chunk(self.slot, end, hits, n);
@@ -123,9 +136,9 @@ impl<'a> Scan<'a> {
 
     /// One candidate at a time: the reference the vector paths are tested against.
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-    fn fill_scalar(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
+    fn fill_scalar<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
-        self.drive::<1>(hits, start, |k, _, hits, n| {
+        self.drive::<1, N>(hits, start, |k, _, hits, n| {
             let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
             hits[n] = k as u32;
             n + usize::from(d.x * d.x + d.y * d.y + d.z * d.z <= h2)
@@ -139,12 +152,12 @@ impl<'a> Scan<'a> {
     /// The CPU must support SSE2 (every x86-64 CPU does).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "sse2")]
-    unsafe fn fill_sse2(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
+    unsafe fn fill_sse2<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         let (cx, cy, cz) = (_mm_set1_ps(c.x), _mm_set1_ps(c.y), _mm_set1_ps(c.z));
         let lim = _mm_set1_ps(h2);
-        self.drive::<4>(hits, start, |k, end, hits, mut n| {
+        self.drive::<4, N>(hits, start, |k, end, hits, mut n| {
             // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
             // row's end (asserted in `new`), so xs/ys/zs[k..k + 4] are in bounds.
             let (x, y, z) = unsafe {
@@ -177,7 +190,7 @@ impl<'a> Scan<'a> {
     /// The CPU must support AVX2 and POPCNT.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,popcnt")]
-    unsafe fn fill_avx2(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
+    unsafe fn fill_avx2<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         let cs = [
@@ -186,7 +199,7 @@ impl<'a> Scan<'a> {
             _mm256_set1_ps(c.z),
         ];
         let lim = _mm256_set1_ps(h2);
-        self.drive::<8>(hits, start, |k, end, hits, n| {
+        self.drive::<8, N>(hits, start, |k, end, hits, n| {
             // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
             // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds;
             // the store writes 8 entries at hits[n..], and the driver calls with
@@ -215,7 +228,7 @@ impl<'a> Scan<'a> {
     /// The CPU must support AVX-512F and POPCNT.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,popcnt")]
-    unsafe fn fill_avx512(&mut self, hits: &mut [u32; HIT_CAPACITY], start: usize) -> usize {
+    unsafe fn fill_avx512<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
         use std::arch::x86_64::*;
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         let (cx, cy, cz) = (
@@ -225,7 +238,7 @@ impl<'a> Scan<'a> {
         );
         let lim = _mm512_set1_ps(h2);
         let lane = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
-        self.drive::<16>(hits, start, |k, end, hits, n| {
+        self.drive::<16, N>(hits, start, |k, end, hits, n| {
             let valid: __mmask16 = if end - k >= 16 {
                 u16::MAX
             } else {
@@ -386,6 +399,14 @@ mod tests {
                 scalar,
                 "rows of {len}"
             );
+            // A one-off query's smaller buffer: more fills, the same hits.
+            let mut small = scan();
+            let (mut hits, mut found) = ([0u32; QUERY_CAPACITY], Vec::new());
+            while !small.done() {
+                let n = small.fill(&mut hits, 0);
+                found.extend_from_slice(&hits[..n]);
+            }
+            assert_eq!(found, scalar, "a buffer of {QUERY_CAPACITY}, rows of {len}");
             #[cfg(target_arch = "x86_64")]
             {
                 // SAFETY: SSE2 is part of the x86-64 baseline.
