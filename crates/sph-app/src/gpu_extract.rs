@@ -36,8 +36,8 @@ impl GpuExtract {
     pub fn new(ctx: &GpuContext, world: &World, params: &ExtractParams) -> Result<Self, AppError> {
         if params.surface != surfel_extract::Surface::Isotropic {
             log::warn!(
-                "the GPU extractor computes the thesis's isotropic colour field, not the \
-                 anisotropic one (--surface anisotropic is CPU-only): the surface is bumpier"
+                "--gpu-extract extracts the thesis's isotropic colour field: the anisotropic \
+                 one (the default --surface) is CPU-only, so the surface is bumpier"
             );
         }
         let params = params.thesis();
