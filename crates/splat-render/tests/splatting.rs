@@ -281,7 +281,14 @@ fn empty_scene_shows_the_background_and_debug_views_differ() {
         }
     }
     // Normals view: +z → (0.5, 0.5, 1.0); weights view at the centre: w = 1 over scale 2 → 0.5.
-    assert_eq!(centre[1], [128, 128, 255, 255]);
+    // A GPU may round 0.5 to 8 bits either way: lavapipe gives 128, an
+    // NVIDIA H200 gave 127.
+    let [x, y, z, a] = centre[1];
+    assert!(
+        (127..=128).contains(&x) && (127..=128).contains(&y) && [z, a] == [255, 255],
+        "{:?}",
+        centre[1]
+    );
     assert!(
         (i32::from(centre[2][0]) - 128).abs() <= 1,
         "{:?}",
