@@ -30,16 +30,25 @@ fn particles() -> Vec<Vec3> {
     out
 }
 
+/// Also with room for 40 times the particles: a hash table of 2,048 blocks
+/// of 256 buckets, whose block totals the scan sums 8 to a thread.
 #[test]
 fn gpu_grid_finds_the_cpu_grids_neighbour_sets() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
-    let h = 0.02;
     let x = particles();
-    let cpu = NeighbourGrid::build(&x, h).unwrap();
-    let mut grid = GpuGrid::new(&ctx.device, x.len(), h, 96).unwrap();
-    grid.upload(&ctx.queue, &x).unwrap();
+    for capacity in [x.len(), 40 * x.len()] {
+        neighbour_sets_match(ctx, &x, capacity);
+    }
+}
+
+fn neighbour_sets_match(ctx: &GpuContext, x: &[Vec3], capacity: usize) {
+    let h = 0.02;
+    let cpu = NeighbourGrid::build(x, h).unwrap();
+    let mut grid = GpuGrid::new(&ctx.device, capacity, h, 96).unwrap();
+    println!("{} hash buckets", grid.table_size());
+    grid.upload(&ctx.queue, x).unwrap();
     let lists = grid.neighbour_lists(&ctx.device, &ctx.queue).unwrap();
     let (mut pairs, mut ambiguous) = (0usize, 0usize);
     for (i, (len, gpu_list)) in lists.iter().enumerate() {

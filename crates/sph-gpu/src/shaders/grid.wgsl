@@ -75,12 +75,34 @@ fn scan_blocks(
     }
 }
 
-// Exclusive prefix sum of the block totals (one thread; table/256 entries).
-@compute @workgroup_size(1)
-fn scan_block_sums() {
-    var acc = 0u;
+// Exclusive prefix sum of the block totals (table/256 entries) in one
+// workgroup: each thread sums a contiguous run of blocks, the 256 run totals
+// are scanned, and each thread writes its run's prefixes. One thread walking
+// all 16,384 blocks of a 1M-particle table took 1.62 ms of a 3.96 ms step on
+// an NVIDIA H200. Integer sums: the same starts in any order.
+@compute @workgroup_size(256)
+fn scan_block_sums(@builtin(local_invocation_id) lid: vec3<u32>) {
     let blocks = p.table / 256u;
-    for (var b = 0u; b < blocks; b++) {
+    let per = (blocks + 255u) / 256u;
+    let first = min(lid.x * per, blocks);
+    let last = min(first + per, blocks);
+    var total = 0u;
+    for (var b = first; b < last; b++) {
+        total += block_sums[b];
+    }
+    scratch[lid.x] = total;
+    workgroupBarrier();
+    for (var off = 1u; off < 256u; off = off * 2u) {
+        var t = 0u;
+        if lid.x >= off {
+            t = scratch[lid.x - off];
+        }
+        workgroupBarrier();
+        scratch[lid.x] += t;
+        workgroupBarrier();
+    }
+    var acc = scratch[lid.x] - total;
+    for (var b = first; b < last; b++) {
         let s = block_sums[b];
         block_sums[b] = acc;
         acc += s;
