@@ -70,10 +70,10 @@ pub struct Args {
     /// kernels (the default), which make smooth water, or the thesis's
     /// isotropic colour field, bumpy at the particle scale and about 3.5
     /// times cheaper to extract (`drop`: 10.3 ms a frame against 3.0 ms on
-    /// two cores, where its simulation takes 6 ms). --gpu-extract always
-    /// extracts the isotropic field.
-    #[arg(long, value_enum, default_value_t = SurfaceField::Anisotropic)]
-    pub surface: SurfaceField,
+    /// two cores, where its simulation takes 6 ms). --gpu-extract extracts
+    /// the isotropic field, its default there.
+    #[arg(long, value_enum)]
+    pub surface: Option<SurfaceField>,
 
     /// Draw the fluid alone before the thesis's screen-space background,
     /// without the scene's tank, obstacles and ground.
@@ -118,6 +118,19 @@ pub struct Args {
     /// More log output (-v info, -vv debug, -vvv trace); RUST_LOG overrides.
     #[arg(short, long, action = clap::ArgAction::Count)]
     pub verbose: u8,
+}
+
+impl Args {
+    /// The surface field to extract: `--surface`, else the anisotropic one,
+    /// or the isotropic one with `--gpu-extract` (the only one the GPU
+    /// extracts).
+    pub fn surface_field(&self) -> SurfaceField {
+        self.surface.unwrap_or(if self.gpu_extract {
+            SurfaceField::Isotropic
+        } else {
+            SurfaceField::Anisotropic
+        })
+    }
 }
 
 /// The surface field (`--surface`).
@@ -207,9 +220,16 @@ mod tests {
         assert!(Args::try_parse_from(["sph-app", "--iterations", "7"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--surface", "bumpy"]).is_err());
         let a = Args::try_parse_from(["sph-app"]).unwrap();
-        assert_eq!(a.surface, SurfaceField::Anisotropic);
+        assert_eq!(a.surface_field(), SurfaceField::Anisotropic);
         let a = Args::try_parse_from(["sph-app", "--surface", "isotropic"]).unwrap();
-        assert_eq!(a.surface, SurfaceField::Isotropic);
+        assert_eq!(a.surface_field(), SurfaceField::Isotropic);
+        // The GPU extracts the isotropic field: its default there, and the
+        // anisotropic one only when asked for (with a warning).
+        let a = Args::try_parse_from(["sph-app", "--gpu-extract"]).unwrap();
+        assert_eq!(a.surface_field(), SurfaceField::Isotropic);
+        let a =
+            Args::try_parse_from(["sph-app", "--gpu-extract", "--surface", "anisotropic"]).unwrap();
+        assert_eq!(a.surface_field(), SurfaceField::Anisotropic);
         assert!(Args::try_parse_from(["sph-app", "--fps", "-1"]).is_err());
         // Frames of more than 1 s of simulation would run for hours.
         assert!(Args::try_parse_from(["sph-app", "--fps", "0.0001"]).is_err());

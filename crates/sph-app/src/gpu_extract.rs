@@ -37,7 +37,7 @@ impl GpuExtract {
         if params.surface != surfel_extract::Surface::Isotropic {
             log::warn!(
                 "--gpu-extract extracts the thesis's isotropic colour field: the anisotropic \
-                 one (the default --surface) is CPU-only, so the surface is bumpier"
+                 one is CPU-only, so the surface is bumpier"
             );
         }
         let params = params.thesis();

@@ -62,7 +62,7 @@ fn run(args: &Args) -> Result<(), AppError> {
         scene.solver.kind = kind;
     }
     let mut pipeline = Pipeline::new(name, scene, args.iterations)?;
-    pipeline.extract.surface = args.surface.into();
+    pipeline.extract.surface = args.surface_field().into();
     if args.headless {
         return headless::run(args, pipeline);
     }

@@ -182,7 +182,7 @@ pub(crate) fn newton_step(field: &ColourField, iso: f32, x: Vec3, max_step: f32)
             return None;
         };
         let n = -s.gradient / g;
-        step = n * crossing(field, iso, x, s.c, n, max_step)?;
+        step = n * crossing(field, iso, x, s.c, n, max_step, 0.0)?;
     }
     Some(Step {
         position: x + step,
@@ -210,9 +210,15 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &Particle
                 let x = field.positions()[i];
                 let mut distances = [f32::NAN; 8];
                 for (t, &d) in distances.iter_mut().zip(box_directions(p.all_around)) {
-                    if let Some(found) =
-                        crossing(field, p.iso, x, at.sample.c, d, p.interior_step * h)
-                        && found > 0.0
+                    if let Some(found) = crossing(
+                        field,
+                        p.iso,
+                        x,
+                        at.sample.c,
+                        d,
+                        p.interior_step * h,
+                        GUESS_TOLERANCE,
+                    ) && found > 0.0
                     {
                         *t = found;
                     }
@@ -236,7 +242,15 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &Particle
         // the particle overshoots (or, near the peak, calls a surface
         // particle interior): the crossing is bracketed along the normal.
         Surface::Anisotropic(_) => {
-            match crossing(field, p.iso, x, s.c, normal, p.interior_step * h) {
+            match crossing(
+                field,
+                p.iso,
+                x,
+                s.c,
+                normal,
+                p.interior_step * h,
+                GUESS_TOLERANCE,
+            ) {
                 Some(t) => t,
                 None => return Guess::Interior,
             }
@@ -255,21 +269,30 @@ fn initial_guess(field: &ColourField, p: &ExtractParams, i: usize, at: &Particle
     }
 }
 
-/// How close to `iso` a [`crossing`] stops: |c − iso| ≤ 10⁻³, a few
-/// thousandths of h along the normal where |∇c| h is about 1. The Newton
+/// How close to `iso` the initial guess's [`crossing`]s stop: |c − iso| ≤
+/// 10⁻³, about 10⁻³ h along the normal where |∇c| h is about 1. The Newton
 /// steps that refine a guess take it from there (each squares the error).
-/// Stopping at the first such point, not after every step, cut the
+/// Stopping at the first such point, not after all six steps, cut the
 /// initial guess's evaluations by 14 % at 100k particles and 23 % on the
 /// demo's `drop` (`cargo run --release -p surfel-extract --example
-/// stage_times -- 100k anisotropic`).
-const CROSSING_TOLERANCE: f32 = 1e-3;
+/// stage_times -- 100k anisotropic`). The refinement's safeguarded steps,
+/// whose crossing can be a surfel's final position, take all six.
+const GUESS_TOLERANCE: f32 = 1e-3;
 
 /// Where c crosses `iso` along the line x + t n, |t| ≤ `reach`, on the side
 /// c(x) = `c0` says (t > 0 when c0 > iso: outwards), or `None` if c is
 /// still on c0's side at `reach`. Regula falsi (Illinois) from the bracket
-/// [0, ±reach], until c is within [`CROSSING_TOLERANCE`] of `iso`: 1 + at
-/// most 6 evaluations.
-fn crossing(field: &ColourField, iso: f32, x: Vec3, c0: f32, n: Vec3, reach: f32) -> Option<f32> {
+/// [0, ±reach], until c is within `tolerance` of `iso`: 1 + at most 6
+/// evaluations.
+fn crossing(
+    field: &ColourField,
+    iso: f32,
+    x: Vec3,
+    c0: f32,
+    n: Vec3,
+    reach: f32,
+    tolerance: f32,
+) -> Option<f32> {
     let side = if c0 >= iso { 1.0 } else { -1.0 };
     let (mut a, mut fa) = (0.0f32, c0 - iso);
     let mut b = side * reach;
@@ -285,7 +308,7 @@ fn crossing(field: &ColourField, iso: f32, x: Vec3, c0: f32, n: Vec3, reach: f32
             0.5 * (a + b)
         };
         let ft = field.sample(x + t * n).c - iso;
-        if ft.abs() <= CROSSING_TOLERANCE {
+        if ft.abs() <= tolerance {
             return Some(t);
         }
         if (ft > 0.0) == (fa > 0.0) {

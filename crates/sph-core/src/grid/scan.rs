@@ -203,7 +203,8 @@ impl<'a> Scan<'a> {
             // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
             // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds;
             // the store writes 8 entries at hits[n..], and the driver calls with
-            // n <= HIT_CAPACITY - 16.
+            // n <= N - MAX_LANES (N >= 2 MAX_LANES, asserted in `fill`).
+            debug_assert!(n + 8 <= N);
             unsafe {
                 let x = [
                     _mm256_loadu_ps(xs.as_ptr().add(k)),
@@ -246,7 +247,8 @@ impl<'a> Scan<'a> {
             };
             // SAFETY: the masked loads touch only lanes k..end, inside the arrays;
             // the store writes 16 entries at hits[n..], and the driver calls with
-            // n <= HIT_CAPACITY - 16.
+            // n <= N - MAX_LANES (N >= 2 MAX_LANES, asserted in `fill`).
+            debug_assert!(n + 16 <= N);
             unsafe {
                 let x = _mm512_maskz_loadu_ps(valid, xs.as_ptr().add(k));
                 let y = _mm512_maskz_loadu_ps(valid, ys.as_ptr().add(k));
@@ -332,12 +334,13 @@ pub(super) fn offsets_avx2(
 mod tests {
     use super::*;
 
-    /// Runs a scan to the end with `fill`, collecting every hit.
-    fn all_hits(
+    /// Runs a scan to the end with `fill` into a buffer of `N`, collecting
+    /// every hit.
+    fn all_hits<const N: usize>(
         mut scan: Scan<'_>,
-        fill: impl Fn(&mut Scan<'_>, &mut [u32; HIT_CAPACITY]) -> usize,
+        fill: impl Fn(&mut Scan<'_>, &mut [u32; N]) -> usize,
     ) -> Vec<u32> {
-        let mut hits = [0u32; HIT_CAPACITY];
+        let mut hits = [0u32; N];
         let mut out = Vec::new();
         while !scan.done() {
             let n = fill(&mut scan, &mut hits);
@@ -383,7 +386,7 @@ mod tests {
             });
             let view = [&coords[0][..], &coords[1][..], &coords[2][..]];
             let scan = || Scan::new(Vec3::ZERO, 1.0, view, &rows);
-            let scalar = all_hits(scan(), |s, h| s.fill_scalar(h, 0));
+            let scalar = all_hits::<HIT_CAPACITY>(scan(), |s, h| s.fill_scalar(h, 0));
             let brute: Vec<u32> = rows
                 .iter()
                 .flat_map(|r| r.start..r.end)
@@ -395,32 +398,46 @@ mod tests {
                 .collect();
             assert_eq!(scalar, brute, "rows of {len}");
             assert_eq!(
-                all_hits(scan(), |s, h| s.fill(h, 0)),
+                all_hits::<HIT_CAPACITY>(scan(), |s, h| s.fill(h, 0)),
                 scalar,
                 "rows of {len}"
             );
             // A one-off query's smaller buffer: more fills, the same hits.
-            let mut small = scan();
-            let (mut hits, mut found) = ([0u32; QUERY_CAPACITY], Vec::new());
-            while !small.done() {
-                let n = small.fill(&mut hits, 0);
-                found.extend_from_slice(&hits[..n]);
-            }
-            assert_eq!(found, scalar, "a buffer of {QUERY_CAPACITY}, rows of {len}");
+            assert_eq!(
+                all_hits::<QUERY_CAPACITY>(scan(), |s, h| s.fill(h, 0)),
+                scalar,
+                "a buffer of {QUERY_CAPACITY}, rows of {len}"
+            );
+            assert_eq!(
+                all_hits::<QUERY_CAPACITY>(scan(), |s, h| s.fill_scalar(h, 0)),
+                scalar,
+                "scalar, a buffer of {QUERY_CAPACITY}, rows of {len}"
+            );
             #[cfg(target_arch = "x86_64")]
             {
                 // SAFETY: SSE2 is part of the x86-64 baseline.
-                let sse2 = all_hits(scan(), |s, h| unsafe { s.fill_sse2(h, 0) });
+                let sse2 = all_hits::<HIT_CAPACITY>(scan(), |s, h| unsafe { s.fill_sse2(h, 0) });
                 assert_eq!(sse2, scalar, "SSE2, rows of {len}");
+                let sse2 = all_hits::<QUERY_CAPACITY>(scan(), |s, h| unsafe { s.fill_sse2(h, 0) });
+                assert_eq!(sse2, scalar, "SSE2, a small buffer, rows of {len}");
                 if Simd::detect() >= Simd::Avx2 {
                     // SAFETY: AVX2 and POPCNT were detected.
-                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx2(h, 0) });
+                    let avx = all_hits::<HIT_CAPACITY>(scan(), |s, h| unsafe { s.fill_avx2(h, 0) });
                     assert_eq!(avx, scalar, "AVX2, rows of {len}");
+                    // SAFETY: as above.
+                    let avx =
+                        all_hits::<QUERY_CAPACITY>(scan(), |s, h| unsafe { s.fill_avx2(h, 0) });
+                    assert_eq!(avx, scalar, "AVX2, a small buffer, rows of {len}");
                 }
                 if Simd::detect() >= Simd::Avx512 {
                     // SAFETY: AVX-512F and POPCNT were detected.
-                    let avx = all_hits(scan(), |s, h| unsafe { s.fill_avx512(h, 0) });
+                    let avx =
+                        all_hits::<HIT_CAPACITY>(scan(), |s, h| unsafe { s.fill_avx512(h, 0) });
                     assert_eq!(avx, scalar, "AVX-512, rows of {len}");
+                    // SAFETY: as above.
+                    let avx =
+                        all_hits::<QUERY_CAPACITY>(scan(), |s, h| unsafe { s.fill_avx512(h, 0) });
+                    assert_eq!(avx, scalar, "AVX-512, a small buffer, rows of {len}");
                 }
             }
         }
