@@ -9,9 +9,10 @@
 //! ```
 //!
 //! Defaults: the 2,250-particle frame, the isotropic field, 2 iterations,
-//! 21 runs. `drop` takes the demo's default scene instead
-//! (`assets/scenes/drop_into_pool.toml`, PBF) at 2 s, about 7,000 particles
-//! with its splash, at the scene's h.
+//! 21 runs. `drop` takes the scene file `assets/scenes/drop_into_pool.toml`
+//! instead (the demo's default `drop`, a cube falling into a pool by PBF,
+//! plus an emitter) at 2 s, about 7,000 particles with its splash, at the
+//! scene's h.
 
 use sph_core::{Particles, Scene};
 use surfel_extract::{ExtractParams, Extractor, Surface, extract};
