@@ -6,10 +6,12 @@
 //! 0. **scene pass**: the backdrop and any opaque [`SceneGeometry`] (a
 //!    container, obstacles, the ground), whose depth the splats are tested
 //!    against and whose image the fluid refracts;
-//! 1. **visibility pass**: each [`Splat`] is drawn as the screen-space rectangle
-//!    bounding its projected disc; the fragment shader intersects the view ray
-//!    with the disc (an exact, perspective-correct ellipse and depth) and writes
-//!    the depth pushed back by ε;
+//! 1. **visibility pass**: each [`Splat`] is drawn as the square bounding its
+//!    disc in the disc's own plane, projected, so the rasterizer gives each
+//!    pixel the plane's exact depth (pushed back by ε, the corners moved along
+//!    their view rays) and the depth test runs before the fragment shader,
+//!    which intersects the view ray with the disc (an exact,
+//!    perspective-correct ellipse) and discards the pixels outside it;
 //! 2. **attribute pass**: the same splats, depth-tested against pass 1 without
 //!    writing depth, add w·(normal, 1) into a float target, w the alpha mask of
 //!    eq. 37;

@@ -177,13 +177,17 @@ impl SplatRenderer {
                 immediate_size: 0,
             });
         let splat_pipeline =
-            |label, fragment: &str, write_depth, targets: &[Option<wgpu::ColorTargetState>]| {
+            |label,
+             vertex: &str,
+             fragment: &str,
+             write_depth,
+             targets: &[Option<wgpu::ColorTargetState>]| {
                 device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                     label: Some(label),
                     layout: Some(&splat_pipeline_layout),
                     vertex: wgpu::VertexState {
                         module: &splat_module,
-                        entry_point: Some("vs_splat"),
+                        entry_point: Some(vertex),
                         compilation_options: Default::default(),
                         buffers: &[],
                     },
@@ -209,7 +213,13 @@ impl SplatRenderer {
                     cache: None,
                 })
             };
-        let visibility = splat_pipeline("visibility pass", "fs_visibility", true, &[]);
+        let visibility = splat_pipeline(
+            "visibility pass",
+            "vs_splat_visibility",
+            "fs_visibility",
+            true,
+            &[],
+        );
         let additive = wgpu::BlendComponent {
             src_factor: wgpu::BlendFactor::One,
             dst_factor: wgpu::BlendFactor::One,
@@ -217,6 +227,7 @@ impl SplatRenderer {
         };
         let attribute = splat_pipeline(
             "attribute pass",
+            "vs_splat",
             "fs_attribute",
             false,
             &[Some(wgpu::ColorTargetState {
