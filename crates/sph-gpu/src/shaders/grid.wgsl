@@ -50,6 +50,21 @@ fn count_cells(@builtin(global_invocation_id) id: vec3<u32>) {
 
 var<workgroup> scratch: array<u32, 256>;
 
+// Inclusive prefix sum of `scratch` by the workgroup (Hillis-Steele), after
+// each thread has written its value; called from uniform control flow.
+fn scan_scratch(lid: u32) {
+    workgroupBarrier();
+    for (var off = 1u; off < 256u; off = off * 2u) {
+        var t = 0u;
+        if lid >= off {
+            t = scratch[lid - off];
+        }
+        workgroupBarrier();
+        scratch[lid] += t;
+        workgroupBarrier();
+    }
+}
+
 // Exclusive prefix sum of counts inside blocks of 256; block totals to block_sums.
 @compute @workgroup_size(256)
 fn scan_blocks(
@@ -59,16 +74,7 @@ fn scan_blocks(
 ) {
     let v = atomicLoad(&counts[gid.x]);
     scratch[lid.x] = v;
-    workgroupBarrier();
-    for (var off = 1u; off < 256u; off = off * 2u) {
-        var t = 0u;
-        if lid.x >= off {
-            t = scratch[lid.x - off];
-        }
-        workgroupBarrier();
-        scratch[lid.x] += t;
-        workgroupBarrier();
-    }
+    scan_scratch(lid.x);
     starts[gid.x] = scratch[lid.x] - v;
     if lid.x == 255u {
         block_sums[wid.x] = scratch[255];
@@ -91,16 +97,7 @@ fn scan_block_sums(@builtin(local_invocation_id) lid: vec3<u32>) {
         total += block_sums[b];
     }
     scratch[lid.x] = total;
-    workgroupBarrier();
-    for (var off = 1u; off < 256u; off = off * 2u) {
-        var t = 0u;
-        if lid.x >= off {
-            t = scratch[lid.x - off];
-        }
-        workgroupBarrier();
-        scratch[lid.x] += t;
-        workgroupBarrier();
-    }
+    scan_scratch(lid.x);
     var acc = scratch[lid.x] - total;
     for (var b = first; b < last; b++) {
         let s = block_sums[b];
