@@ -69,8 +69,8 @@ pub struct Args {
     /// The surface field the surfels lie on: Yu & Turk's anisotropic
     /// kernels (the default), which make smooth water, or the thesis's
     /// isotropic colour field, bumpy at the particle scale and about 3.5
-    /// times cheaper to extract (`drop`: 10.3 ms a frame against 3.0 ms on
-    /// two cores, where its simulation takes 6 ms). --gpu-extract extracts
+    /// times cheaper to extract (`drop`: 10–11 ms a frame against 3–3.6 ms
+    /// on two cores, where its simulation takes 6–7 ms). --gpu-extract extracts
     /// the isotropic field, its default there.
     #[arg(long, value_enum)]
     pub surface: Option<SurfaceField>,
