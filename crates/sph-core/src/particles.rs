@@ -156,7 +156,8 @@ impl Particles {
         accelerations, accelerations_mut: Vec3;
         /// Densities ρ (kg/m³).
         densities, densities_mut: f32;
-        /// Pressures p (Pa).
+        /// Pressures p (Pa): the equation of state's (WCSPH), the density
+        /// solve's (DFSPH), or the one the constraint solve applied (PBF).
         pressures, pressures_mut: f32;
         /// Masses m (kg).
         masses, masses_mut: f32;

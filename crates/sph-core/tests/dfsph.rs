@@ -185,14 +185,15 @@ fn dam_break_errors(
 /// DFSPH against WCSPH on the dam break's first second: the densities each
 /// step starts from (after the last step's motion), every step.
 ///
-/// Measured (this test's output): DFSPH at most 1.08 % in a single
-/// particle and 0.073 % on average, in 564 steps; WCSPH 16.5 % and 0.45 %,
-/// in 3,057. (The 4.2–4.8 % for WCSPH were frame ends,
-/// recomputed.) At the default density tolerance, a mean compression of
-/// 0.05 %, single particles are left above 1 %: the solve stops on the
-/// mean, the start's corner particles and the front's impact on the far
-/// wall stay above it (1.94 % at 1 cm spacing). A tolerance of 0.01 %
-/// holds them under 1 %: [`dam_break_compression_at_a_tight_tolerance`].
+/// Measured (this test's output): DFSPH at most 1.06 % in a single
+/// particle and 0.073 % on average, in 555 steps; WCSPH 16.5 % and 0.45 %,
+/// in 3,057. Asserted: at most 1.25 % and 0.085 %, at most half WCSPH's
+/// largest, in under a third of its steps. At the default density
+/// tolerance, a mean compression of 0.05 %, single particles are left
+/// above 1 %: the solve stops on the mean, the start's corner particles
+/// and the front's impact on the far wall stay above it (1.94 % at 1 cm
+/// spacing). A tolerance of 0.01 % holds them under 1 %:
+/// [`dam_break_compression_at_a_tight_tolerance`].
 #[test]
 fn dam_break_compression() {
     let (max, avg, steps, iterations, divergence, unconverged) =
@@ -209,8 +210,8 @@ fn dam_break_compression() {
         100.0 * wc_max,
         100.0 * wc_avg
     );
-    assert!(avg <= 0.001, "average compression {avg}");
-    assert!(max <= 0.02, "largest compression {max}");
+    assert!(avg <= 0.00085, "average compression {avg}");
+    assert!(max <= 0.0125, "largest compression {max}");
     assert!(
         max <= 0.5 * wc_max,
         "largest compression {max}, WCSPH {wc_max}"
@@ -224,14 +225,15 @@ fn dam_break_compression() {
 /// The 1 % for the single particle, met with the density solve's
 /// tolerance at 0.01 % instead of the default 0.05 %, at the same steps.
 ///
-/// Measured (this test's output, and the same at 1 cm spacing, 10,000
-/// particles, with a throwaway copy of this test): at most 0.63 % in a
-/// single particle (0.64 % at 1 cm) and 0.035 % on average, in 561 steps
-/// (1,148), 16.8 density iterations per step (21.8) against 4.8 (5.2) at
-/// the default, 1.8 times the wall time. The maximum is not monotonic in
-/// the tolerance: 1.08, 1.15, 1.02 and 0.63 % at 0.05, 0.03, 0.02 and
-/// 0.01 %, so 0.01 % is the tolerance to set where single particles
-/// matter, and the default stays the 0.05 % for speed.
+/// Measured (this test's output): at most 0.66 % in a single particle
+/// and 0.035 % on average, in 556 steps, 16.9 density iterations per step
+/// against 5.0 at the default; asserted at most 0.8 % and 0.045 %. (At
+/// 1 cm spacing, 10,000 particles, a throwaway copy of this test measured
+/// 0.64 % in 1,148 steps, 21.8 iterations per step against 5.2, 1.8 times
+/// the wall time.) The maximum is not monotonic in the tolerance (a sweep
+/// found it higher at 0.03 % than at 0.05 %), so 0.01 % is the tolerance
+/// to set where single particles matter, and the default stays the
+/// issue's 0.05 % for speed.
 #[test]
 fn dam_break_compression_at_a_tight_tolerance() {
     let tight = DfsphParams {
@@ -250,8 +252,8 @@ fn dam_break_compression_at_a_tight_tolerance() {
         100.0 * max,
         100.0 * avg,
     );
-    assert!(max <= 0.01, "largest compression {max}");
-    assert!(avg <= 0.001, "average compression {avg}");
+    assert!(max <= 0.008, "largest compression {max}");
+    assert!(avg <= 0.00045, "average compression {avg}");
     assert_eq!(unconverged, 0);
     // The same steps, set by the flow: the tolerance buys iterations only.
     assert!(
@@ -265,6 +267,20 @@ fn dam_break_compression_at_a_tight_tolerance() {
 #[test]
 fn identical_for_1_2_and_4_threads() {
     let scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Dfsph);
+    identical_for_thread_counts(&scene, 20, &[1, 2, 4]);
+}
+
+/// The same for 1, 2, 3 and 7 threads at 10,000 particles
+/// (`dam-break-fine`): three of the 4,096-particle chunks whose sums make
+/// the solves' error means and the CG's dot products.
+#[test]
+fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
+    let scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Dfsph);
+    assert_eq!(scene.particles().unwrap().len(), 10_000);
+    identical_for_thread_counts(&scene, 6, &[1, 2, 3, 7]);
+}
+
+fn identical_for_thread_counts(scene: &Scene, frames: usize, threads: &[usize]) {
     let run = |threads| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -273,12 +289,14 @@ fn identical_for_1_2_and_4_threads() {
             .install(|| {
                 let mut world = scene.build_world().unwrap();
                 let mut reports = Vec::new();
-                for _ in 0..20 {
+                for _ in 0..frames {
                     let r = world.advance(1.0 / 60.0).unwrap();
                     reports.push((
                         r.substeps,
                         r.iterations,
                         r.divergence_iterations,
+                        r.viscosity_iterations,
+                        r.density_error_avg.to_bits(),
                         r.density_error_max.to_bits(),
                     ));
                 }
@@ -298,9 +316,10 @@ fn identical_for_1_2_and_4_threads() {
                 )
             })
     };
-    let one = run(1);
-    assert_eq!(one, run(2));
-    assert_eq!(one, run(4));
+    let first = run(threads[0]);
+    for &t in &threads[1..] {
+        assert!(first == run(t), "{t} threads differ from {}", threads[0]);
+    }
 }
 
 /// Every DFSPH parameter that is zero, negative, NaN or absurd is an error

@@ -3,8 +3,7 @@
 //! horizontal surface", J. Fluid Mech. 121: a fixed volume V of viscous
 //! fluid spreading on a no-slip floor under gravity at low Reynolds number
 //! reaches the radius r(t) = 0.894 (ρ g V³ / 3μ)^{1/8} t^{1/8} at late
-//! times. DFSPH with its implicit viscosity, two viscosities a factor 10
-//! apart.
+//! times. DFSPH with its implicit viscosity.
 //!
 //! ```text
 //! cargo test --release -p sph-core --test huppert -- --nocapture
@@ -28,10 +27,10 @@ fn radius(positions: &[Vec3], centre: Vec3, h: f32) -> f32 {
         .fold(0.0f32, f32::max)
 }
 
-/// A 0.2 × 0.1 × 0.2 m block (V = 0.004 m³, 4,000 particles at 1 cm) let
-/// go on the floor of a 1.2 m square tank: (t, r, Huppert's r) at t = 1,
-/// √2, 2, 2√2 and 4 s.
-fn spread(mu: f32) -> Vec<(f64, f64, f64)> {
+/// A cylinder of radius 0.113 m and height 0.1 m (V ≈ 0.004 m³, 3,990
+/// particles at 1 cm) let go on the floor of a 1.2 m square tank at
+/// viscosity `mu`: (t, r, Huppert's r) at each of `times`.
+fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
     let (side, height, tank, spacing) = (0.2f32, 0.1f32, 1.2f32, 0.01f32);
     let mut scene = Scene::dam_break(side, side, spacing).with_solver(SolverKind::Dfsph);
     scene.fluid.viscosity = mu;
@@ -39,14 +38,21 @@ fn spread(mu: f32) -> Vec<(f64, f64, f64)> {
     let c = 0.5 * tank;
     scene.blocks[0].min = [c - 0.5 * side, 0.0, c - 0.5 * side];
     scene.blocks[0].max = [c + 0.5 * side, height, c + 0.5 * side];
-    let mut world = scene.build_world().unwrap();
-    let volume = f64::from(side * side * height);
+    // The block cut to the cylinder of its area: Huppert's current is
+    // axisymmetric, and a square's corners would lead it for seconds.
+    let mut particles = scene.particles().unwrap();
+    let r0 = side / std::f32::consts::PI.sqrt();
+    let keep: Vec<bool> = (particles.positions().iter())
+        .map(|x| (x.x - c).hypot(x.z - c) <= r0)
+        .collect();
+    particles.retain(&keep).unwrap();
+    let volume = particles.len() as f64 * f64::from(spacing).powi(3);
+    let mut world = scene.world_with(particles).unwrap();
     let rho_g = f64::from(scene.fluid.rest_density) * 9.81;
     let k = 0.894 * (rho_g * volume.powi(3) / (3.0 * f64::from(mu))).powf(0.125);
     let centre = Vec3::new(c, 0.0, c);
     let mut rows = Vec::new();
-    let mut t = 1.0f64;
-    while t <= 4.0 + 1e-9 {
+    for &t in times {
         while world.time() < t - 1e-9 {
             let r = world
                 .advance(((t - world.time()) as f32).min(1.0 / 60.0))
@@ -55,34 +61,87 @@ fn spread(mu: f32) -> Vec<(f64, f64, f64)> {
         }
         let r = radius(world.particles.positions(), centre, scene.fluid.h);
         rows.push((t, f64::from(r), k * t.powf(0.125)));
-        t *= 2.0f64.sqrt();
+    }
+    println!("μ = {mu} Pa·s: t (s), r (m), Huppert (m)");
+    for &(t, r, theory) in &rows {
+        println!(
+            "  {t:5.2} {r:.4} {theory:.4} ({:+.1} %)",
+            100.0 * (r / theory - 1.0)
+        );
     }
     rows
 }
 
-/// Measured (this test's output): within 3.1 % at μ = 100 Pa·s and
-/// 5.2 % at 1,000 from t = 1 s on. Before 1 s the block's corners, 0.14 m
-/// from its centre, lead (+13 % at 0.5 s for 1,000 Pa·s). What this does
-/// not show: over the window the radius grows only from 0.17 to 0.21 m at
-/// 100 Pa·s and from 0.14 to 0.15 m at 1,000 (r ∝ t^{1/8}), and by 4 s the
-/// thinner current is 3 particles thick, so a finer spacing and longer
-/// times would test the law harder.
+/// The least-squares slope of y over x.
+fn slope(points: impl Iterator<Item = (f64, f64)> + Clone) -> f64 {
+    let n = points.clone().count() as f64;
+    let (mx, my) = points
+        .clone()
+        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
+    let (sxy, sxx) = points.fold((0.0, 0.0), |(a, b), (x, y)| {
+        (a + (x - mx) * (y - my), b + (x - mx) * (x - mx))
+    });
+    sxy / sxx
+}
+
+/// The current at 100 Pa·s from 1 to 8 s, sampled at √2 steps, against
+/// Huppert's similarity solution, and the current at 1,000 Pa·s against
+/// the first by the law's own scaling.
+///
+/// At late times (4 to 8 s, r 1.7–1.9 times the cylinder's 0.113 m):
+/// - the exponent of log r against log t (Huppert's is 1/8) measured
+///   0.157: the cylinder starts below the similarity solution and reaches
+///   it from below, so the exponent is above 1/8 and falls towards it.
+///   Asserted in [0.125, 0.175]: a current that stopped spreading gives 0.
+/// - r⁸ grows at Huppert's rate 0.894⁸ ρ g V³/3μ (whatever the current's
+///   virtual time origin): measured 0.91 of it, asserted within 0.8–1.0
+///   (r⁸ magnifies an error in the radius eightfold).
+/// - the radius measured 3.8 and 3.0 % below Huppert's at 5.7 and 8 s,
+///   asserted within 5 % (a current frozen at its 4 s radius is 12.6 %
+///   short at 8 s).
+///
+/// At low Reynolds number r depends on t and μ through t/μ alone (the
+/// law's r ∝ (t/μ)^{1/8} is the late-time form of that), so the current
+/// at 1,000 Pa·s at t is the current at 100 Pa·s at t/10: measured
+/// within 1.2 %, asserted within 2.5 % from 2 to 8 s (where the currents
+/// are still 11–13 % short of the similarity solution). A viscosity solve
+/// that did nothing would let the 1,000 Pa·s current run far ahead.
 #[test]
 fn axisymmetric_current_spreads_as_huppert() {
-    for mu in [100.0f32, 1000.0] {
-        let rows = spread(mu);
-        println!("μ = {mu} Pa·s: t (s), r (m), Huppert (m)");
-        for &(t, r, theory) in &rows {
-            println!(
-                "  {t:5.2} {r:.4} {theory:.4} ({:+.1} %)",
-                100.0 * (r / theory - 1.0)
-            );
-        }
-        for (t, r, theory) in rows {
-            assert!(
-                (r / theory - 1.0).abs() <= 0.10,
-                "μ = {mu}, t = {t}: r {r} m, Huppert {theory} m"
-            );
-        }
+    let late: Vec<f64> = (0..7).map(|k| 2f64.sqrt().powi(k)).collect();
+    let early: Vec<f64> = late[2..].iter().map(|t| 0.1 * t).collect();
+    let times: Vec<f64> = early.iter().chain(&late).copied().collect();
+    let thin = spread(100.0, &times);
+    let thick = spread(1000.0, &late[2..]);
+    let tail = &thin[thin.len() - 3..];
+    let exponent = slope(tail.iter().map(|&(t, r, _)| (t.ln(), r.ln())));
+    let k8 = tail[0].2.powi(8) / tail[0].0;
+    let rate = slope(tail.iter().map(|&(t, r, _)| (t, r.powi(8)))) / k8;
+    println!(
+        "μ = 100 Pa·s, 4 to 8 s: exponent {exponent:.4}; r⁸ grows at {rate:.3} of Huppert's rate"
+    );
+    let mut worst = 0.0f64;
+    for (&(t, r, _), &(t_early, r_early, _)) in thick.iter().zip(&thin) {
+        let off = r / r_early - 1.0;
+        println!(
+            "  μ = 1000 at {t:.2} s: r {r:.4} m; μ = 100 at {t_early:.3} s: {r_early:.4} m ({:+.2} %)",
+            100.0 * off
+        );
+        worst = worst.max(off.abs());
     }
+    assert!(
+        (0.125..=0.175).contains(&exponent),
+        "exponent {exponent} over 4–8 s"
+    );
+    assert!((0.8..=1.0).contains(&rate), "r⁸ rate {rate} of Huppert's");
+    for &(t, r, theory) in &tail[1..] {
+        assert!(
+            (r / theory - 1.0).abs() <= 0.05,
+            "t = {t}: r {r} m, Huppert {theory} m"
+        );
+    }
+    assert!(
+        worst <= 0.025,
+        "μ = 1000 against μ = 100 at a tenth of the time: {worst}"
+    );
 }

@@ -44,6 +44,20 @@ fn lattice(n: i32, step: f32, origin: Vec3, mass: f32) -> Particles {
     particles
 }
 
+/// The least-squares slope of p over y.
+fn slope(ys: &[f32], ps: &[f32]) -> f64 {
+    let n = ys.len() as f64;
+    let my = ys.iter().map(|&y| f64::from(y)).sum::<f64>() / n;
+    let mp = ps.iter().map(|&p| f64::from(p)).sum::<f64>() / n;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (&y, &p) in ys.iter().zip(ps) {
+        let dy = f64::from(y) - my;
+        sxy += dy * (f64::from(p) - mp);
+        sxx += dy * dy;
+    }
+    sxy / sxx
+}
+
 /// Whether every particle is inside the domain and out of the obstacles.
 fn contained(world: &World, boundary: &Boundary) -> bool {
     world
@@ -74,7 +88,7 @@ fn tank(w: f32, depth: f32, pbf: PbfParams) -> Scene {
 
 /// A tank 10 particles deep settles to an average density error of at most
 /// 1 % with the default 3 substeps × 3 iterations per 60 Hz frame: nothing
-/// escapes, and it comes to rest.
+/// escapes, it comes to rest, and its pressure grows as ρ0 g with depth.
 #[test]
 fn hydrostatic_tank() {
     let scene = tank(0.3, 0.2, PbfParams::default());
@@ -82,6 +96,8 @@ fn hydrostatic_tank() {
     let mut world = scene.build_world().unwrap();
     let n = world.particles.len();
     let mut last = None;
+    let (w, depth, h) = (0.3, 0.2, scene.fluid.h);
+    let (mut ys, mut ps) = (Vec::new(), Vec::new());
     for frame in 0..180 {
         let r = world.advance(1.0 / 60.0).unwrap();
         assert_eq!(
@@ -89,6 +105,13 @@ fn hydrostatic_tank() {
             (SolverKind::Pbf, 3, 9)
         );
         if frame >= 120 {
+            let p = &world.particles;
+            for (x, &pressure) in p.positions().iter().zip(p.pressures()) {
+                if x.x > 2.0 * h && x.x < w - 2.0 * h && x.y > 2.0 * h && x.y < depth - h {
+                    ys.push(x.y);
+                    ps.push(pressure);
+                }
+            }
             last = Some(r);
             assert!(
                 r.density_error_avg <= 0.01,
@@ -99,10 +122,16 @@ fn hydrostatic_tank() {
     }
     let r = last.unwrap();
     let rms = rms_speed(&world.particles);
+    let slope = slope(&ys, &ps);
+    let expected = -f64::from(scene.fluid.rest_density * 9.81);
     println!(
-        "{n} particles after 3 s: density error {:.3} % avg, {:.2} % max; rms speed {rms:.4} m/s",
+        "{n} particles after 3 s: density error {:.3} % avg, {:.2} % max; rms speed {rms:.4} m/s; \
+         pressure slope {slope:.0} Pa/m over {} samples (ρ0 g = {:.0}, {:+.2} %)",
         100.0 * r.density_error_avg,
-        100.0 * r.density_error_max
+        100.0 * r.density_error_max,
+        ys.len(),
+        -expected,
+        100.0 * (slope / expected - 1.0),
     );
     assert_eq!(world.particles.len(), n);
     assert!(contained(&world, &boundary));
@@ -111,6 +140,14 @@ fn hydrostatic_tank() {
     // fall (0.1 m/s), 5 % of the 2 m/s of a fall through the tank.
     assert!(rms < 0.1, "rms speed {rms} m/s");
     assert_eq!(r.clamped, 0);
+    // The pressure the solve applied (p = −ω ρ0 Σλ/Δt²) against depth,
+    // more than 2h from the end walls and the floor and h below the
+    // surface, at the end of each frame of the third second: measured
+    // +0.29 % from ρ0 g.
+    assert!(
+        (slope / expected - 1.0).abs() <= 0.015,
+        "pressure slope {slope} Pa/m against {expected}"
+    );
 }
 
 /// 10,000 substeps of a column at rest (5,000 frames) stay finite,
@@ -216,6 +253,11 @@ fn free_cluster_keeps_its_momentum() {
             })
     };
     let before = momentum(&particles);
+    let energy = |p: &Particles| -> f64 {
+        (p.masses().iter().zip(p.velocities()))
+            .map(|(&m, v)| 0.5 * f64::from(m) * f64::from(v.length_squared()))
+            .sum()
+    };
     // Plain and over-relaxed Jacobi: ω scales each antisymmetric pair term.
     for over_relaxation in [1.0, 1.25] {
         let pbf = PbfParams {
@@ -224,13 +266,18 @@ fn free_cluster_keeps_its_momentum() {
             ..PbfParams::default()
         };
         let mut world = unbounded(particles.clone(), params, pbf);
-        let mut moved = 0.0f32;
+        let mut first = None;
         for _ in 0..30 {
             let r = world.advance(1.0 / 60.0).unwrap();
             assert_eq!(r.clamped, 0);
-            moved = moved.max(r.density_error_max);
+            first.get_or_insert(r.density_error_max);
         }
         let after = momentum(&world.particles);
+        // The solve did act: the squeezed cluster (63 % over rest density)
+        // pushed itself apart, turning compression into motion that XSPH
+        // alone, which only evens velocities out, could not make (measured
+        // ×133 at ω = 1, ×201 at 1.25).
+        let gained = energy(&world.particles) / energy(&particles);
         // The scale: total mass × the mean speed.
         let scale = world.particles.total_mass() * 0.1;
         for a in 0..3 {
@@ -242,7 +289,13 @@ fn free_cluster_keeps_its_momentum() {
             );
         }
         println!(
-            "ω = {over_relaxation}: momentum {before:?} → {after:?}; largest density error {moved}"
+            "ω = {over_relaxation}: momentum {before:?} → {after:?}; largest density error {:.4} \
+             after the first frame; kinetic energy ×{gained:.2}",
+            first.unwrap()
+        );
+        assert!(
+            gained > 50.0,
+            "ω = {over_relaxation}: kinetic energy ×{gained}"
         );
     }
 }
@@ -285,22 +338,42 @@ fn over_relaxation_lowers_the_density_error() {
     assert!(over_rms < 0.3, "rms speed {over_rms} m/s");
 }
 
-/// Bitwise the same particles for 1, 2 and 4 threads, with XSPH and with
-/// the implicit viscosity (whose conjugate gradients sum in fixed chunks).
+/// Bitwise the same particles and reports for 1, 2 and 4 threads, with
+/// XSPH and with the implicit viscosity (whose conjugate gradients sum in
+/// fixed chunks), over half a second of a small dam break.
 #[test]
 fn identical_for_1_2_and_4_threads() {
-    let xsph = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Pbf);
+    for scene in with_both_viscosities(Scene::dam_break(0.16, 0.08, 0.02)) {
+        identical_for_thread_counts(&scene, 30, &[1, 2, 4]);
+    }
+}
+
+/// The same for 1, 2, 3 and 7 threads at 10,000 particles
+/// (`dam-break-fine`), past the 4,096 particles of a chunk of the fixed-order
+/// sums (the report's density errors, the CG's dot products): three chunks,
+/// which a thread count that split them otherwise would sum in another
+/// order.
+#[test]
+fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
+    let fine = Scene::dam_break(0.25, 0.08, 0.01);
+    assert_eq!(fine.particles().unwrap().len(), 10_000);
+    for scene in with_both_viscosities(fine) {
+        identical_for_thread_counts(&scene, 6, &[1, 2, 3, 7]);
+    }
+}
+
+/// `scene` under PBF with XSPH, and with the implicit viscosity.
+fn with_both_viscosities(scene: Scene) -> [Scene; 2] {
+    let xsph = scene.with_solver(SolverKind::Pbf);
     let mut implicit = xsph.clone();
     implicit.solver.pbf = Some(PbfParams {
         viscosity: PbfViscosity::Implicit,
         ..xsph.pbf_params()
     });
-    for scene in [xsph, implicit] {
-        identical_for_any_thread_count(&scene);
-    }
+    [xsph, implicit]
 }
 
-fn identical_for_any_thread_count(scene: &Scene) {
+fn identical_for_thread_counts(scene: &Scene, frames: usize, threads: &[usize]) {
     let run = |threads| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -309,9 +382,13 @@ fn identical_for_any_thread_count(scene: &Scene) {
             .install(|| {
                 let mut world = scene.build_world().unwrap();
                 let mut reports = Vec::new();
-                for _ in 0..30 {
+                for _ in 0..frames {
                     let r = world.advance(1.0 / 60.0).unwrap();
-                    reports.push((r.density_error_avg.to_bits(), r.density_error_max.to_bits()));
+                    reports.push((
+                        r.density_error_avg.to_bits(),
+                        r.density_error_max.to_bits(),
+                        r.viscosity_iterations,
+                    ));
                 }
                 let p = &world.particles;
                 let bits = |v: &[Vec3]| {
@@ -327,9 +404,15 @@ fn identical_for_any_thread_count(scene: &Scene) {
                 )
             })
     };
-    let one = run(1);
-    assert_eq!(one, run(2));
-    assert_eq!(one, run(4));
+    let first = run(threads[0]);
+    for &t in &threads[1..] {
+        assert!(
+            first == run(t),
+            "{:?}: {t} threads differ from {}",
+            scene.pbf_params().viscosity,
+            threads[0]
+        );
+    }
 }
 
 /// The dam-break surge never runs ahead of Ritter's dry-bed front 2√(gH),
@@ -367,7 +450,11 @@ fn dam_break_front_within_ritter() {
         assert!(contained(&world, &boundary));
     }
     println!("front speed (minus h) at most {fastest:.3} m/s vs Ritter {ritter:.3} m/s");
-    assert!(fastest > 0.3 * ritter, "front at most {fastest} m/s");
+    // Measured 0.412 of Ritter's speed; asserted within 0.04 of that.
+    assert!(
+        (fastest / ritter - 0.412).abs() <= 0.04,
+        "front at most {fastest} m/s, Ritter {ritter} m/s"
+    );
 }
 
 /// Every PBF parameter that is zero, negative, NaN or absurd is an error
@@ -648,7 +735,9 @@ fn scenes_without_a_pbf_table_derive_their_substeps() {
 #[test]
 fn processors_see_only_this_steps_neighbour_lists() {
     use sph_core::{Context, Processor, Result};
-    struct Expect(&'static str, bool);
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    struct Expect(&'static str, bool, Arc<AtomicU32>);
     impl Processor for Expect {
         fn name(&self) -> &str {
             self.0
@@ -658,15 +747,22 @@ fn processors_see_only_this_steps_neighbour_lists() {
                 Some(lists) => assert!(self.1 && lists.len() == particles.len(), "{}", self.0),
                 None => assert!(!self.1, "{}: no lists", self.0),
             }
+            self.2.fetch_add(1, Ordering::Relaxed);
             Ok(())
         }
     }
     let scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Pbf);
     let mut world = scene.build_world().unwrap();
+    let (before, after) = (Arc::default(), Arc::default());
     let program = world.program_mut();
-    assert!(program.insert_after("predict", Expect("before", false)));
-    assert!(program.insert_after("neighbours", Expect("after", true)));
+    assert!(program.insert_after("predict", Expect("before", false, Arc::clone(&before))));
+    assert!(program.insert_after("neighbours", Expect("after", true, Arc::clone(&after))));
+    let mut substeps = 0;
     for _ in 0..3 {
-        world.advance(1.0 / 60.0).unwrap();
+        substeps += world.advance(1.0 / 60.0).unwrap().substeps;
     }
+    // Both ran, once a substep: the checks above were made.
+    assert_eq!(substeps, 9);
+    assert_eq!(before.load(Ordering::Relaxed), substeps);
+    assert_eq!(after.load(Ordering::Relaxed), substeps);
 }

@@ -226,8 +226,9 @@ fn hydrostatic_tank() {
         100.0 * (slope - rho_g) / rho_g
     );
     assert!(density_error < 0.03, "mean density error {density_error}");
+    // Measured −1.23 % (DFSPH's tank: +1.21 %).
     assert!(
-        (slope - rho_g).abs() < 0.1 * rho_g,
+        (slope - rho_g).abs() < 0.02 * rho_g,
         "slope {slope} vs ρ0 g {rho_g}"
     );
     // 2.5 % of the free-fall speed √(g·depth) ≈ 2 m/s.
@@ -304,10 +305,11 @@ fn dam_break_soak_stays_contained_and_subcritical() {
         }
     }
     assert!(world.particles.positions().iter().all(|x| x.is_finite()));
-    // And it does run out: measured 0.73 of Ritter's ideal (frictionless,
-    // dry-bed) speed, which experiments also stay below.
+    // And it does run out: measured 0.727 of Ritter's ideal (frictionless,
+    // dry-bed) speed, which experiments also stay below; asserted within
+    // 0.05 of that.
     assert!(
-        fastest > 0.5 * ritter,
+        (fastest / ritter - 0.727).abs() <= 0.05,
         "the front moved at most {fastest} m/s, Ritter {ritter} m/s"
     );
     println!(

@@ -129,6 +129,8 @@ struct Slump {
     front: f32,
     fastest: f32,
     worst_average_error: f32,
+    /// The implicit viscosity's CG iterations over the second.
+    viscosity_iterations: u32,
 }
 
 /// The demo's slab dam break (1,200 particles) at viscosity `mu` (Pa·s) for
@@ -144,11 +146,12 @@ fn slump(kind: SolverKind, mu: f32) -> Slump {
     let mut world = scene.build_world().unwrap();
     let explicit = world.params().viscous_dt();
     let mut shortest = f32::INFINITY;
-    let (mut steps, mut worst_average_error) = (0, 0.0f32);
+    let (mut steps, mut worst_average_error, mut viscosity_iterations) = (0, 0.0f32, 0);
     for _ in 0..60 {
         let r = world.advance(1.0 / 60.0).unwrap();
         shortest = shortest.min(r.dt_range.0.min(r.dt_range.1));
         steps += r.substeps;
+        viscosity_iterations += r.viscosity_iterations;
         worst_average_error = worst_average_error.max(r.density_error_avg);
         assert_eq!(r.unconverged, 0, "{kind:?}, μ {mu}: {r:?}");
     }
@@ -163,6 +166,7 @@ fn slump(kind: SolverKind, mu: f32) -> Slump {
             .map(|v| v.length())
             .fold(0.0f32, f32::max),
         worst_average_error,
+        viscosity_iterations,
     };
     println!("{kind:?}, μ = {mu} Pa·s: {slump:?}");
     slump
@@ -182,17 +186,25 @@ fn a_thousand_pascal_seconds_runs_at_the_flow_step() {
         // A fall through the column's height would reach √(2 g 0.5) ≈ 3 m/s.
         assert!(s.fastest < 0.3, "{kind:?}: {s:?}");
         assert!(s.front < 0.5, "{kind:?}: {s:?}");
+        // The implicit solve, not the pressure solve, held it: every step
+        // took CG iterations.
+        assert!(s.viscosity_iterations >= s.steps, "{kind:?}: {s:?}");
     }
 }
 
 /// Water's 1e-3 Pa·s under the same solve: the dam break runs out along
 /// the floor (the front passes 0.6 m in a second, as Martin & Moyce's
-/// surge does) with every CG solve converged.
+/// surge does) with every CG solve converged, no particle faster than
+/// Ritter's dry-bed front 2√(gH) = 4.4 m/s for the 0.5 m column (measured
+/// 3.25 m/s for DFSPH, 3.22 for PBF). The solves take no CG iterations
+/// here: water's ν Δt/h² ≈ 3·10⁻⁷ leaves the velocities within the solve's
+/// tolerance of its solution before the first iteration.
 #[test]
 fn water_runs_under_the_implicit_solve() {
+    let ritter = 2.0 * (9.81f32 * 0.5).sqrt();
     for kind in [SolverKind::Dfsph, SolverKind::Pbf] {
         let s = slump(kind, 1e-3);
         assert!(s.front > 0.6, "{kind:?}: {s:?}");
-        assert!(s.fastest.is_finite() && s.steps > 0, "{kind:?}: {s:?}");
+        assert!(s.fastest < ritter, "{kind:?}: {s:?}");
     }
 }

@@ -669,6 +669,13 @@ struct Constraint {
 /// walls' λ_i ∇_i(ρ_wall/ρ0), moves each particle by it and back out of
 /// walls, and adds that motion over Δt to its velocity.
 ///
+/// Writes the pressure the solve applied into [`Particles::pressures`]:
+/// p_i = −ω ρ0 Σ_k λ_i^k / Δt² over the iterations k. A pressure force
+/// −Σ_j m_j (p_i/ρ0² + p_j/ρ0²) ∇W_ij acting for Δt moves a particle by
+/// Δt² times it, which is the correction above with λ_i = −Δt² p_i/ρ0; so
+/// in water at rest, where each substep's corrections hold up one substep
+/// of gravity, p grows as ρ0 g with depth (`tests/pbf.rs`, the tank).
+///
 /// Stops the run with [`Error::Unstable`] when the solve diverges: a
 /// position becomes non-finite, or the largest density error is above
 /// [`MAX_DENSITY_ERROR`] (twice the rest density) at the last iteration and
@@ -768,20 +775,30 @@ impl Processor for SolveDensity {
             };
             par_map(&corrections, n_particles, &mut self.corrections);
             // Each particle moves by its correction and out of walls, its
-            // velocity by that motion over Δt, and its row follows.
+            // velocity by that motion over Δt, and its row follows; its
+            // pressure gains the iteration's −ω ρ0 λ_i/Δt².
             let b = model.walls.boundary();
             let omega = pbf.over_relaxation;
+            let to_pressure = -omega * rho0 / (dt * dt);
+            let first_iteration = iteration == 0;
             (f.positions.par_iter_mut())
                 .zip(f.velocities.par_iter_mut())
                 .zip(self.corrections.par_iter())
                 .zip(self.rows.par_iter_mut())
-                .for_each(|(((x, v), &dp), row)| {
+                .zip(f.pressures.par_iter_mut().zip(c.par_iter()))
+                .for_each(|((((x, v), &dp), row), (p, c))| {
                     let dp = omega * dp;
                     *x += dp;
                     let free = *x;
                     b.project(x);
                     *v += (dp + (*x - free)) / dt;
                     (row[0], row[1], row[2]) = (x.x, x.y, x.z);
+                    let applied = to_pressure * c.lambda;
+                    *p = if first_iteration {
+                        applied
+                    } else {
+                        *p + applied
+                    };
                 });
         }
         (particles.densities_mut().par_iter_mut())
