@@ -76,10 +76,16 @@ pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Result<Vec<Vec
 }
 
 /// The fraction of `points` lying on some surfel's disc (within `thickness` of
-/// its plane); 1 for no points. Errors for surfels with non-finite positions.
+/// its plane). Errors for no points (a fraction of nothing would read as
+/// full coverage of a surface that was never found) and for surfels with
+/// non-finite positions.
 pub fn covered_fraction(surfels: &[Surfel], points: &[Vec3], thickness: f32) -> Result<f64> {
     if points.is_empty() {
-        return Ok(1.0);
+        return Err(Error::InvalidParameter {
+            name: "points",
+            value: "[]".into(),
+            reason: "no points to cover: the fraction of none is undefined",
+        });
     }
     let index = SurfelIndex::build(surfels, thickness)?;
     let covered = points

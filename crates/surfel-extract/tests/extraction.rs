@@ -344,6 +344,8 @@ fn bad_input_is_an_error() {
     assert_eq!(covered_fraction(&[disc(0.1)], &q, 0.01).unwrap(), 1.0);
     assert!(covered_fraction(&[disc(f32::NAN)], &q, 0.01).is_err());
     assert!(covered_fraction(&[disc(0.1)], &q, f32::NAN).is_err());
+    // No points: an error, not a full coverage of nothing.
+    assert!(covered_fraction(&[disc(0.1)], &[], 0.01).is_err());
 }
 
 #[test]
