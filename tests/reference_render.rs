@@ -1,8 +1,13 @@
 //! The splat renderer against a reference: a CPU ray caster of the same
 //! particles' iso-surface c(x) = 0.5 (`surfel_extract::raycast`) seen by the same
 //! camera and shaded by the same equations (`splat_render::shading::shade_pixel`).
-//! Checks silhouette IoU and normals, reports the FLIP mean, and compares each
-//! splat image with a stored golden image (`tests/golden/*.png`) by FLIP.
+//! Checks each case's silhouette IoU, median normal error and FLIP mean
+//! against the ray caster's image at its measured value plus a margin
+//! (`Case`), and compares each splat image with a stored golden image
+//! (`tests/golden/*.png`) by FLIP, within 0.002 (measured at most 0.0002).
+//! The goldens guard what the ray caster cannot see (a shading change made
+//! in both the shader and `shade_pixel`); the ray caster guards the goldens,
+//! which the test writes itself.
 //!
 //! Regenerate the golden images with `SPH_UPDATE_GOLDEN=1 cargo test --release
 //! --test reference_render`. Every run also leaves `{case}-splats.png`,
@@ -32,12 +37,21 @@ fn lattice(n: i32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec3> {
     jittered_lattice(n, SPACING, 0.3, 5, keep)
 }
 
+/// A scene of particles, its camera, and what the splats must reach
+/// against the ray caster: each bound is the value measured on lavapipe
+/// (2026-11-26, in the comment beside it) plus a margin of 0.004 in IoU,
+/// 0.3° in the median normal error and about a quarter in the FLIP mean.
 struct Case {
     name: &'static str,
     field: ColourField,
     camera: Camera,
     /// Silhouette IoU the splats must reach.
     min_iou: f64,
+    /// The largest median angle (degrees) between the splats' normals and
+    /// the iso-surface's.
+    max_normal_error: f32,
+    /// The largest FLIP mean between the splat image and the ray-cast one.
+    max_flip: f32,
 }
 
 fn cases() -> Vec<Case> {
@@ -63,13 +77,19 @@ fn cases() -> Vec<Case> {
             name: "sphere-anisotropic",
             field: anisotropic(&sphere),
             camera: Camera::looking_at(Vec3::new(0.12, 0.18, 0.3), Vec3::ZERO),
-            min_iou: 0.97,
+            // Measured: IoU 0.9970, 0.69°, FLIP 0.0150.
+            min_iou: 0.993,
+            max_normal_error: 1.0,
+            max_flip: 0.019,
         },
         Case {
             name: "block-anisotropic",
             field: anisotropic(&block),
             camera: Camera::looking_at(Vec3::new(0.25, 0.2, 0.25), Vec3::new(0.0, -0.01, 0.0)),
-            min_iou: 0.97,
+            // Measured: IoU 0.9941, 0.64°, FLIP 0.0152.
+            min_iou: 0.990,
+            max_normal_error: 0.95,
+            max_flip: 0.019,
         },
         // Droplets: one particle, and a pair a spacing apart, whose
         // anisotropic kernels are spheres of half h (too few neighbours
@@ -78,25 +98,37 @@ fn cases() -> Vec<Case> {
             name: "droplet",
             field: anisotropic(&[Vec3::ZERO]),
             camera: Camera::looking_at(Vec3::new(0.008, 0.012, 0.02), Vec3::ZERO),
-            min_iou: 0.97,
+            // Measured: IoU 0.9727, 3.19°, FLIP 0.0797.
+            min_iou: 0.968,
+            max_normal_error: 3.5,
+            max_flip: 0.095,
         },
         Case {
             name: "pair",
             field: anisotropic(&pair),
             camera: Camera::looking_at(Vec3::new(0.012, 0.018, 0.03), Vec3::ZERO),
-            min_iou: 0.97,
+            // Measured: IoU 0.9837, 0.93°, FLIP 0.0186.
+            min_iou: 0.979,
+            max_normal_error: 1.25,
+            max_flip: 0.023,
         },
         Case {
             name: "sphere",
             field: ColourField::from_positions(&sphere, H).unwrap(),
             camera: Camera::looking_at(Vec3::new(0.12, 0.18, 0.3), Vec3::ZERO),
-            min_iou: 0.97,
+            // Measured: IoU 0.9953, 0.85°, FLIP 0.0162.
+            min_iou: 0.991,
+            max_normal_error: 1.15,
+            max_flip: 0.020,
         },
         Case {
             name: "block",
             field: ColourField::from_positions(&block, H).unwrap(),
             camera: Camera::looking_at(Vec3::new(0.25, 0.2, 0.25), Vec3::new(0.0, -0.01, 0.0)),
-            min_iou: 0.97,
+            // Measured: IoU 0.9947, 0.72°, FLIP 0.0145.
+            min_iou: 0.990,
+            max_normal_error: 1.0,
+            max_flip: 0.018,
         },
         Case {
             name: "dam-break",
@@ -104,7 +136,10 @@ fn cases() -> Vec<Case> {
             camera: Camera::looking_at(Vec3::new(0.1, 0.2, 0.45), Vec3::new(0.1, 0.03, 0.0)),
             // A coarse (3 particles deep) slab with thin jets and a droplet: a
             // long silhouette, so the overhang of flat discs weighs most here.
-            min_iou: 0.97,
+            // Measured: IoU 0.9887, 1.46°, FLIP 0.0297.
+            min_iou: 0.984,
+            max_normal_error: 1.75,
+            max_flip: 0.036,
         },
     ]
 }
@@ -261,9 +296,16 @@ fn splats_match_the_ray_cast_iso_surface() {
         );
         measured.insert(case.name, (iou, median_angle));
         assert!(
-            median_angle <= 5.0,
-            "{}: median normal error {median_angle:.2}° > 5°",
-            case.name
+            median_angle <= case.max_normal_error,
+            "{}: median normal error {median_angle:.2}° > {}°",
+            case.name,
+            case.max_normal_error
+        );
+        assert!(
+            flip_mean <= case.max_flip,
+            "{}: FLIP mean against the ray-cast reference {flip_mean:.4} > {}",
+            case.name,
+            case.max_flip
         );
 
         let golden_path = golden_dir.join(format!("{}.png", case.name));
@@ -281,7 +323,7 @@ fn splats_match_the_ray_cast_iso_surface() {
             .into_rgba8();
         let (golden_mean, difference) = flip(&golden, &image);
         println!("{}: FLIP mean vs golden {golden_mean:.4}", case.name);
-        if golden.dimensions() != image.dimensions() || golden_mean > 0.02 {
+        if golden.dimensions() != image.dimensions() || golden_mean > 0.002 {
             std::fs::create_dir_all(&failures_dir).unwrap();
             image
                 .save(failures_dir.join(format!("{}-actual.png", case.name)))
