@@ -88,7 +88,8 @@ fn tank(w: f32, depth: f32, pbf: PbfParams) -> Scene {
 
 /// A tank 10 particles deep settles to an average density error of at most
 /// 1 % with the default 3 substeps × 3 iterations per 60 Hz frame: nothing
-/// escapes, it comes to rest, and its pressure grows as ρ0 g with depth.
+/// escapes, it comes to rest up to PBF's jitter, and the pressure its solve
+/// applies grows with depth at about ρ0 g.
 #[test]
 fn hydrostatic_tank() {
     let scene = tank(0.3, 0.2, PbfParams::default());
@@ -143,9 +144,16 @@ fn hydrostatic_tank() {
     // The pressure the solve applied (p = −ω ρ0 Σλ/Δt²) against depth,
     // more than 2h from the end walls and the floor and h below the
     // surface, at the end of each frame of the third second: measured
-    // +0.29 % from ρ0 g.
+    // +0.29 % from ρ0 g. That closeness is partly luck: the one-sided
+    // constraint answers the rest jitter's compressions and not its
+    // rarefactions, which biases the mean pressure upwards by an amount
+    // that grows with depth. The same tank measured +7.3 % at 1.05 g,
+    // +31 % at g/2, +17 % at 10 iterations and +9 % at 6 substeps (a
+    // throwaway loop over this test). So the band is [−2 %, +40 %]: it
+    // holds against a pressure of the wrong sign, scale (Δt for Δt², a
+    // substep's for the frame's) or none, not against the jitter.
     assert!(
-        (slope / expected - 1.0).abs() <= 0.015,
+        (0.98..=1.4).contains(&(slope / expected)),
         "pressure slope {slope} Pa/m against {expected}"
     );
 }
