@@ -127,7 +127,11 @@ struct Slump {
     shortest: f32,
     explicit: f32,
     front: f32,
+    /// The fastest particle at any frame's end (m/s).
     fastest: f32,
+    /// The same while the front was more than h from the far wall (m/s):
+    /// the run-out before its impact throws spray.
+    fastest_running_out: f32,
     worst_average_error: f32,
     /// The implicit viscosity's CG iterations over the second.
     viscosity_iterations: u32,
@@ -147,11 +151,19 @@ fn slump(kind: SolverKind, mu: f32) -> Slump {
     let explicit = world.params().viscous_dt();
     let mut shortest = f32::INFINITY;
     let (mut steps, mut worst_average_error, mut viscosity_iterations) = (0, 0.0f32, 0);
+    let (mut fastest, mut fastest_running_out) = (0.0f32, 0.0f32);
+    let far_wall = scene.domain.max[0] - scene.fluid.h;
     for _ in 0..60 {
         let r = world.advance(1.0 / 60.0).unwrap();
         shortest = shortest.min(r.dt_range.0.min(r.dt_range.1));
         steps += r.substeps;
         viscosity_iterations += r.viscosity_iterations;
+        let p = &world.particles;
+        let speed = (p.velocities().iter()).fold(0.0f32, |f, v| f.max(v.length()));
+        fastest = fastest.max(speed);
+        if p.positions().iter().all(|x| x.x < far_wall) {
+            fastest_running_out = fastest_running_out.max(speed);
+        }
         worst_average_error = worst_average_error.max(r.density_error_avg);
         assert_eq!(r.unconverged, 0, "{kind:?}, μ {mu}: {r:?}");
     }
@@ -162,9 +174,8 @@ fn slump(kind: SolverKind, mu: f32) -> Slump {
         shortest,
         explicit,
         front: p.positions().iter().map(|x| x.x).fold(f32::MIN, f32::max),
-        fastest: (p.velocities().iter())
-            .map(|v| v.length())
-            .fold(0.0f32, f32::max),
+        fastest,
+        fastest_running_out,
         worst_average_error,
         viscosity_iterations,
     };
@@ -194,17 +205,19 @@ fn a_thousand_pascal_seconds_runs_at_the_flow_step() {
 
 /// Water's 1e-3 Pa·s under the same solve: the dam break runs out along
 /// the floor (the front passes 0.6 m in a second, as Martin & Moyce's
-/// surge does) with every CG solve converged, no particle faster than
-/// Ritter's dry-bed front 2√(gH) = 4.4 m/s for the 0.5 m column (measured
-/// 3.25 m/s for DFSPH, 3.22 for PBF). The solves take no CG iterations
-/// here: water's ν Δt/h² ≈ 3·10⁻⁷ leaves the velocities within the solve's
-/// tolerance of its solution before the first iteration.
+/// surge does) with every CG solve converged, and until the front reaches
+/// the far wall no particle is faster than Ritter's dry-bed front
+/// 2√(gH) = 4.4 m/s for the 0.5 m column (measured 3.47 m/s for DFSPH,
+/// 3.29 for PBF; the impact's spray then reaches 6.3 and 4.5 m/s). The
+/// solves take no CG iterations here: water's ν Δt/h² ≈ 3·10⁻⁷ leaves the
+/// velocities within the solve's tolerance of its solution before the
+/// first iteration.
 #[test]
 fn water_runs_under_the_implicit_solve() {
     let ritter = 2.0 * (9.81f32 * 0.5).sqrt();
     for kind in [SolverKind::Dfsph, SolverKind::Pbf] {
         let s = slump(kind, 1e-3);
         assert!(s.front > 0.6, "{kind:?}: {s:?}");
-        assert!(s.fastest < ritter, "{kind:?}: {s:?}");
+        assert!(s.fastest_running_out < ritter, "{kind:?}: {s:?}");
     }
 }
