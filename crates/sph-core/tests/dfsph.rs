@@ -2,6 +2,8 @@
 //! pressure against ρ0 g depth, rest), the dam break's compression,
 //! determinism across threads, and bad input.
 
+mod common;
+
 use sph_core::glam::Vec3;
 use sph_core::{DfsphParams, Error, Particles, Scene, SolverKind, World};
 
@@ -39,20 +41,6 @@ fn contained(world: &World, scene: &Scene) -> bool {
         .positions()
         .iter()
         .all(|&x| boundary.admits(x))
-}
-
-/// The least-squares slope of p over y.
-fn slope(ys: &[f32], ps: &[f32]) -> f64 {
-    let n = ys.len() as f64;
-    let my = ys.iter().map(|&y| f64::from(y)).sum::<f64>() / n;
-    let mp = ps.iter().map(|&p| f64::from(p)).sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (&y, &p) in ys.iter().zip(ps) {
-        let dy = f64::from(y) - my;
-        sxy += dy * (f64::from(p) - mp);
-        sxx += dy * dy;
-    }
-    sxy / sxx
 }
 
 /// A tank at rest, 0.48 m square and 0.2 m deep (5,760 particles), from the
@@ -113,7 +101,7 @@ fn hydrostatic_tank() {
             }
         }
     }
-    let s = slope(&ys, &ps);
+    let s = common::pressure_slope(&ys, &ps);
     let expected = -f64::from(scene.fluid.rest_density * 9.81);
     let rms = rms_speed(&world.particles);
     // The net drift from 3 s to the end (4.5 s).

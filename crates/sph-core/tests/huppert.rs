@@ -9,6 +9,8 @@
 //! cargo test --release -p sph-core --test huppert -- --nocapture
 //! ```
 
+mod common;
+
 use sph_core::glam::Vec3;
 use sph_core::{NeighbourGrid, NeighbourLists, Scene, SolverKind};
 
@@ -72,18 +74,6 @@ fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
     rows
 }
 
-/// The least-squares slope of y over x.
-fn slope(points: impl Iterator<Item = (f64, f64)> + Clone) -> f64 {
-    let n = points.clone().count() as f64;
-    let (mx, my) = points
-        .clone()
-        .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
-    let (sxy, sxx) = points.fold((0.0, 0.0), |(a, b), (x, y)| {
-        (a + (x - mx) * (y - my), b + (x - mx) * (x - mx))
-    });
-    sxy / sxx
-}
-
 /// The current at 100 Pa·s from 1 to 8 s, sampled at √2 steps, against
 /// Huppert's similarity solution, and the current at 1,000 Pa·s against
 /// the first by the law's own scaling.
@@ -114,9 +104,9 @@ fn axisymmetric_current_spreads_as_huppert() {
     let thin = spread(100.0, &times);
     let thick = spread(1000.0, &late[2..]);
     let tail = &thin[thin.len() - 3..];
-    let exponent = slope(tail.iter().map(|&(t, r, _)| (t.ln(), r.ln())));
+    let exponent = common::slope(tail.iter().map(|&(t, r, _)| (t.ln(), r.ln())));
     let k8 = tail[0].2.powi(8) / tail[0].0;
-    let rate = slope(tail.iter().map(|&(t, r, _)| (t, r.powi(8)))) / k8;
+    let rate = common::slope(tail.iter().map(|&(t, r, _)| (t, r.powi(8)))) / k8;
     println!(
         "μ = 100 Pa·s, 4 to 8 s: exponent {exponent:.4}; r⁸ grows at {rate:.3} of Huppert's rate"
     );

@@ -3,6 +3,8 @@
 //! the dam-break front against Ritter, determinism across threads, and bad
 //! input.
 
+mod common;
+
 use glam::Vec3;
 use sph_core::{
     Aabb, Boundary, Error, FluidParams, Particles, PbfParams, PbfViscosity, Scene, Solver,
@@ -42,20 +44,6 @@ fn lattice(n: i32, step: f32, origin: Vec3, mass: f32) -> Particles {
         }
     }
     particles
-}
-
-/// The least-squares slope of p over y.
-fn slope(ys: &[f32], ps: &[f32]) -> f64 {
-    let n = ys.len() as f64;
-    let my = ys.iter().map(|&y| f64::from(y)).sum::<f64>() / n;
-    let mp = ps.iter().map(|&p| f64::from(p)).sum::<f64>() / n;
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (&y, &p) in ys.iter().zip(ps) {
-        let dy = f64::from(y) - my;
-        sxy += dy * (f64::from(p) - mp);
-        sxx += dy * dy;
-    }
-    sxy / sxx
 }
 
 /// Whether every particle is inside the domain and out of the obstacles.
@@ -123,7 +111,7 @@ fn hydrostatic_tank() {
     }
     let r = last.unwrap();
     let rms = rms_speed(&world.particles);
-    let slope = slope(&ys, &ps);
+    let slope = common::pressure_slope(&ys, &ps);
     let expected = -f64::from(scene.fluid.rest_density * 9.81);
     println!(
         "{n} particles after 3 s: density error {:.3} % avg, {:.2} % max; rms speed {rms:.4} m/s; \
