@@ -670,11 +670,14 @@ struct Constraint {
 /// walls, and adds that motion over Δt to its velocity.
 ///
 /// Writes the pressure the solve applied into [`Particles::pressures`]:
-/// p_i = −ω ρ0 Σ_k λ_i^k / Δt² over the iterations k. A pressure force
-/// −Σ_j m_j (p_i/ρ0² + p_j/ρ0²) ∇W_ij acting for Δt moves a particle by
-/// Δt² times it, which is the correction above with λ_i = −Δt² p_i/ρ0; so
-/// in water at rest, where each substep's corrections hold up one substep
-/// of gravity, p grows as ρ0 g with depth (`tests/pbf.rs`, the tank).
+/// p_i = −ω ρ0 Σ_k λ_i^k / Δt² over the iterations k. A pressure
+/// acceleration −Σ_j m_j (p_i/ρ0² + p_j/ρ0²) ∇W_ij acting for Δt moves a
+/// particle by Δt² times it, which is the correction above (without
+/// s_corr) with λ_i = −Δt² p_i/ρ0. In water at rest its mean grows with
+/// depth at about ρ0 g, biased upwards by PBF's rest jitter: the one-sided
+/// constraint answers the jitter's compressions and not its rarefactions
+/// (`tests/pbf.rs`, the tank: +0.3 % at the defaults, up to +31 % at
+/// other gravities and iterations).
 ///
 /// Stops the run with [`Error::Unstable`] when the solve diverges: a
 /// position becomes non-finite, or the largest density error is above
