@@ -65,7 +65,9 @@ fn extraction(c: &mut Criterion) {
             let out = extract(&particles, &params).expect("extraction");
             let thesis = extract(&particles, &params.thesis()).expect("extraction");
             let coverage = |s: &[Surfel]| {
-                100.0 * covered_fraction(s, &points, 0.1 * h).expect("finite surfels")
+                100.0
+                    * covered_fraction(s, &points, 0.1 * h)
+                        .expect("finite surfels and an iso-surface")
             };
             let s = out.stats;
             println!(
@@ -129,7 +131,9 @@ fn extraction(c: &mut Criterion) {
             s.surfels,
             s.evaluations,
             s.particle_evaluations,
-            100.0 * covered_fraction(&out.surfels, &aniso_points, 0.1 * h).expect("finite surfels"),
+            100.0
+                * covered_fraction(&out.surfels, &aniso_points, 0.1 * h)
+                    .expect("finite surfels and an iso-surface"),
             aniso_points.len(),
             s.field_time.as_secs_f64() * 1e3,
             s.initial_time.as_secs_f64() * 1e3,

@@ -39,8 +39,9 @@ fn lattice(n: i32, keep: impl Fn(Vec3) -> bool) -> Vec<Vec3> {
 
 /// A scene of particles, its camera, and what the splats must reach
 /// against the ray caster: each bound is the value measured on lavapipe
-/// (2026-11-26, in the comment beside it) plus a margin of 0.004 in IoU,
-/// 0.3° in the median normal error and about a quarter in the FLIP mean.
+/// (2026-11-26, in the comment beside it) plus a margin: 0.004 in IoU
+/// (rounded down to three places), about 0.3° in the median normal error
+/// and about a quarter in the FLIP mean.
 struct Case {
     name: &'static str,
     field: ColourField,

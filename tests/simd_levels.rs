@@ -53,7 +53,14 @@ fn fingerprints() -> Vec<(String, u64, usize)> {
             let r = world.advance(1.0 / 60.0).unwrap();
             hasher.write_u32(r.density_error_max.to_bits());
             hasher.write_u32(r.density_error_avg.to_bits());
-            hasher.write_u32(r.iterations + r.divergence_iterations + r.viscosity_iterations);
+            for count in [
+                r.substeps,
+                r.iterations,
+                r.divergence_iterations,
+                r.viscosity_iterations,
+            ] {
+                hasher.write_u32(count);
+            }
         }
         let p = &world.particles;
         for id in p.ids() {

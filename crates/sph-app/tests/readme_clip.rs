@@ -2,8 +2,11 @@
 //! makes: the command is read from the README, run in a scratch directory
 //! with the built `sph-app`, and its GIF compared with the committed one
 //! frame by frame: the same frames and delays, each within a FLIP mean of
-//! 0.005 (lavapipe makes the same bytes on one machine; the margin is for
-//! another CPU's rounding). The clip decodes, lasts a few seconds and
+//! 0.025. Lavapipe makes the same bytes on one machine; a sub-pixel change
+//! of the rendering moves the GIF's palettes, up to 0.015 a frame (the
+//! clip made before splats were planar quads, which looked the same),
+//! while physics 10 % apart (XSPH 0.011 for 0.01) differs by 0.04–0.06
+//! from the fourth frame on. The clip decodes, lasts a few seconds and
 //! stays under 5 MB.
 
 use std::path::{Path, PathBuf};
@@ -72,7 +75,9 @@ fn readme_clip_is_what_its_command_makes() {
 
     let args = readme_args();
     println!("sph-app {}", args.join(" "));
-    let scratch = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("readme-clip");
+    // Its own folder: a debug and a release run may go at once.
+    let scratch = PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("readme-clip-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&scratch);
     std::fs::create_dir_all(scratch.join("docs")).unwrap();
     let out = Command::new(env!("CARGO_BIN_EXE_sph-app"))
@@ -99,13 +104,13 @@ fn readme_clip_is_what_its_command_makes() {
         assert_eq!(a_ms, b_ms, "frame {k}'s delay");
         let mean = flip(b, a);
         worst = worst.max(mean);
-        if mean > 0.005 {
+        if mean > 0.025 {
             a.save(scratch.join(format!("frame-{k}-made.png"))).unwrap();
             b.save(scratch.join(format!("frame-{k}-committed.png")))
                 .unwrap();
         }
         assert!(
-            mean <= 0.005,
+            mean <= 0.025,
             "frame {k}: FLIP mean {mean} against {CLIP} (both frames in {}); \
              remake it with the README's command",
             scratch.display()
@@ -115,4 +120,5 @@ fn readme_clip_is_what_its_command_makes() {
         "{} frames, FLIP mean at most {worst:.4} against {CLIP}",
         made.len()
     );
+    std::fs::remove_dir_all(&scratch).unwrap();
 }

@@ -87,7 +87,7 @@ fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
 ///   virtual time origin): measured 0.91 of it, asserted within 0.8–1.0
 ///   (r⁸ magnifies an error in the radius eightfold).
 /// - the radius measured 3.8 and 3.0 % below Huppert's at 5.7 and 8 s,
-///   asserted within 5 % (a current frozen at its 4 s radius is 12.6 %
+///   asserted within 5 % (a current frozen at its 4 s radius is 12.9 %
 ///   short at 8 s).
 ///
 /// At low Reynolds number r depends on t and μ through t/μ alone (the

@@ -392,10 +392,14 @@ fn identical_for_thread_counts(scene: &Scene, frames: usize, threads: &[usize]) 
                         .flat_map(|x| x.to_array().map(f32::to_bits))
                         .collect::<Vec<_>>()
                 };
+                let scalars = (p.densities().iter().chain(p.pressures()))
+                    .map(|x| x.to_bits())
+                    .collect::<Vec<_>>();
                 (
                     p.ids().to_vec(),
                     bits(p.positions()),
                     bits(p.velocities()),
+                    scalars,
                     reports,
                 )
             })

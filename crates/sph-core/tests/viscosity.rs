@@ -122,7 +122,6 @@ fn pbf_duct_flow_is_poiseuille() {
 /// What a second of the slab dam break did at some μ.
 #[derive(Debug)]
 struct Slump {
-    steps: u32,
     /// The shortest step (s) and the explicit viscous limit's.
     shortest: f32,
     explicit: f32,
@@ -133,8 +132,8 @@ struct Slump {
     /// the run-out before its impact throws spray.
     fastest_running_out: f32,
     worst_average_error: f32,
-    /// The implicit viscosity's CG iterations over the second.
-    viscosity_iterations: u32,
+    /// The fewest CG iterations per step in a frame.
+    fewest_per_step: f32,
 }
 
 /// The demo's slab dam break (1,200 particles) at viscosity `mu` (Pa·s) for
@@ -150,18 +149,19 @@ fn slump(kind: SolverKind, mu: f32) -> Slump {
     let mut world = scene.build_world().unwrap();
     let explicit = world.params().viscous_dt();
     let mut shortest = f32::INFINITY;
-    let (mut steps, mut worst_average_error, mut viscosity_iterations) = (0, 0.0f32, 0);
+    let mut worst_average_error = 0.0f32;
     let (mut fastest, mut fastest_running_out) = (0.0f32, 0.0f32);
-    let far_wall = scene.domain.max[0] - scene.fluid.h;
+    let (far_wall, mut reached) = (scene.domain.max[0] - scene.fluid.h, false);
+    let mut fewest_per_step = f32::INFINITY;
     for _ in 0..60 {
         let r = world.advance(1.0 / 60.0).unwrap();
         shortest = shortest.min(r.dt_range.0.min(r.dt_range.1));
-        steps += r.substeps;
-        viscosity_iterations += r.viscosity_iterations;
+        fewest_per_step = fewest_per_step.min(r.viscosity_iterations as f32 / r.substeps as f32);
         let p = &world.particles;
         let speed = (p.velocities().iter()).fold(0.0f32, |f, v| f.max(v.length()));
         fastest = fastest.max(speed);
-        if p.positions().iter().all(|x| x.x < far_wall) {
+        reached |= p.positions().iter().any(|x| x.x >= far_wall);
+        if !reached {
             fastest_running_out = fastest_running_out.max(speed);
         }
         worst_average_error = worst_average_error.max(r.density_error_avg);
@@ -170,14 +170,13 @@ fn slump(kind: SolverKind, mu: f32) -> Slump {
     let p = &world.particles;
     assert!(p.positions().iter().all(|&x| scene.boundary().admits(x)));
     let slump = Slump {
-        steps,
         shortest,
         explicit,
         front: p.positions().iter().map(|x| x.x).fold(f32::MIN, f32::max),
         fastest,
         fastest_running_out,
         worst_average_error,
-        viscosity_iterations,
+        fewest_per_step,
     };
     println!("{kind:?}, μ = {mu} Pa·s: {slump:?}");
     slump
@@ -197,18 +196,19 @@ fn a_thousand_pascal_seconds_runs_at_the_flow_step() {
         // A fall through the column's height would reach √(2 g 0.5) ≈ 3 m/s.
         assert!(s.fastest < 0.3, "{kind:?}: {s:?}");
         assert!(s.front < 0.5, "{kind:?}: {s:?}");
-        // The implicit solve, not the pressure solve, held it: every step
-        // took CG iterations.
-        assert!(s.viscosity_iterations >= s.steps, "{kind:?}: {s:?}");
+        // The implicit solve, not the pressure solve, held it: every frame
+        // took at least one CG iteration per step.
+        assert!(s.fewest_per_step >= 1.0, "{kind:?}: {s:?}");
     }
 }
 
 /// Water's 1e-3 Pa·s under the same solve: the dam break runs out along
 /// the floor (the front passes 0.6 m in a second, as Martin & Moyce's
-/// surge does) with every CG solve converged, and until the front reaches
-/// the far wall no particle is faster than Ritter's dry-bed front
-/// 2√(gH) = 4.4 m/s for the 0.5 m column (measured 3.47 m/s for DFSPH,
-/// 3.29 for PBF; the impact's spray then reaches 6.3 and 4.5 m/s). The
+/// surge does) with every CG solve converged, and until the front first
+/// reaches the far wall its fastest particle runs at 0.6 to 1 times
+/// Ritter's dry-bed front 2√(gH) = 4.4 m/s for the 0.5 m column (measured
+/// 3.47 m/s for DFSPH, 3.29 for PBF; the impact's spray then reaches 6.3
+/// and 4.5 m/s). The
 /// solves take no CG iterations here: water's ν Δt/h² ≈ 3·10⁻⁷ leaves the
 /// velocities within the solve's tolerance of its solution before the
 /// first iteration.
@@ -218,6 +218,9 @@ fn water_runs_under_the_implicit_solve() {
     for kind in [SolverKind::Dfsph, SolverKind::Pbf] {
         let s = slump(kind, 1e-3);
         assert!(s.front > 0.6, "{kind:?}: {s:?}");
-        assert!(s.fastest_running_out < ritter, "{kind:?}: {s:?}");
+        assert!(
+            (0.6 * ritter..ritter).contains(&s.fastest_running_out),
+            "{kind:?}: {s:?}"
+        );
     }
 }

@@ -128,7 +128,8 @@ fn main() {
         let enclosed =
             coverage::enclosed_volume(field, params.iso, 0.005).expect("a small lattice");
         let points = coverage::iso_points(field, params.iso, 0.01).expect("a small lattice");
-        let covered = coverage::covered_fraction(&out.surfels, &points, 0.1 * h).expect("finite");
+        let covered = coverage::covered_fraction(&out.surfels, &points, 0.1 * h)
+            .expect("finite surfels and an iso-surface");
         let residual = coverage::residuals(field, params.iso, &out.surfels).median;
         println!(
             "| {name} | {} | {} | {:.2} % | {residual:.4} | {count} | {median:.2}° | {p90:.2}° | {p99:.2}° | {:.3} | {:.0} ms |",

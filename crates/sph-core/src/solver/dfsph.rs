@@ -119,8 +119,8 @@ pub struct DfsphParams {
     /// The density solve's tolerance: the mean compression
     /// max(ρ/ρ0 − 1, 0) over the particles it leaves. Default 0.0005
     /// (0.05 %). The solve stops on the mean, so single particles can stay
-    /// above it: on the dam break's first second the largest was 1.08 %
-    /// (1,200 particles) and 1.94 % (10,000) at the default, 0.63 % and
+    /// above it: on the dam break's first second the largest was 1.06 %
+    /// (1,200 particles) and 1.94 % (10,000) at the default, 0.66 % and
     /// 0.64 % at 0.0001, for about 1.8 times the wall time
     /// (`tests/dfsph.rs`, `dam_break_compression_at_a_tight_tolerance`).
     pub density_tolerance: f32,
