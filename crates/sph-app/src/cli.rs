@@ -17,8 +17,9 @@ pub struct Args {
     pub scene: String,
 
     /// The solver, overriding the scene's choice: `pbf` (position-based
-    /// fluids, real time; the built-in scenes' default) or `wcsph` (the
-    /// thesis's weakly compressible SPH, the reference).
+    /// fluids, real time; the built-in scenes' and a scene file's default),
+    /// `dfsph` (divergence-free SPH, accurate) or `wcsph` (the thesis's
+    /// weakly compressible SPH, the reference).
     #[arg(long, value_parser = parse_solver)]
     pub solver: Option<sph_core::SolverKind>,
 

@@ -40,7 +40,8 @@ pub struct Scene {
     pub emitters: Vec<EmitterSpec>,
     /// Time stepping.
     pub time_step: TimeStepSpec,
-    /// The solver and its parameters (WCSPH when left out).
+    /// The solver and its parameters (PBF, derived for the scene, when
+    /// left out).
     #[serde(default)]
     pub solver: SolverSpec,
     /// Upper bound on the particle count (blocks and emitters together).
@@ -160,7 +161,8 @@ fn default_force_factor() -> f32 {
 }
 
 /// Which solver runs the scene, and the parameters of each: `[solver]` with
-/// `kind = "wcsph"` (the thesis's, the default), `"pbf"` or `"dfsph"`, and
+/// `kind = "pbf"` (the default, also without the table), `"dfsph"` or
+/// `"wcsph"` (the thesis's), and
 /// optional `[solver.pbf]` and `[solver.dfsph]` tables ([`PbfParams`],
 /// [`DfsphParams`], every field optional). Without its table PBF takes
 /// [`Scene::pbf_params`]: enough substeps for the scene's fluid height and
@@ -640,7 +642,9 @@ impl Scene {
         Ok(world)
     }
 
-    /// Common parameters of the built-in scenes: h = 2 × spacing.
+    /// Common parameters of the built-in scenes: h = 2 × spacing, run by
+    /// the thesis's WCSPH (the constructors build the thesis's scenes;
+    /// [`Scene::with_solver`] picks another, as the demo picks PBF).
     fn base(name: &str, domain: Vec3, spacing: f32) -> Self {
         let h = 2.0 * spacing;
         Scene {
@@ -672,7 +676,10 @@ impl Scene {
                 frame_dt: 1.0 / 60.0,
             },
             max_particles: default_max_particles(),
-            solver: SolverSpec::default(),
+            solver: SolverSpec {
+                kind: SolverKind::Wcsph,
+                ..SolverSpec::default()
+            },
             render: RenderSpec::framing(Vec3::ZERO, domain, 45.0),
         }
     }

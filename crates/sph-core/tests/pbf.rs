@@ -632,17 +632,25 @@ fn bad_parameters_are_errors_naming_the_field() {
     assert_ne!(bogus, text);
     let e = Scene::from_toml(&bogus).unwrap_err().to_string();
     assert!(e.contains("viscosity") && e.contains("implicit"), "{e}");
-    // A file without [solver] runs WCSPH, as before solvers were a choice.
+    // A file without [solver], or without its kind, runs PBF, as the
+    // demo's built-in scenes do; a file that wants WCSPH says so.
     let plain = Scene::dam_break(0.1, 0.04, 0.02).to_toml();
+    assert!(plain.contains("kind = \"wcsph\""), "{plain}");
+    assert_eq!(
+        Scene::from_toml(&plain).unwrap().solver.kind,
+        SolverKind::Wcsph
+    );
     let start = plain.find("[solver").unwrap();
     let end = plain[start..]
         .find("[render]")
         .map_or(plain.len(), |e| start + e);
     let without = format!("{}{}", &plain[..start], &plain[end..]);
-    assert_eq!(
-        Scene::from_toml(&without).unwrap().solver.kind,
-        SolverKind::Wcsph
-    );
+    let no_kind = plain.replace("kind = \"wcsph\"", "");
+    for text in [without, no_kind] {
+        let scene = Scene::from_toml(&text).unwrap();
+        assert_eq!(scene.solver.kind, SolverKind::Pbf);
+        assert_eq!(scene.solver(), Solver::Pbf(scene.pbf_params()));
+    }
 }
 
 /// Particles started on top of each other (a third of the spacing apart)

@@ -59,16 +59,19 @@ pub enum Solver {
     Dfsph(DfsphParams),
 }
 
-/// A solver's name, as scene files and the command line give it.
+/// A solver's name, as scene files and the command line give it. The
+/// default is PBF, the real-time solver: what a scene file without a
+/// `[solver]` table (or without its `kind`) runs, as the demo's built-in
+/// scenes do.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
 )]
 #[serde(rename_all = "lowercase")]
 pub enum SolverKind {
     /// [`Solver::Wcsph`].
-    #[default]
     Wcsph,
-    /// [`Solver::Pbf`].
+    /// [`Solver::Pbf`], the default.
+    #[default]
     Pbf,
     /// [`Solver::Dfsph`].
     Dfsph,
