@@ -1,9 +1,11 @@
 //! Headless mode: simulate, extract, render each frame to PNG, write `frames.csv`
 //! and optional particle/surfel exports.
 
+use std::cell::RefCell;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
+use std::rc::Rc;
 use std::time::Instant;
 
 use image::codecs::gif::{GifEncoder, Repeat};
@@ -217,6 +219,9 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         })?;
     }
     bar.finish_and_clear();
+    if let Some(gif) = gif {
+        gif.finish()?;
+    }
     let what = match (&gpu, &args.gif) {
         (Some(_), Some(_)) => "PNG frames, the GIF, ",
         (Some(_), None) => "PNG frames, ",
@@ -242,14 +247,52 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
 /// An animated GIF of the rendered frames, written frame by frame.
 struct GifWriter {
     path: std::path::PathBuf,
-    encoder: GifEncoder<BufWriter<File>>,
+    encoder: GifEncoder<BufWriter<KeptErrors>>,
     delay: Delay,
+    /// The first error of a write to the file.
+    error: Rc<RefCell<Option<std::io::Error>>>,
+}
+
+/// The GIF's file, keeping the first write error for [`GifWriter::finish`]:
+/// the encoder writes the GIF's trailer and its buffer flushes when they are
+/// dropped, and drops cannot report errors (a short GIF, held in the
+/// buffer until then, would be lost on a full disk without a word).
+struct KeptErrors {
+    file: File,
+    error: Rc<RefCell<Option<std::io::Error>>>,
+}
+
+impl KeptErrors {
+    fn kept<T>(&self, result: std::io::Result<T>) -> std::io::Result<T> {
+        result.map_err(|e| {
+            let mut first = self.error.borrow_mut();
+            let copy = std::io::Error::new(e.kind(), e.to_string());
+            first.get_or_insert(copy);
+            e
+        })
+    }
+}
+
+impl Write for KeptErrors {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let result = self.file.write(buf);
+        self.kept(result)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        let result = self.file.flush();
+        self.kept(result)
+    }
 }
 
 impl GifWriter {
     /// A looping GIF of frames `fps` per second into `file`, created at
     /// `path`.
     fn new(path: &Path, file: File, fps: f64) -> Result<Self, AppError> {
+        let error = Rc::new(RefCell::new(None));
+        let file = KeptErrors {
+            file,
+            error: Rc::clone(&error),
+        };
         let mut encoder = GifEncoder::new_with_speed(BufWriter::new(file), 10);
         encoder
             .set_repeat(Repeat::Infinite)
@@ -260,6 +303,7 @@ impl GifWriter {
             path: path.to_path_buf(),
             encoder,
             delay,
+            error,
         })
     }
 
@@ -268,6 +312,15 @@ impl GifWriter {
         self.encoder
             .encode_frame(frame)
             .map_err(|e| AppError::output(&self.path, e))
+    }
+
+    /// Writes the trailer, flushes, and reports the first write that failed.
+    fn finish(self) -> Result<(), AppError> {
+        drop(self.encoder);
+        match self.error.borrow_mut().take() {
+            Some(e) => Err(AppError::output(&self.path, e)),
+            None => Ok(()),
+        }
     }
 }
 

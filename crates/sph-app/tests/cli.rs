@@ -628,4 +628,31 @@ fn gif_clip_decodes_and_a_bad_path_fails_first() {
         stderr(&o)
     );
     assert!(!bad.exists(), "the run started before the GIF failed");
+    // A GIF whose writes fail (a full disk): an error naming it, not a run
+    // that ends with "wrote 3 frames" and an empty file. Three small frames
+    // stay in the writer's buffer until it is flushed at the end.
+    let full = scratch("gif-full");
+    let o = app(&[
+        "--headless",
+        "--frames",
+        "3",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--gif",
+        "/dev/full",
+        "--out",
+        full.to_str().unwrap(),
+    ]);
+    assert!(
+        !o.status.success(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    assert!(
+        stderr(&o).contains("cannot write to /dev/full"),
+        "{}",
+        stderr(&o)
+    );
 }
