@@ -264,11 +264,9 @@ struct KeptErrors {
 
 impl KeptErrors {
     fn kept<T>(&self, result: std::io::Result<T>) -> std::io::Result<T> {
-        result.map_err(|e| {
-            let mut first = self.error.borrow_mut();
+        result.inspect_err(|e| {
             let copy = std::io::Error::new(e.kind(), e.to_string());
-            first.get_or_insert(copy);
-            e
+            self.error.borrow_mut().get_or_insert(copy);
         })
     }
 }
