@@ -162,7 +162,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
                     render_gpu_ms = gpu_span_ms(ctx, p)?;
                 }
                 let path = out.join(format!("frame_{frame:05}.png"));
-                image.save(&path).map_err(|e| AppError::output(&path, e))?;
+                crate::png::save(&image, &path)?;
                 if let Some(gif) = gif.as_mut() {
                     gif.push(image)?;
                 }

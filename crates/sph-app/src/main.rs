@@ -10,6 +10,7 @@ mod gpu_sim;
 mod headless;
 mod orbit;
 mod pipeline;
+mod png;
 mod scenery;
 mod scenes;
 mod window;

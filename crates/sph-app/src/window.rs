@@ -374,10 +374,7 @@ impl App {
         let path = self
             .out
             .join(format!("screenshot_{:03}.png", self.screenshots));
-        gfx.renderer
-            .read_image(&gfx.ctx)?
-            .save(&path)
-            .map_err(|e| AppError::output(&path, e))?;
+        crate::png::save(&gfx.renderer.read_image(&gfx.ctx)?, &path)?;
         self.screenshots += 1;
         println!("screenshot: {}", path.display());
         Ok(())

@@ -656,3 +656,62 @@ fn gif_clip_decodes_and_a_bad_path_fails_first() {
         stderr(&o)
     );
 }
+
+/// Every file the headless writer makes reports a failed write (a full
+/// disk: the file is a link to `/dev/full`) as an error naming it, and the
+/// run stops: the frame's PNG (which fits the writer's buffer until it is
+/// flushed), `frames.csv`, and the particle and surfel exports in both
+/// formats. (The GIF: [`gif_clip_decodes_and_a_bad_path_fails_first`].)
+#[test]
+fn every_output_reports_a_full_disk() {
+    let cases = [
+        ("frame_00000.png", "ply"),
+        ("frames.csv", "ply"),
+        ("particles_00000.ply", "ply"),
+        ("surfels_00000.ply", "ply"),
+        ("particles_00000.vtk", "vtk"),
+        ("surfels_00000.vtk", "vtk"),
+    ];
+    for (name, format) in cases {
+        let out = scratch(&format!("full-{name}"));
+        std::fs::create_dir_all(&out).unwrap();
+        let file = out.join(name);
+        std::os::unix::fs::symlink("/dev/full", &file).unwrap();
+        let o = app(&[
+            "--headless",
+            "--scene",
+            "dam-break",
+            "--frames",
+            "2",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--export-particles",
+            format,
+            "--export-surfels",
+            format,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        // Without an adapter no PNG is written: nothing to fail.
+        if name.ends_with(".png")
+            && o.status.success()
+            && stderr(&o).contains("mesa-vulkan-drivers")
+            && std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1")
+        {
+            eprintln!("skipped the PNG: no GPU adapter");
+            continue;
+        }
+        assert!(
+            !o.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+        let said = stderr(&o);
+        assert!(
+            said.contains(&file.display().to_string()) && said.contains("No space left"),
+            "{name}: {said}"
+        );
+    }
+}
