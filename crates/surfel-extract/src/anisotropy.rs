@@ -24,8 +24,8 @@
 //! mean, which lies inside the fluid: the pool's surface moved in and it
 //! lost 25 % of its volume. The default [`Centres::Layer`] smooths only
 //! across the surface, within the particle's own layer: the enclosed
-//! volume stays within 1 % of N m/ρ0, and the top's normals lean 0.88°
-//! from vertical at the median (the isotropic field's: 1.45°). Second, the kernel's axes are proportional to
+//! volume stays within 1 % of N m/ρ0, and the top's normals lean 0.89°
+//! from vertical at the median (the isotropic field's: 1.49°). Second, the kernel's axes are proportional to
 //! the neighbourhood's standard deviations √σ̃ₖ, not to its variances σ̃ₖ:
 //! with the paper's G = R diag(σ₁/σ̃ₖ) Rᵀ the top layer of a settled pool
 //! (neighbourhoods of radius h = 2 spacings, variances about 3.4 : 1) got
@@ -78,10 +78,11 @@ pub struct Anisotropy {
     pub isolated_scale: f32,
     /// The radius r of the neighbourhoods whose mean and covariance shape
     /// the kernels, in units of h, in [1, 4]. Default 1.5. The paper's 2h
-    /// is a little flatter on a settled pool (0.81° against 0.88° at the
+    /// is a little flatter on a settled pool (0.82° against 0.89° at the
     /// median) and costs 1.6 times as much (100k particles: the kernel pass
-    /// 154 ms against 94 ms on two cores); r = h is less flat (1.27°;
-    /// `cargo run --release -p surfel-extract --example flat_pool`).
+    /// 154 ms against 94 ms on two cores); r = h is less flat (1.31°;
+    /// `cargo run --release -p surfel-extract --example flat_pool`,
+    /// 2026-11-26).
     pub radius: f32,
     /// Where the smoothing moves the kernel centres.
     pub centres: Centres,
