@@ -1,9 +1,9 @@
 //! The particle exports open in another tool: PLY and VTK frames written by
-//! `sph_core::export` are read back by `splashsurf_lib`'s own readers (the
+//! `sph_core::io` are read back by `splashsurf_lib`'s own readers (the
 //! library of the splashsurf CLI), positions and attributes equal.
 
-use sph_core::export::{Format, FrameWriter, PointCloud};
 use sph_core::glam::Vec3;
+use sph_core::io::{Format, FrameWriter, PointCloud};
 use splashsurf_lib::io::{ply_format, vtk_format};
 use splashsurf_lib::mesh::AttributeData;
 
@@ -64,7 +64,7 @@ fn vtk_frames_load_in_splashsurf_with_their_attributes() {
         other => panic!("density read as {other:?}"),
     }
     // The frame time stays readable: in the title line, and our reader.
-    let ours = sph_core::export::read_vtk(std::fs::File::open(&path).unwrap()).unwrap();
+    let ours = sph_core::io::read_vtk(std::fs::File::open(&path).unwrap()).unwrap();
     assert_eq!(ours.time, 0.25);
     assert_eq!(ours.positions, positions);
 }

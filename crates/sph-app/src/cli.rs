@@ -161,7 +161,7 @@ pub enum ExportFormat {
     Vtk,
 }
 
-impl From<ExportFormat> for sph_core::export::Format {
+impl From<ExportFormat> for sph_core::io::Format {
     fn from(f: ExportFormat) -> Self {
         match f {
             ExportFormat::Ply => Self::Ply,

@@ -11,7 +11,7 @@ use std::time::Instant;
 use image::codecs::gif::{GifEncoder, Repeat};
 use image::{Delay, Frame};
 use indicatif::{ProgressBar, ProgressStyle};
-use sph_core::export::{FrameWriter, PointCloud};
+use sph_core::io::{FrameWriter, PointCloud};
 use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
 use splat_render::{GpuContext, SplatRenderer, wgpu};
 

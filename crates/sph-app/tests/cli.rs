@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 use glam::Vec2;
-use sph_core::export::{read_ply, read_vtk};
+use sph_core::io::{read_ply, read_vtk};
 use splat_render::textures::{procedural_background, sample_bilinear};
 
 fn app(args: &[&str]) -> Output {

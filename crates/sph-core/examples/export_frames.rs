@@ -6,7 +6,7 @@
 //! `OUT_DIR/particles_00000.ply`, … with `particles_index.csv` beside them (frame,
 //! simulated time, particle count, file). Each file also carries its time.
 
-use sph_core::export::{Format, FrameWriter, PointCloud};
+use sph_core::io::{Format, FrameWriter, PointCloud};
 use sph_core::{Result, Scene};
 
 fn main() -> Result<()> {

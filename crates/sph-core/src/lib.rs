@@ -7,7 +7,7 @@
 //! ([`Particles`]), the solver ([`World`]: the thesis's "conveyor belt" of
 //! [`Processor`]s in a [`Program`], adaptive time stepping), domain walls and
 //! obstacles ([`boundary`]), TOML scene files ([`Scene`]) and particle export
-//! (PLY/VTK, [`export`]).
+//! (PLY/VTK, [`io`]).
 //!
 //! Everything here is independent of rendering: downstream crates (the surfel
 //! extractor, user simulations) use the neighbour grid and the kernels directly.
@@ -16,8 +16,8 @@
 
 pub mod boundary;
 pub mod error;
-pub mod export;
 pub mod grid;
+pub mod io;
 pub mod kernels;
 pub mod particles;
 pub mod processor;
@@ -26,8 +26,8 @@ pub mod solver;
 
 pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
-pub use export::{FrameWriter, PointCloud};
 pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood, Poly6Sums, Simd, simd_level};
+pub use io::{FrameWriter, PointCloud};
 pub use kernels::{CubicSpline, Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program, StepCounters};
