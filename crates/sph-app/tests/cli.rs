@@ -694,3 +694,28 @@ fn every_output_reports_a_full_disk() {
         );
     }
 }
+
+/// On wgpu's GL backend (`WGPU_BACKEND=gl`), which cannot read depth
+/// textures as the splat passes do, the headless run declines to render
+/// in a line naming the backend (or finds no adapter at all) and still
+/// simulates: no panic from a pipeline that fails validation.
+#[test]
+fn the_gl_backend_is_declined_not_a_panic() {
+    let out = scratch("gl-backend");
+    let o = Command::new(env!("CARGO_BIN_EXE_sph-app"))
+        .args(["--headless", "--scene", "dam-break", "--frames", "2"])
+        .args(["--width", "64", "--height", "48", "--out"])
+        .arg(&out)
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .env("WGPU_BACKEND", "gl")
+        .output()
+        .expect("the binary runs");
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(
+        said.contains("wgpu's GL backend") || said.contains("no GPU adapter"),
+        "{said}"
+    );
+    assert!(out.join("frames.csv").exists());
+    assert!(!out.join("frame_00000.png").exists());
+}

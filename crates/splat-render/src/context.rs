@@ -129,15 +129,30 @@ async fn choose_adapter(
     surface: Option<&wgpu::Surface<'_>>,
 ) -> Result<wgpu::Adapter> {
     let backends = wgpu::Backends::from_env().unwrap_or(wgpu::Backends::all());
-    let compatible = |a: &wgpu::Adapter| surface.is_none_or(|s| a.is_surface_supported(s));
+    // GL adapters cannot run the splat passes (no `textureLoad` from depth
+    // textures): never chosen, and named in the error where they are all
+    // there is.
+    let compatible = |a: &wgpu::Adapter| {
+        surface.is_none_or(|s| a.is_surface_supported(s))
+            && a.get_info().backend != wgpu::Backend::Gl
+    };
+    let gl_only = |adapters: &[wgpu::Adapter]| {
+        (adapters.iter())
+            .find(|a| a.get_info().backend == wgpu::Backend::Gl)
+            .map(|a| RenderError::GlBackend {
+                adapter: a.get_info().name,
+            })
+    };
     if let Ok(wanted) = std::env::var("WGPU_ADAPTER_NAME") {
         let wanted = wanted.to_lowercase();
         let adapters = instance.enumerate_adapters(backends).await;
         let available: Vec<String> = adapters.iter().map(|a| a.get_info().name).collect();
-        return adapters
-            .into_iter()
-            .find(|a| compatible(a) && a.get_info().name.to_lowercase().contains(&wanted))
-            .ok_or(RenderError::AdapterNotFound { wanted, available });
+        let named = |a: &&wgpu::Adapter| a.get_info().name.to_lowercase().contains(&wanted);
+        if let Some(a) = adapters.iter().filter(named).find(|a| compatible(a)) {
+            return Ok(a.clone());
+        }
+        let named: Vec<wgpu::Adapter> = adapters.iter().filter(named).cloned().collect();
+        return Err(gl_only(&named).unwrap_or(RenderError::AdapterNotFound { wanted, available }));
     }
     let options = wgpu::RequestAdapterOptions {
         power_preference: wgpu::PowerPreference::from_env().unwrap_or_default(),
@@ -145,18 +160,20 @@ async fn choose_adapter(
         compatible_surface: surface,
         apply_limit_buckets: false,
     };
-    match instance.request_adapter(&options).await {
-        Ok(adapter) => Ok(adapter),
-        Err(err) => {
-            // request_adapter may skip CPU adapters on some backends; take any
-            // compatible one before giving up.
-            let adapters = instance.enumerate_adapters(backends).await;
-            adapters
-                .into_iter()
-                .find(compatible)
-                .ok_or_else(|| RenderError::NoAdapter {
-                    detail: format!(" (backends {backends:?}: {err})"),
-                })
-        }
+    let err = match instance.request_adapter(&options).await {
+        Ok(adapter) if compatible(&adapter) => return Ok(adapter),
+        Ok(adapter) => format!("{} is on GL", adapter.get_info().name),
+        Err(err) => err.to_string(),
+    };
+    // request_adapter may skip CPU adapters on some backends, or offer a GL
+    // one; take any compatible adapter before giving up.
+    let adapters = instance.enumerate_adapters(backends).await;
+    if let Some(a) = adapters.iter().find(|a| compatible(a)) {
+        return Ok(a.clone());
     }
+    Err(
+        gl_only(&adapters).unwrap_or_else(|| RenderError::NoAdapter {
+            detail: format!(" (backends {backends:?}: {err})"),
+        }),
+    )
 }

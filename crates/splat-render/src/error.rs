@@ -15,6 +15,17 @@ pub enum RenderError {
         /// What was tried, e.g. the backends allowed by `WGPU_BACKEND`.
         detail: String,
     },
+    /// The only adapter on offer runs on wgpu's GL backend, where the splat
+    /// passes cannot read their depth textures (`textureLoad`).
+    #[error(
+        "the GPU adapter {adapter:?} runs on wgpu's GL backend, which cannot read depth \
+         textures as the splat passes do (`textureLoad`); use Vulkan, Metal or DX12 (unset \
+         WGPU_BACKEND; on a headless Linux machine: `apt-get install -y mesa-vulkan-drivers`)"
+    )]
+    GlBackend {
+        /// Adapter name.
+        adapter: String,
+    },
     /// `WGPU_ADAPTER_NAME` was set but no adapter's name contains it.
     #[error(
         "WGPU_ADAPTER_NAME={wanted:?} matches no adapter; available: {}",
