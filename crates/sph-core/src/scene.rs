@@ -35,6 +35,14 @@ pub struct Scene {
     /// Static obstacles.
     #[serde(default)]
     pub obstacles: Vec<ObstacleSpec>,
+    /// How far particle centres stay from the domain walls and the
+    /// obstacles (m, [`Boundary::clearance`]). Default 0. Half the
+    /// `spacing` holds the first layer where a lattice puts it, and a
+    /// settled pool then loses 1–2 % of its depth instead of 2–4 %. The
+    /// DFSPH walls' push does not yet account for it, though: a DFSPH dam
+    /// break is about twice as compressed with it.
+    #[serde(default)]
+    pub clearance: f32,
     /// Particle emitters.
     #[serde(default)]
     pub emitters: Vec<EmitterSpec>,
@@ -386,6 +394,16 @@ impl Scene {
             return Err(invalid("domain", "min must be below max on every axis"));
         }
         let domain = Aabb::new(dmin, dmax);
+        let c = self.clearance;
+        if !(c >= 0.0 && c <= self.spacing && 2.0 * c < domain.size().min_element()) {
+            return Err(invalid(
+                "clearance",
+                format!(
+                    "{c} m: must be ≥ 0, at most the spacing ({} m) and less than half the domain's narrowest side",
+                    self.spacing
+                ),
+            ));
+        }
         let mut count = 0usize;
         for (k, b) in self.blocks.iter().enumerate() {
             let field = format!("blocks[{k}]");
@@ -552,9 +570,11 @@ impl Scene {
         }
     }
 
-    /// The boundary: domain and obstacles, inelastic walls.
+    /// The boundary: domain and obstacles, inelastic walls, particle centres
+    /// kept [`Scene::clearance`] from them.
     pub fn boundary(&self) -> Boundary {
-        let mut b = Boundary::new(Aabb::new(self.domain.min.into(), self.domain.max.into()));
+        let mut b = Boundary::new(Aabb::new(self.domain.min.into(), self.domain.max.into()))
+            .with_clearance(self.clearance);
         b.obstacles = self
             .obstacles
             .iter()
@@ -668,6 +688,7 @@ impl Scene {
             spacing,
             blocks: Vec::new(),
             obstacles: Vec::new(),
+            clearance: 0.0,
             emitters: Vec::new(),
             time_step: TimeStepSpec {
                 max_dt: 2e-3,

@@ -59,7 +59,22 @@ fn message(text: &str) -> String {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 22] = [
+    let cases: [(&str, &str, &[&str]); 25] = [
+        (
+            "spacing = 0.02\n",
+            "spacing = 0.02\nclearance = -0.01\n",
+            &["clearance", "≥ 0"],
+        ),
+        (
+            "spacing = 0.02\n",
+            "spacing = 0.02\nclearance = 0.03\n",
+            &["clearance", "at most the spacing"],
+        ),
+        (
+            "spacing = 0.02\n",
+            "spacing = 0.02\nclearance = nan\n",
+            &["clearance", "≥ 0"],
+        ),
         ("h = 0.04", "h = 0.04 +", &["scene file", "line"]),
         (
             "h = 0.04",

@@ -168,7 +168,7 @@ impl GpuSolver {
             surface_tension: params.surface_tension,
             surface_threshold: params.surface_threshold,
             gravity: params.gravity.extend(0.0).to_array(),
-            domain_min: boundary.domain.min.extend(0.0).to_array(),
+            domain_min: boundary.domain.min.extend(boundary.clearance).to_array(),
             domain_max: boundary.domain.max.extend(0.0).to_array(),
             poly6_grad: 945.0 / (32.0 * pi * h.powi(9)),
             visc_lap: 45.0 / (pi * h.powi(6)),

@@ -219,11 +219,28 @@ fn hundred_gpu_steps_with_spiky_pressure_and_a_duplicate_match_the_cpu_solver() 
 
 #[test]
 fn hundred_gpu_steps_with_obstacles_match_the_cpu_solver() {
-    use sph_core::scene::ObstacleSpec;
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
+    hundred_steps(ctx, with_obstacles(0.0), |_, _| {});
+}
+
+/// The projection keeps particle centres half a spacing from the walls and
+/// obstacles on both paths.
+#[test]
+fn hundred_gpu_steps_with_a_clearance_match_the_cpu_solver() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    hundred_steps(ctx, with_obstacles(0.01), |_, _| {});
+}
+
+/// A dam break with a sphere inside its column and a box against it, and
+/// particle centres kept `clearance` from every surface.
+fn with_obstacles(clearance: f32) -> sph_core::Scene {
+    use sph_core::scene::ObstacleSpec;
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
+    scene.clearance = clearance;
     // A sphere inside the column (its lattice points are left out) and a box
     // against the column's front: fluid is within h of both from the start.
     scene.obstacles = vec![
@@ -236,7 +253,7 @@ fn hundred_gpu_steps_with_obstacles_match_the_cpu_solver() {
             max: [0.26, 0.06, 0.06],
         },
     ];
-    hundred_steps(ctx, scene, |_, _| {});
+    scene
 }
 
 /// 100 steps of `scene` on both paths, its particles and parameters changed

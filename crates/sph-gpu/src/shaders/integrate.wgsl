@@ -1,5 +1,6 @@
 // Semi-implicit Euler (v += a dt, x += v dt), then the boundary: obstacles and
-// the domain box project the particle onto their surface and reflect the
+// the domain box, moved into the fluid by the clearance (domain_min.w,
+// `Boundary::clearance`), project the particle onto their surface and reflect the
 // normal velocity with the restitution, up to three rounds — sph-core's
 // Integrate and Boundaries processors (`Boundary::resolve`).
 // Expects solver_params.wgsl (struct Params, binding 0 `f`) and walls.wgsl prepended.
@@ -15,6 +16,18 @@ struct Step {
     dt: f32,
 };
 @group(0) @binding(5) var<storage, read> chosen: Step;
+
+// The obstacle grown by the clearance c: a sphere's radius, a box's faces.
+fn grown(o: Obstacle, c: f32) -> Obstacle {
+    var g = o;
+    if o.a.w == SPHERE {
+        g.b.x = o.b.x + c;
+    } else {
+        g.a = vec4<f32>(o.a.xyz - c, o.a.w);
+        g.b = vec4<f32>(o.b.xyz + c, o.b.w);
+    }
+    return g;
+}
 
 fn inside(o: Obstacle, x: vec3<f32>) -> bool {
     if o.a.w == SPHERE {
@@ -45,10 +58,13 @@ fn integrate(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = positions[i];
     var v = velocities[i].xyz + accelerations[i].xyz * dt;
     var x = p.xyz + v * dt;
+    let c = f.domain_min.w;
+    let lo = f.domain_min.xyz + c;
+    let hi = f.domain_max.xyz - c;
     for (var rounds = 0; rounds < 3; rounds++) {
         var moved = false;
         for (var k = 0u; k < arrayLength(&obstacles); k++) {
-            let o = obstacles[k];
+            let o = grown(obstacles[k], c);
             if !inside(o, x) {
                 continue;
             }
@@ -92,13 +108,13 @@ fn integrate(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         for (var a = 0; a < 3; a++) {
             var n = vec3<f32>(0.0);
-            if x[a] < f.domain_min[a] {
-                x[a] = f.domain_min[a];
+            if x[a] < lo[a] {
+                x[a] = lo[a];
                 n[a] = 1.0;
                 v = reflect_normal(v, n);
                 moved = true;
-            } else if x[a] > f.domain_max[a] {
-                x[a] = f.domain_max[a];
+            } else if x[a] > hi[a] {
+                x[a] = hi[a];
                 n[a] = -1.0;
                 v = reflect_normal(v, n);
                 moved = true;

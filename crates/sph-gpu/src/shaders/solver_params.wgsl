@@ -10,7 +10,7 @@ struct Params {
     surface_tension: f32,
     surface_threshold: f32,
     gravity: vec4<f32>,
-    domain_min: vec4<f32>,
+    domain_min: vec4<f32>, // w: Boundary::clearance, kept by integrate.wgsl
     domain_max: vec4<f32>,
     poly6_grad: f32,      // 945 / (32 pi h^9)
     visc_lap: f32,        // 45 / (pi h^6)
