@@ -23,6 +23,29 @@ pub struct Args {
     #[arg(long, value_parser = parse_solver)]
     pub solver: Option<sph_core::SolverKind>,
 
+    /// Play particle files instead of simulating: a file or a glob such as
+    /// 'sim/particles_*.bgeo' (quoted, so that the shell leaves it alone),
+    /// read one file per frame in natural order (`_2` before `_10`). Legacy
+    /// VTK, VTU, PLY, XYZ (binary f32 triples), BGEO and splashsurf's JSON,
+    /// from any simulator. A frame's time is the file's where it records one
+    /// (this project's exports), else its index over --fps. Headless, every
+    /// file is one frame (--frames or --seconds take fewer, or loop); the
+    /// window loops. Needs --particle-radius.
+    #[arg(long, value_name = "PATTERN", conflicts_with_all = ["scene", "solver", "gpu_sim"], requires = "particle_radius")]
+    pub input: Option<String>,
+
+    /// The radius r (m) of the particles read with --input: each stands for
+    /// a cube 2r wide.
+    #[arg(long, value_name = "R", value_parser = parse_length)]
+    pub particle_radius: Option<f32>,
+
+    /// The smoothing length of --input's particles in multiples of
+    /// --particle-radius, as splashsurf takes it: the extraction's kernel
+    /// support h is twice it, 2 × 2 × r = 4r by default (h = 2 particle
+    /// diameters, as the built-in scenes have).
+    #[arg(long, value_name = "L", default_value_t = 2.0, value_parser = parse_length)]
+    pub smoothing_length: f32,
+
     /// Print the built-in scenes and exit.
     #[arg(long)]
     pub list_scenes: bool,
@@ -188,6 +211,11 @@ fn parse_solver(s: &str) -> Result<sph_core::SolverKind, String> {
     })
 }
 
+/// A length (or a multiple of one): finite and > 0, at most 1e6.
+fn parse_length(s: &str) -> Result<f32, String> {
+    parse_in_range(s, "the value", None, 1e6).map(|v| v as f32)
+}
+
 fn parse_seconds(s: &str) -> Result<f64, String> {
     parse_in_range(s, "seconds", None, 3600.0)
 }
@@ -199,12 +227,14 @@ fn parse_fps(s: &str) -> Result<f64, String> {
 }
 
 impl Args {
-    /// Frames to render headless.
-    pub fn frame_count(&self) -> u32 {
-        match (self.frames, self.seconds) {
-            (Some(n), _) => n,
-            (None, Some(s)) => (s * self.fps).round().max(1.0) as u32,
-            (None, None) => self.fps.round().max(1.0) as u32,
+    /// Frames to render headless; `files` where --input plays that many
+    /// and neither --frames nor --seconds is given.
+    pub fn frame_count(&self, files: Option<usize>) -> u32 {
+        match (self.frames, self.seconds, files) {
+            (Some(n), _, _) => n,
+            (None, Some(s), _) => (s * self.fps).round().max(1.0) as u32,
+            (None, None, Some(files)) => u32::try_from(files).unwrap_or(u32::MAX),
+            (None, None, None) => self.fps.round().max(1.0) as u32,
         }
     }
 }
@@ -217,7 +247,8 @@ mod tests {
     fn arguments_parse_and_bad_ones_are_rejected() {
         let a = Args::try_parse_from(["sph-app", "--headless", "--seconds", "2", "--fps", "10"])
             .unwrap();
-        assert_eq!(a.frame_count(), 20);
+        assert_eq!(a.frame_count(None), 20);
+        assert_eq!(a.frame_count(Some(7)), 20);
         assert!(Args::try_parse_from(["sph-app", "--iterations", "7"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--surface", "bumpy"]).is_err());
         let a = Args::try_parse_from(["sph-app"]).unwrap();
@@ -241,5 +272,19 @@ mod tests {
         assert_eq!(a.solver, Some(sph_core::SolverKind::Wcsph));
         let e = Args::try_parse_from(["sph-app", "--solver", "sph"]).unwrap_err();
         assert!(e.to_string().contains("one of wcsph, pbf"), "{e}");
+        // --input: a radius, no scene or solver of its own.
+        let a = Args::try_parse_from(["sph-app", "--input", "a.vtk", "--particle-radius", "0.01"])
+            .unwrap();
+        assert_eq!(a.frame_count(Some(7)), 7);
+        assert!(Args::try_parse_from(["sph-app", "--input", "a.vtk"]).is_err());
+        for conflict in [["--scene", "drop"], ["--solver", "pbf"]] {
+            let mut line = vec!["sph-app", "--input", "a.vtk", "--particle-radius", "0.01"];
+            line.extend(conflict);
+            assert!(Args::try_parse_from(line).is_err(), "{conflict:?}");
+        }
+        for bad in ["0", "-1", "nan", "inf"] {
+            let line = ["sph-app", "--input", "a.vtk", "--particle-radius", bad];
+            assert!(Args::try_parse_from(line).is_err(), "{bad}");
+        }
     }
 }

@@ -49,6 +49,14 @@ pub enum AppError {
         /// What went wrong.
         source: Box<AppError>,
     },
+    /// `--input` found no file, or a file it found cannot be read.
+    #[error("--input `{input}`: {reason}")]
+    Input {
+        /// The pattern or file.
+        input: String,
+        /// What is wrong.
+        reason: String,
+    },
     /// The thread pool could not be built.
     #[error("--threads: {0}")]
     Threads(String),

@@ -18,6 +18,7 @@ use splat_render::{GpuContext, SplatRenderer, wgpu};
 use crate::cli::Args;
 use crate::error::AppError;
 use crate::pipeline::Pipeline;
+use crate::playback::Playback;
 
 /// Runs `args.frame_count()` frames of `pipeline` and writes them to `args.out`.
 pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
@@ -90,13 +91,16 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     let mut particles_out = export("particles", args.export_particles)?;
     let mut surfels_out = export("surfels", args.export_surfels)?;
 
-    let frames = args.frame_count();
+    let frames = args.frame_count(pipeline.playback.as_ref().map(Playback::len));
     let frame_dt = 1.0 / args.fps;
+    let source = match &pipeline.playback {
+        Some(playback) => format!("{} files played", playback.len()),
+        None => format!("solver {}", pipeline.world.solver().kind()),
+    };
     println!(
-        "scene `{}`: {} particles, solver {}{}{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
+        "scene `{}`: {} particles, {source}{}{}, {frames} frames at {} fps of simulated time, {}×{} → {}",
         pipeline.name,
         pipeline.world.particles.len(),
-        pipeline.world.solver().kind(),
         if pipeline.gpu.is_some() {
             " (SPH step on the GPU)"
         } else {
@@ -196,7 +200,10 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
                 s.step_ms,
                 s.extract_ms,
                 s.render_ms,
-                s.solver,
+                match pipeline.playback {
+                    Some(_) => "input".to_string(),
+                    None => s.solver.to_string(),
+                },
                 s.substeps,
                 s.iterations,
                 error(s.density_error_avg),

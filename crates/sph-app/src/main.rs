@@ -10,6 +10,7 @@ mod gpu_sim;
 mod headless;
 mod orbit;
 mod pipeline;
+mod playback;
 mod png;
 mod scenery;
 mod scenes;
@@ -24,6 +25,7 @@ use splat_render::Environment;
 use crate::cli::Args;
 use crate::error::AppError;
 use crate::pipeline::Pipeline;
+use crate::playback::Playback;
 
 fn main() -> ExitCode {
     let args = Args::parse();
@@ -58,11 +60,20 @@ fn run(args: &Args) -> Result<(), AppError> {
         "CPU neighbour search and sums on the {} path (SPH_SIMD lowers it)",
         sph_core::simd_level().name()
     );
-    let (name, mut scene) = scenes::resolve(&args.scene)?;
-    if let Some(kind) = args.solver {
-        scene.solver.kind = kind;
-    }
-    let mut pipeline = Pipeline::new(name, scene, args.iterations)?;
+    let mut pipeline = match (&args.input, args.particle_radius) {
+        (Some(pattern), Some(radius)) => {
+            let (playback, scene, particles) =
+                Playback::open(pattern, radius, args.smoothing_length, 1.0 / args.fps)?;
+            Pipeline::playback(pattern.clone(), scene, particles, playback, args.iterations)?
+        }
+        _ => {
+            let (name, mut scene) = scenes::resolve(&args.scene)?;
+            if let Some(kind) = args.solver {
+                scene.solver.kind = kind;
+            }
+            Pipeline::new(name, scene, args.iterations)?
+        }
+    };
     pipeline.extract.surface = args.surface_field().into();
     if args.headless {
         return headless::run(args, pipeline);

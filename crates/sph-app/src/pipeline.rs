@@ -10,6 +10,7 @@ use surfel_extract::{ExtractParams, Extractor, Surfel};
 use crate::error::AppError;
 use crate::gpu_extract::GpuExtract;
 use crate::gpu_sim::GpuSim;
+use crate::playback::Playback;
 
 /// The demo's Beer–Lambert absorption per metre (red, green, blue): water
 /// stylised about 15 to 40 times stronger than real water's (0.45, 0.06,
@@ -87,6 +88,9 @@ pub struct Pipeline {
     gpu_time: f64,
     /// The GPU solver has stepped past `world.particles`.
     gpu_ahead: bool,
+    /// Particle files played instead of the simulation (`--input`): each
+    /// frame replaces the world's particles by the next file's.
+    pub playback: Option<Playback>,
 }
 
 impl Pipeline {
@@ -96,6 +100,11 @@ impl Pipeline {
             scene: name.clone(),
             source,
         })?;
+        Ok(Self::with_world(name, scene, world, iterations))
+    }
+
+    /// The pipeline of `world`, built from `scene`.
+    fn with_world(name: String, scene: Scene, world: World, iterations: u32) -> Self {
         let extract = ExtractParams {
             iterations,
             ..ExtractParams::new(world.params().h)
@@ -112,13 +121,56 @@ impl Pipeline {
             gpu_extract: None,
             gpu_time: 0.0,
             gpu_ahead: false,
+            playback: None,
         };
         p.stats.particles = p.world.particles.len();
+        p
+    }
+
+    /// Plays `playback`'s files, starting from `particles` (its first file)
+    /// in `scene` (its domain and camera), extracting with `iterations`
+    /// refinement iterations.
+    ///
+    /// # Errors
+    /// [`AppError::Scene`] where the particles do not make a world.
+    pub fn playback(
+        name: String,
+        scene: Scene,
+        particles: sph_core::Particles,
+        playback: Playback,
+        iterations: u32,
+    ) -> Result<Self, AppError> {
+        // The world only holds the particles for the extraction: it is
+        // never stepped, so the scene needs no fluid of its own.
+        let world = World::with_solver(
+            particles,
+            scene.fluid_params(),
+            scene.boundary(),
+            sph_core::TimeStepping::default(),
+            scene.solver(),
+        )
+        .map_err(|source| AppError::Scene {
+            scene: name.clone(),
+            source,
+        })?;
+        let mut p = Self::with_world(name, scene, world, iterations);
+        p.playback = Some(playback);
         Ok(p)
     }
 
-    /// Back to the scene's initial state.
+    /// Back to the scene's initial state (a playback's first file).
     pub fn reset(&mut self) -> Result<(), AppError> {
+        if let Some(playback) = self.playback.as_mut() {
+            playback.rewind();
+            let (particles, _) = playback.next_frame()?;
+            self.world.particles = particles;
+            self.extracted = false;
+            self.stats = FrameStats {
+                particles: self.world.particles.len(),
+                ..Default::default()
+            };
+            return Ok(());
+        }
         self.world = self.scene.build_world()?;
         self.gpu_time = 0.0;
         self.gpu_ahead = false;
@@ -215,6 +267,22 @@ impl Pipeline {
     /// it runs) and marks the surfels for re-extraction.
     pub fn advance(&mut self, frame_dt: f64) -> Result<(), AppError> {
         let start = Instant::now();
+        if let Some(playback) = self.playback.as_mut() {
+            let (particles, time) = playback.next_frame()?;
+            self.world.particles = particles;
+            self.stats = FrameStats {
+                frame: self.stats.frame + 1,
+                time,
+                particles: self.world.particles.len(),
+                step_ms: start.elapsed().as_secs_f64() * 1e3,
+                // No solver ran: no density errors to report.
+                density_error_avg: f32::NAN,
+                density_error_max: f32::NAN,
+                ..Default::default()
+            };
+            self.extracted = false;
+            return Ok(());
+        }
         let report = match self.gpu.as_mut() {
             Some(gpu) => {
                 let substeps = gpu.advance(&self.world, frame_dt)?;
@@ -366,7 +434,11 @@ impl Pipeline {
     /// # Errors
     /// As [`crate::scenery::scenery`].
     pub fn scenery(&self) -> Result<splat_render::SceneGeometry, AppError> {
-        crate::scenery::scenery(&self.scene)
+        match self.playback {
+            // Nothing is known of another simulator's tank: the ground only.
+            Some(_) => crate::scenery::ground(&self.scene),
+            None => crate::scenery::scenery(&self.scene),
+        }
     }
 }
 

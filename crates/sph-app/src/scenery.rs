@@ -27,29 +27,45 @@ const GROUND: Vec3 = Vec3::new(0.62, 0.60, 0.55);
 /// validation rejects those first).
 pub fn scenery(scene: &Scene) -> Result<SceneGeometry, AppError> {
     let (min, max) = (Vec3::from(scene.domain.min), Vec3::from(scene.domain.max));
-    let extent = (max - min).max_element();
-    let grid = tile_size(extent);
-    let mut objects = vec![
+    let grid = tile_size((max - min).max_element());
+    let mut geometry = ground(scene)?;
+    geometry.objects.insert(
+        0,
         Object {
             mesh: Mesh::container(min, max)?,
             material: Material::tiled(TANK, grid),
         },
-        // Just below the tank's floor, so that the two never fight for a pixel.
-        Object {
-            mesh: Mesh::ground(0.5 * (min + max), min.y - 1e-3 * extent, 6.0 * extent)?,
-            material: Material::tiled(GROUND, 5.0 * grid),
-        },
-    ];
+    );
     for obstacle in &scene.obstacles {
         let mesh = match *obstacle {
             ObstacleSpec::Box { min, max } => Mesh::cuboid(min.into(), max.into())?,
             ObstacleSpec::Sphere { centre, radius } => Mesh::sphere(centre.into(), radius, 48)?,
         };
-        objects.push(Object {
+        geometry.objects.push(Object {
             mesh,
             material: Material::plain(OBSTACLE),
         });
     }
+    Ok(geometry)
+}
+
+/// The ground plane under `scene`'s domain alone, before the environment
+/// map's sky: what a playback of other simulators' particles stands on.
+///
+/// # Errors
+/// [`AppError::Render`] for a degenerate domain.
+pub fn ground(scene: &Scene) -> Result<SceneGeometry, AppError> {
+    let (min, max) = (Vec3::from(scene.domain.min), Vec3::from(scene.domain.max));
+    let extent = (max - min).max_element();
+    let grid = tile_size(extent);
+    let objects = vec![
+        // Just below the domain's floor, so that it and a tank never fight
+        // for a pixel.
+        Object {
+            mesh: Mesh::ground(0.5 * (min + max), min.y - 1e-3 * extent, 6.0 * extent)?,
+            material: Material::tiled(GROUND, 5.0 * grid),
+        },
+    ];
     Ok(SceneGeometry {
         objects,
         backdrop: Backdrop::Environment,

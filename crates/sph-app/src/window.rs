@@ -483,6 +483,11 @@ impl App {
         let extract = &mut self.pipeline.extract;
         let fluid = &mut self.pipeline.scene.fluid;
         let name = self.pipeline.name.clone();
+        let playing = self
+            .pipeline
+            .playback
+            .as_ref()
+            .map(crate::playback::Playback::len);
         let full = self.egui.run_pass(raw, |ctx| {
             egui::Window::new("sph-splat").default_pos([10.0, 10.0]).show(ctx, |ui| {
                 ui.label(format!("scene: {name}"));
@@ -506,37 +511,41 @@ impl App {
                 } else {
                     ui.label("real time: simulated time keeps up with the clock");
                 }
-                ui.horizontal(|ui| {
-                    egui::ComboBox::from_label("solver (resets)")
-                        .selected_text(solver.name())
-                        .show_ui(ui, |ui| {
-                            for kind in SolverKind::ALL {
-                                if ui.selectable_value(&mut solver, kind, kind.name()).changed() {
-                                    solver_choice = Some(kind);
+                if let Some(files) = playing {
+                    ui.label(format!("playing {files} particle files (R restarts)"));
+                } else {
+                    ui.horizontal(|ui| {
+                        egui::ComboBox::from_label("solver (resets)")
+                            .selected_text(solver.name())
+                            .show_ui(ui, |ui| {
+                                for kind in SolverKind::ALL {
+                                    if ui.selectable_value(&mut solver, kind, kind.name()).changed() {
+                                        solver_choice = Some(kind);
+                                    }
                                 }
-                            }
-                        });
-                });
-                ui.label(match stats.solver {
-                    SolverKind::Pbf => format!(
-                        "{} iterations per frame, {} clamped",
-                        stats.iterations, stats.clamped
-                    ),
-                    SolverKind::Wcsph => "adaptive step, no iterations".into(),
-                    SolverKind::Dfsph => format!(
-                        "{} steps, {} density + {} divergence + {} viscosity iterations per frame, {} unconverged",
-                        stats.substeps,
-                        stats.iterations,
-                        stats.divergence_iterations,
-                        stats.viscosity_iterations,
-                        stats.unconverged
-                    ),
-                });
-                ui.label(format!(
-                    "density error {:.2} % avg, {:.1} % max",
-                    100.0 * stats.density_error_avg,
-                    100.0 * stats.density_error_max
-                ));
+                            });
+                    });
+                    ui.label(match stats.solver {
+                        SolverKind::Pbf => format!(
+                            "{} iterations per frame, {} clamped",
+                            stats.iterations, stats.clamped
+                        ),
+                        SolverKind::Wcsph => "adaptive step, no iterations".into(),
+                        SolverKind::Dfsph => format!(
+                            "{} steps, {} density + {} divergence + {} viscosity iterations per frame, {} unconverged",
+                            stats.substeps,
+                            stats.iterations,
+                            stats.divergence_iterations,
+                            stats.viscosity_iterations,
+                            stats.unconverged
+                        ),
+                    });
+                    ui.label(format!(
+                        "density error {:.2} % avg, {:.1} % max",
+                        100.0 * stats.density_error_avg,
+                        100.0 * stats.density_error_max
+                    ));
+                }
                 ui.label(format!(
                     "{} particles, {} surfels, {} evaluations",
                     stats.particles, stats.surfels, stats.evaluations

@@ -1,30 +1,16 @@
 //! End-to-end tests of the `sph-app` binary: headless frames, CSV, exports, and
 //! one-line errors with a non-zero exit.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
 use glam::Vec2;
 use sph_core::io::{read_ply, read_vtk};
 use splat_render::textures::{procedural_background, sample_bilinear};
 
-fn app(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_sph-app"))
-        .args(args)
-        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
-        .output()
-        .expect("the binary runs")
-}
+mod common;
 
-fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    dir
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{app, scratch, stderr};
 
 /// Whether a `--gpu-*` run failed for want of an adapter: a skip, unless
 /// `SPH_REQUIRE_GPU=1` (CI) makes it a failure.

@@ -4,6 +4,8 @@
 //! [`read_ply`] and [`read_vtk`] (what these writers write, not arbitrary
 //! files: for tests and tools), and a [`FrameWriter`] that writes numbered
 //! frames plus a CSV index (`{prefix}_index.csv`: frame, time, points, file).
+//! [`read_particles`] reads any particle file by its extension, other
+//! simulators' with the `readers` feature (splashsurf_lib's readers).
 //!
 //! Both formats are read by ParaView, Blender (PLY) and splashsurf (PLY,
 //! VTK). Every writer flushes and reports a failed write as [`Error::Io`]
@@ -18,10 +20,12 @@ use crate::particles::Particles;
 
 mod frames;
 mod ply;
+mod read;
 mod vtk;
 
 pub use frames::FrameWriter;
 pub use ply::{read_ply, write_ply};
+pub use read::{PARTICLE_EXTENSIONS, ParticleFile, read_particles};
 pub use vtk::{read_vtk, write_vtk};
 
 /// A set of points with named per-point attributes, borrowed from their owner.

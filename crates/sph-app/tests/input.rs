@@ -1,0 +1,198 @@
+//! `sph-app --input`: other simulators' particle files (splashsurf's test
+//! data, MIT, in `assets/particles/splashsurf/`) and this project's own
+//! exports, played back through extraction and rendering.
+
+use std::path::{Path, PathBuf};
+
+mod common;
+
+use common::{app, stderr};
+
+/// A fresh, empty folder `name` under the tests' scratch folder.
+fn scratch(name: &str) -> PathBuf {
+    let dir = common::scratch(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn data(name: &str) -> String {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/particles/splashsurf");
+    dir.join(name).to_str().unwrap().to_string()
+}
+
+/// `frames.csv`'s rows of `out`, split at the commas.
+fn rows(out: &Path) -> Vec<Vec<String>> {
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    (csv.lines().skip(1))
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect()
+}
+
+/// Plays `input` headless at 30 fps into `out`, checking it succeeded.
+fn play(input: &str, radius: &str, out: &Path, extra: &[&str]) -> Vec<Vec<String>> {
+    let out_arg = out.to_str().unwrap();
+    let mut args = vec![
+        "--headless",
+        "--input",
+        input,
+        "--particle-radius",
+        radius,
+        "--width",
+        "96",
+        "--height",
+        "64",
+        "--out",
+        out_arg,
+    ];
+    args.extend(extra);
+    let o = app(&args);
+    assert!(o.status.success(), "{input}: {}", stderr(&o));
+    rows(out)
+}
+
+/// SPlisHSPlasH's double dam break (two legacy VTK files, a glob), a BGEO
+/// frame and a VTU file: one frame per file in order, every particle, a
+/// surface, the frame times 1/30 s apart (the files record none).
+#[test]
+fn other_simulators_files_play_frame_by_frame() {
+    let cases = [
+        (
+            "double_dam_break_frame_*_4732_particles.vtk",
+            2,
+            4732,
+            0.025,
+        ),
+        ("dam_break_frame_9_6859_particles.bgeo", 1, 6859, 0.025),
+        ("fluid_encoded_250_particles.vtu", 1, 250, 0.025),
+    ];
+    for (k, (pattern, files, particles, radius)) in cases.into_iter().enumerate() {
+        let out = scratch(&format!("input-{k}"));
+        let rows = play(&data(pattern), &radius.to_string(), &out, &[]);
+        assert_eq!(rows.len(), files, "{pattern}");
+        for (i, row) in rows.iter().enumerate() {
+            let time: f64 = row[1].parse().unwrap();
+            assert!((time - i as f64 / 30.0).abs() < 1e-6, "{pattern}: {row:?}");
+            assert_eq!(row[2], particles.to_string(), "{pattern}: {row:?}");
+            let surfels: usize = row[3].parse().unwrap();
+            assert!(surfels >= particles / 10, "{pattern}: {row:?}");
+            assert_eq!(row[9], "input", "{pattern}: {row:?}");
+            assert_eq!(&row[12..14], ["", ""], "no solver, no density error");
+            assert!(out.join(format!("frame_{i:05}.png")).exists() || row[8].is_empty());
+        }
+    }
+    // The double dam break's files sort as 01 then 26: the columns stand at
+    // first (a few surfels per particle), then the flow has spread thin.
+    let out = scratch("input-order");
+    let rows = play(
+        &data("double_dam_break_frame_*_4732_particles.vtk"),
+        "0.025",
+        &out,
+        &[],
+    );
+    let surfels: Vec<usize> = rows.iter().map(|r| r[3].parse().unwrap()).collect();
+    assert!(surfels[1] > 3 * surfels[0], "{surfels:?}");
+}
+
+/// This project's own exports play back at the times they record, in
+/// frame order, with --frames looping past the last file.
+#[test]
+fn own_exports_play_back_at_their_times() {
+    let sim = scratch("input-own-sim");
+    let o = app(&[
+        "--headless",
+        "--scene",
+        "dam-break",
+        "--frames",
+        "3",
+        "--fps",
+        "20",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--export-particles",
+        "vtk",
+        "--out",
+        sim.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let simulated = rows(&sim);
+    let pattern = sim.join("particles_*.vtk");
+    let out = scratch("input-own-play");
+    let played = play(pattern.to_str().unwrap(), "0.01", &out, &["--frames", "4"]);
+    assert_eq!(played.len(), 4);
+    for (i, row) in played.iter().enumerate() {
+        let source = &simulated[i % 3];
+        assert_eq!((&row[1], &row[2]), (&source[1], &source[2]), "frame {i}");
+    }
+}
+
+#[test]
+fn bad_inputs_are_clear_errors() {
+    let dir = scratch("input-bad");
+    let path = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    std::fs::write(dir.join("garbage.bgeo"), b"not a bgeo file at all").unwrap();
+    std::fs::write(dir.join("empty.xyz"), b"").unwrap();
+    std::fs::write(dir.join("short.xyz"), [0u8; 7]).unwrap();
+    std::fs::write(dir.join("points.txt"), b"0 0 0\n").unwrap();
+    let nan: Vec<u8> = [0.0f32, f32::NAN, 0.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    std::fs::write(dir.join("nan.xyz"), nan).unwrap();
+    let cases: [(String, &str, &str); 7] = [
+        (path("missing_*.vtk"), "0.01", "no file matches"),
+        (path("garbage.bgeo"), "0.01", "garbage.bgeo"),
+        (path("empty.xyz"), "0.01", "holds no particle"),
+        (path("short.xyz"), "0.01", "short.xyz"),
+        (path("points.txt"), "0.01", "not a particle file"),
+        (path("nan.xyz"), "0.01", "not finite"),
+        (path("[bad"), "0.01", "not a valid pattern"),
+    ];
+    for (input, radius, expected) in cases {
+        let o = app(&["--headless", "--input", &input, "--particle-radius", radius]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{input}: {err}");
+        assert!(err.contains(expected), "{input}: {err}");
+        assert!(err.contains("--input"), "{input}: {err}");
+        assert!(!err.contains("panicked"), "{input}: {err}");
+    }
+    // A smoothing length that gives thousands of neighbours.
+    let o = app(&[
+        "--headless",
+        "--input",
+        &data("fluid_encoded_250_particles.vtu"),
+        "--particle-radius",
+        "0.025",
+        "--smoothing-length",
+        "30",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("thousands of neighbours"),
+        "{err}"
+    );
+}
+
+/// XYZ files (binary f32 triples, as splashsurf reads them) play too.
+#[test]
+fn xyz_files_play() {
+    let dir = scratch("input-xyz");
+    let mut bytes = Vec::new();
+    for i in 0..6 {
+        for j in 0..6 {
+            for k in 0..6 {
+                for v in [i, j, k] {
+                    bytes.extend((0.02 * v as f32).to_le_bytes());
+                }
+            }
+        }
+    }
+    std::fs::write(dir.join("block.xyz"), bytes).unwrap();
+    let out = dir.join("out");
+    let rows = play(dir.join("block.xyz").to_str().unwrap(), "0.01", &out, &[]);
+    assert_eq!(rows.len(), 1);
+    assert_eq!(rows[0][2], "216");
+    let surfels: usize = rows[0][3].parse().unwrap();
+    assert!(surfels > 100, "{:?}", rows[0]);
+}

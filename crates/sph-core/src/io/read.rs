@@ -1,0 +1,113 @@
+//! Particle files from anywhere, by extension: this project's PLY and VTK
+//! frames with their simulated time ([`super::read_ply`],
+//! [`super::read_vtk`]), and, with the `readers` feature, what other
+//! simulators write (SPlisHSPlasH, DualSPHysics, Houdini, splashsurf's test
+//! data): legacy VTK and VTU, PLY, XYZ (binary f32 triples), BGEO and
+//! splashsurf's JSON, read by splashsurf_lib's readers. Only positions are
+//! read from those; they carry no time.
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::{LoadedCloud, read_ply, read_vtk};
+use crate::error::{Error, Result};
+
+/// The particles of one file.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ParticleFile {
+    /// Positions.
+    pub positions: Vec<Vec3>,
+    /// The simulated time the file records (this project's frames), if any.
+    pub time: Option<f64>,
+}
+
+/// The extensions [`read_particles`] takes (lower case, without the dot).
+pub const PARTICLE_EXTENSIONS: [&str; 6] = ["ply", "vtk", "vtu", "xyz", "bgeo", "json"];
+
+/// Reads the particle positions of the file at `path`, its format from its
+/// extension (any of [`PARTICLE_EXTENSIONS`], in any case).
+///
+/// # Errors
+/// [`Error::Io`] naming the file: it cannot be read, its extension is not
+/// one of those, it is not a particle file of that format, or a position is
+/// not finite; other simulators' formats without the `readers` feature.
+pub fn read_particles(path: impl AsRef<Path>) -> Result<ParticleFile> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let fail = |reason: String| Error::Io {
+        path: name.clone(),
+        reason,
+    };
+    let extension = (path.extension().and_then(|e| e.to_str()))
+        .map(str::to_ascii_lowercase)
+        .filter(|e| PARTICLE_EXTENSIONS.contains(&e.as_str()))
+        .ok_or_else(|| {
+            fail(format!(
+                "not a particle file: the name must end in .{}",
+                PARTICLE_EXTENSIONS.join(", .")
+            ))
+        })?;
+    // This project's own frames first (they carry the time), then anyone's.
+    let own: Option<fn(std::io::BufReader<std::fs::File>) -> Result<LoadedCloud>> =
+        match extension.as_str() {
+            "ply" => Some(read_ply),
+            "vtk" => Some(read_vtk),
+            _ => None,
+        };
+    let own_error = match own {
+        Some(read) => {
+            let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
+            match read(std::io::BufReader::new(file)) {
+                Ok(cloud) => {
+                    return finite(ParticleFile {
+                        positions: cloud.positions,
+                        time: Some(cloud.time),
+                    })
+                    .map_err(fail);
+                }
+                Err(e) => Some(e.to_string()),
+            }
+        }
+        None => None,
+    };
+    let positions = foreign(path).map_err(|reason| match &own_error {
+        Some(own) => fail(format!(
+            "{reason}; as this project's own {extension}: {own}"
+        )),
+        None => fail(reason),
+    })?;
+    finite(ParticleFile {
+        positions,
+        time: None,
+    })
+    .map_err(fail)
+}
+
+/// Every position is finite.
+fn finite(file: ParticleFile) -> std::result::Result<ParticleFile, String> {
+    match file.positions.iter().position(|x| !x.is_finite()) {
+        Some(i) => Err(format!(
+            "particle {i} is at {}, not finite",
+            file.positions[i]
+        )),
+        None => Ok(file),
+    }
+}
+
+/// Positions by splashsurf_lib's readers. A reader that panics on a
+/// malformed file (some assert on what they read) is reported as an error.
+#[cfg(feature = "readers")]
+fn foreign(path: &Path) -> std::result::Result<Vec<Vec3>, String> {
+    let read = || splashsurf_lib::io::particles_from_file::<f32, _>(path);
+    match std::panic::catch_unwind(read) {
+        Ok(Ok(points)) => Ok(points.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect()),
+        Ok(Err(e)) => Err(format!("{e:#}")),
+        Err(_) => Err("the reader failed on a malformed file".to_string()),
+    }
+}
+
+#[cfg(not(feature = "readers"))]
+fn foreign(_: &Path) -> std::result::Result<Vec<Vec3>, String> {
+    Err("other simulators' files need sph-core's `readers` feature".to_string())
+}
