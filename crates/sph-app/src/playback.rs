@@ -75,6 +75,24 @@ impl Playback {
             return Err(bad("no file matches it".to_string()));
         }
         files.sort_by_key(|p| natural_key(p));
+        let missing = gaps(&files);
+        if !missing.is_empty() {
+            let list: Vec<String> = (missing.iter().take(5))
+                .map(|(a, b)| format!("between {a} and {b}"))
+                .collect();
+            let more = missing.len().saturating_sub(5);
+            let message = format!(
+                "warning: --input `{pattern}`: frames missing from the sequence {}{}",
+                list.join(", "),
+                if more > 0 {
+                    format!(" and {more} more gaps")
+                } else {
+                    String::new()
+                }
+            );
+            eprintln!("{message}");
+            log::warn!("{message}");
+        }
         let spacing = 2.0 * radius;
         let playback = Self {
             files,
@@ -169,6 +187,37 @@ fn scene_around(positions: &[Vec3], spacing: f32, h: f32, name: &str) -> Result<
     Ok(scene)
 }
 
+/// The gaps in a sorted sequence of numbered files: neighbouring frame
+/// numbers further apart than the sequence's usual step (its smallest), so
+/// that every tenth frame exported is no gap but a lost file is. The frame
+/// number is the first run of digits in the file names that differs
+/// between them (`frame_01_4732_particles`: the 01).
+fn gaps(files: &[PathBuf]) -> Vec<(u64, u64)> {
+    let runs: Vec<Vec<u64>> = (files.iter())
+        .map(|p| {
+            let name = p.file_name().map(Path::new).unwrap_or(p);
+            let key = natural_key(name);
+            key[..key.len() - 1].iter().map(|&(_, n)| n).collect()
+        })
+        .collect();
+    let count = runs[0].len();
+    if runs.iter().any(|r| r.len() != count) {
+        return Vec::new();
+    }
+    let Some(at) = (0..count).find(|&k| runs.iter().any(|r| r[k] != runs[0][k])) else {
+        return Vec::new();
+    };
+    let numbers: Vec<u64> = runs.iter().map(|r| r[at]).collect();
+    let steps = numbers.windows(2).map(|w| w[1].saturating_sub(w[0]));
+    let Some(step) = steps.filter(|&d| d > 0).min() else {
+        return Vec::new();
+    };
+    (numbers.windows(2))
+        .filter(|w| w[1].saturating_sub(w[0]) > step)
+        .map(|w| (w[0], w[1]))
+        .collect()
+}
+
 /// The file name split into text and numbers, so that `p_2` sorts before
 /// `p_10`.
 fn natural_key(path: &Path) -> Vec<(String, u64)> {
@@ -205,5 +254,23 @@ mod tests {
             names.map(|p| p.display().to_string()),
             ["p_1.bgeo", "p_2.bgeo", "p_10.bgeo", "q_0.bgeo"]
         );
+    }
+
+    #[test]
+    fn lost_frames_are_gaps_and_a_stride_is_not() {
+        let files = |names: &[&str]| names.iter().map(PathBuf::from).collect::<Vec<_>>();
+        let sequence = files(&[
+            "d/f_1_99.vtk",
+            "d/f_2_99.vtk",
+            "d/f_4_99.vtk",
+            "d/f_5_99.vtk",
+        ]);
+        assert_eq!(gaps(&sequence), [(2, 4)]);
+        let stride = files(&["f_0.vtk", "f_10.vtk", "f_20.vtk"]);
+        assert!(gaps(&stride).is_empty());
+        let lost = files(&["f_0.vtk", "f_10.vtk", "f_30.vtk", "f_40.vtk"]);
+        assert_eq!(gaps(&lost), [(10, 30)]);
+        assert!(gaps(&files(&["a.vtk"])).is_empty());
+        assert!(gaps(&files(&["a.vtk", "b_1.vtk"])).is_empty());
     }
 }

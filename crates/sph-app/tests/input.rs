@@ -1,5 +1,5 @@
 //! `sph-app --input`: other simulators' particle files (splashsurf's test
-//! data, MIT, in `assets/particles/splashsurf/`) and this project's own
+//! data, MIT, in `tests/data/splashsurf/`) and this project's own
 //! exports, played back through extraction and rendering.
 
 use std::path::{Path, PathBuf};
@@ -16,7 +16,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 fn data(name: &str) -> String {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/particles/splashsurf");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/splashsurf");
     dir.join(name).to_str().unwrap().to_string()
 }
 
@@ -94,7 +94,7 @@ fn other_simulators_files_play_frame_by_frame() {
 }
 
 /// This project's own exports play back at the times they record, in
-/// frame order, with --frames looping past the last file.
+/// frame order.
 #[test]
 fn own_exports_play_back_at_their_times() {
     let sim = scratch("input-own-sim");
@@ -103,7 +103,7 @@ fn own_exports_play_back_at_their_times() {
         "--scene",
         "dam-break",
         "--frames",
-        "3",
+        "4",
         "--fps",
         "20",
         "--width",
@@ -119,11 +119,88 @@ fn own_exports_play_back_at_their_times() {
     let simulated = rows(&sim);
     let pattern = sim.join("particles_*.vtk");
     let out = scratch("input-own-play");
-    let played = play(pattern.to_str().unwrap(), "0.01", &out, &["--frames", "4"]);
+    let played = play(pattern.to_str().unwrap(), "0.01", &out, &[]);
     assert_eq!(played.len(), 4);
     for (i, row) in played.iter().enumerate() {
-        let source = &simulated[i % 3];
+        let source = &simulated[i];
         assert_eq!((&row[1], &row[2]), (&source[1], &source[2]), "frame {i}");
+    }
+    // A lost file is reported, and the rest play (three files: --frames
+    // no longer given, each plays once).
+    std::fs::remove_file(sim.join("particles_00001.vtk")).unwrap();
+    let o = app(&[
+        "--headless",
+        "--input",
+        pattern.to_str().unwrap(),
+        "--particle-radius",
+        "0.01",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("frames missing from the sequence between 0 and 2"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(rows(&out).len(), 3);
+}
+
+/// Each format's files cut to a quarter (inside the positions), emptied or with a wrong first bytes
+/// are one-line errors naming the file, never a panic.
+#[test]
+fn truncated_empty_and_wrong_magic_files_are_errors() {
+    let dir = scratch("input-broken");
+    // This project's PLY, beside splashsurf's VTK, VTU and BGEO.
+    let sim = scratch("input-broken-sim");
+    let o = app(&[
+        "--headless",
+        "--scene",
+        "dam-break",
+        "--frames",
+        "1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--export-particles",
+        "ply",
+        "--out",
+        sim.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let sources = [
+        sim.join("particles_00000.ply"),
+        PathBuf::from(data("double_dam_break_frame_01_4732_particles.vtk")),
+        PathBuf::from(data("fluid_encoded_250_particles.vtu")),
+        PathBuf::from(data("dam_break_frame_9_6859_particles.bgeo")),
+    ];
+    for source in sources {
+        let bytes = std::fs::read(&source).unwrap();
+        let extension = source.extension().unwrap().to_str().unwrap();
+        let mut wrong = bytes.clone();
+        wrong[..4].copy_from_slice(b"XXXX");
+        let broken = [
+            ("truncated", bytes[..bytes.len() / 4].to_vec()),
+            ("empty", Vec::new()),
+            ("wrong_magic", wrong),
+        ];
+        for (what, content) in broken {
+            let path = dir.join(format!("{what}.{extension}"));
+            std::fs::write(&path, content).unwrap();
+            let o = app(&[
+                "--headless",
+                "--input",
+                path.to_str().unwrap(),
+                "--particle-radius",
+                "0.01",
+            ]);
+            let err = stderr(&o);
+            assert_eq!(o.status.code(), Some(1), "{}: {err}", path.display());
+            assert!(err.contains(&format!("{what}.{extension}")), "{err}");
+            assert!(!err.contains("panicked"), "{err}");
+            assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        }
     }
 }
 

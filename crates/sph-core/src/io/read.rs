@@ -96,15 +96,44 @@ fn finite(file: ParticleFile) -> std::result::Result<ParticleFile, String> {
 }
 
 /// Positions by splashsurf_lib's readers. A reader that panics on a
-/// malformed file (some assert on what they read) is reported as an error.
+/// malformed file (BGEO's parser on a truncated one, some readers' asserts)
+/// is reported as an error, without the panic's message.
 #[cfg(feature = "readers")]
 fn foreign(path: &Path) -> std::result::Result<Vec<Vec3>, String> {
     let read = || splashsurf_lib::io::particles_from_file::<f32, _>(path);
-    match std::panic::catch_unwind(read) {
+    match quietly(read) {
         Ok(Ok(points)) => Ok(points.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect()),
-        Ok(Err(e)) => Err(format!("{e:#}")),
-        Err(_) => Err("the reader failed on a malformed file".to_string()),
+        // One line: some readers' messages hold newlines and tabs.
+        Ok(Err(e)) => Err(format!("{e:#}")
+            .split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")),
+        Err(_) => Err("the reader failed on a malformed or truncated file".to_string()),
     }
+}
+
+/// `f`, its panic caught and not printed. The panic hook is wrapped once,
+/// per process: it stays silent on this thread while `f` runs and passes
+/// every other panic to the hook it found.
+#[cfg(feature = "readers")]
+fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> std::thread::Result<T> {
+    use std::cell::Cell;
+    thread_local! {
+        static QUIET: Cell<bool> = const { Cell::new(false) };
+    }
+    static HOOK: std::sync::Once = std::sync::Once::new();
+    HOOK.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !QUIET.with(Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    QUIET.with(|q| q.set(true));
+    let result = std::panic::catch_unwind(f);
+    QUIET.with(|q| q.set(false));
+    result
 }
 
 #[cfg(not(feature = "readers"))]
