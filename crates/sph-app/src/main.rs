@@ -5,6 +5,8 @@
 
 mod cli;
 mod error;
+#[cfg(test)]
+mod golden;
 mod gpu_extract;
 mod gpu_sim;
 mod headless;

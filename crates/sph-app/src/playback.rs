@@ -244,7 +244,81 @@ fn natural_key(path: &Path) -> Vec<(String, u64)> {
 
 #[cfg(test)]
 mod tests {
+    use splat_render::{GpuContext, SplatRenderer};
+    use surfel_extract::{ColourField, Surface, coverage};
+
     use super::*;
+    use crate::pipeline::Pipeline;
+
+    /// splashsurf's test data (SPlisHSPlasH's frames, MIT): the double dam
+    /// break's two VTK frames and a BGEO dam break, each played as the demo
+    /// does (anisotropic surface, 2
+    /// iterations). Each keeps every particle, extracts its measured surfel
+    /// count (within 2 %), covers the field's iso-surface (rays 0.2 h apart,
+    /// within 0.1 h of a disc: ≥ 99 %), and draws as its golden
+    /// (`tests/golden/input-*.png`, 240×135, FLIP mean ≤ 0.02).
+    #[test]
+    fn splashsurf_data_extracts_covers_and_renders_as_its_goldens() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/splashsurf");
+        let cases = [
+            (
+                "double_dam_break_frame_01_4732_particles.vtk",
+                0.025,
+                4732,
+                15_252,
+            ),
+            (
+                "double_dam_break_frame_26_4732_particles.vtk",
+                0.025,
+                4732,
+                162_493,
+            ),
+            ("dam_break_frame_9_6859_particles.bgeo", 0.025, 6859, 26_671),
+        ];
+        let ctx = GpuContext::headless_or_skip();
+        for (file, radius, particles, surfels) in cases {
+            let path = dir.join(file);
+            let (playback, scene, first) =
+                Playback::open(path.to_str().unwrap(), radius, 2.0, 1.0 / 30.0).unwrap();
+            let mut pipeline = Pipeline::playback(file.into(), scene, first, playback, 2).unwrap();
+            pipeline.extract.surface = Surface::anisotropic();
+            pipeline.extract_surfels().unwrap();
+            let found = pipeline.surfels_on_cpu().unwrap().len();
+            let h = pipeline.extract.h;
+            let mut field = ColourField::new(pipeline.extract.surface).unwrap();
+            field
+                .refill_from_particles(&pipeline.world.particles, h)
+                .unwrap();
+            let points = coverage::iso_points(&field, pipeline.extract.iso, 0.2 * h).unwrap();
+            let surfel_list = pipeline.surfels_on_cpu().unwrap();
+            let covered = coverage::covered_fraction(&surfel_list, &points, 0.1 * h).unwrap();
+            println!(
+                "{file}: {} particles, {found} surfels, {:.2} % of {} iso points covered",
+                pipeline.world.particles.len(),
+                100.0 * covered,
+                points.len()
+            );
+            assert_eq!(pipeline.world.particles.len(), particles, "{file}");
+            let ratio = found as f64 / surfels as f64;
+            assert!((ratio - 1.0).abs() <= 0.02, "{file}: {found} surfels");
+            assert!(covered >= 0.99, "{file}: {covered}");
+            let Some(ctx) = ctx else { continue };
+            let mut renderer = SplatRenderer::new(ctx, 240, 135, &crate::environment()).unwrap();
+            renderer
+                .set_geometry(ctx, &pipeline.scenery().unwrap())
+                .unwrap();
+            pipeline.show_surfels(ctx, &mut renderer).unwrap();
+            renderer
+                .render(ctx, &pipeline.camera(), &pipeline.shading())
+                .unwrap();
+            let image = renderer.read_image(ctx).unwrap();
+            let stem = file.split("_particles").next().unwrap_or(file);
+            let name = format!("input-{}", stem.replace('_', "-"));
+            let mean = crate::golden::against(&name, &image, 0.02);
+            println!("{file}: FLIP mean vs golden {mean:.4}");
+            assert!(mean <= 0.02, "{file}: FLIP mean {mean} against its golden");
+        }
+    }
 
     #[test]
     fn numbered_files_sort_by_their_numbers() {

@@ -86,8 +86,6 @@ fn tile_size(extent: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
-    use std::path::PathBuf;
-
     use image::RgbaImage;
     use splat_render::{GpuContext, SplatRenderer};
 
@@ -121,26 +119,6 @@ mod tests {
         (renderer.read_image(ctx).unwrap(), covered)
     }
 
-    /// NVIDIA's FLIP between two images: the mean and the error map.
-    fn flip(reference: &RgbaImage, test: &RgbaImage) -> (f32, RgbaImage) {
-        let rgb = |i: &RgbaImage| {
-            let rgb = image::DynamicImage::ImageRgba8(i.clone()).to_rgb8();
-            nv_flip::FlipImageRgb8::with_data(rgb.width(), rgb.height(), &rgb)
-        };
-        let error = nv_flip::flip(
-            rgb(reference),
-            rgb(test),
-            nv_flip::DEFAULT_PIXELS_PER_DEGREE,
-        );
-        let mean = nv_flip::FlipPool::from_image(&error).mean();
-        let map = error.apply_color_lut(&nv_flip::magma_lut()).to_vec();
-        let map = image::DynamicImage::ImageRgb8(
-            image::RgbImage::from_raw(reference.width(), reference.height(), map)
-                .expect("FLIP map size"),
-        );
-        (mean, map.to_rgba8())
-    }
-
     /// Reddish: the obstacles' terracotta, lit, maybe seen through water
     /// (which absorbs red most); nothing else in the picture is.
     fn reddish(p: &image::Rgba<u8>) -> bool {
@@ -158,14 +136,9 @@ mod tests {
         let Some(ctx) = GpuContext::headless_or_skip() else {
             return;
         };
-        let golden = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden");
-        let out = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/tmp");
-        std::fs::create_dir_all(&out).unwrap();
-        let update = std::env::var("SPH_UPDATE_GOLDEN").is_ok_and(|v| v == "1");
         for (name, obstacles) in [("dam-break", false), ("dam-break-3d", true)] {
             let (image, covered) = frame(ctx, name, 30, true);
             let (bare_image, bare) = frame(ctx, name, 30, false);
-            image.save(out.join(format!("scenery-{name}.png"))).unwrap();
             let orange = image.pixels().filter(|p| reddish(p)).count();
             let bare_orange = bare_image.pixels().filter(|p| reddish(p)).count();
             println!(
@@ -182,26 +155,9 @@ mod tests {
             } else {
                 assert!(orange < 50, "{name}: {orange} px of obstacle colour");
             }
-            let path = golden.join(format!("scenery-{name}.png"));
-            if update {
-                image.save(&path).unwrap();
-            }
-            let expected = image::open(&path)
-                .unwrap_or_else(|e| {
-                    panic!("{}: {e}; SPH_UPDATE_GOLDEN=1 writes it", path.display())
-                })
-                .to_rgba8();
-            let (mean, map) = flip(&expected, &image);
+            let mean = crate::golden::against(&format!("scenery-{name}"), &image, 0.002);
             println!("{name}: FLIP mean vs golden {mean:.4}");
-            if mean > 0.002 {
-                map.save(out.join(format!("scenery-{name}-difference.png")))
-                    .unwrap();
-            }
-            assert!(
-                mean <= 0.002,
-                "{name}: FLIP mean {mean} against {}",
-                path.display()
-            );
+            assert!(mean <= 0.002, "{name}: FLIP mean {mean} against its golden");
         }
     }
 

@@ -63,7 +63,7 @@ fn other_simulators_files_play_frame_by_frame() {
             0.025,
         ),
         ("dam_break_frame_9_6859_particles.bgeo", 1, 6859, 0.025),
-        ("fluid_encoded_250_particles.vtu", 1, 250, 0.025),
+        ("fluid_encoded_250_particles.vtu", 1, 250, 0.07),
     ];
     for (k, (pattern, files, particles, radius)) in cases.into_iter().enumerate() {
         let out = scratch(&format!("input-{k}"));
