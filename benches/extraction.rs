@@ -18,6 +18,14 @@
 //! kept across runs) on the same particles is the peer, bare and with its
 //! CLI's smoothing (`splashsurf-smoothed`: 25 Laplacian iterations of the
 //! mesh, β = 1, uniform weights, and 10 of the vertex normals).
+//!
+//! `real-data`: other simulators' frames (splashsurf's test data,
+//! `tests/data/splashsurf/`: SPlisHSPlasH's BGEO dam break, 6,859 particles,
+//! and its double dam break's frame 26, 4,732), as `sph-app --input` plays
+//! them (r = 0.025 m, h = 4r, the anisotropic surface, 2 iterations), against
+//! splashsurf reconstructing the same particles with its README's
+//! recommended settings (the particle radius, smoothing length 2r: support
+//! 4r, surface threshold 0.6, cubes of 0.5r), unsmoothed.
 
 use std::hint::black_box;
 
@@ -221,5 +229,75 @@ fn extraction(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, extraction);
+/// Other simulators' frames: this project's extraction against splashsurf's
+/// reconstruction with its README's settings.
+fn real_data(c: &mut Criterion) {
+    let mut group = c.benchmark_group("real-data");
+    group.sample_size(10);
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/splashsurf");
+    let r = 0.025f32;
+    let h = 4.0 * r;
+    for (label, file) in [
+        ("dam-break-bgeo", "dam_break_frame_9_6859_particles.bgeo"),
+        (
+            "double-dam-break-vtk",
+            "double_dam_break_frame_26_4732_particles.vtk",
+        ),
+    ] {
+        let positions: Vec<Vector3<f32>> =
+            splashsurf_lib::io::particles_from_file(dir.join(file)).expect("splashsurf's data");
+        let mut particles = Particles::new();
+        let mass = 1000.0 * (2.0 * r).powi(3);
+        for x in &positions {
+            particles.push(
+                sph_core::glam::Vec3::new(x.x, x.y, x.z),
+                Default::default(),
+                mass,
+            );
+        }
+        particles.densities_mut().fill(1000.0);
+        let params = ExtractParams {
+            surface: surfel_extract::Surface::anisotropic(),
+            ..ExtractParams::new(h)
+        };
+        let mut extractor = Extractor::new();
+        let surfels = extractor
+            .extract(&particles, &params)
+            .expect("extraction")
+            .stats
+            .surfels;
+        let mut sp = splashsurf_lib::Parameters::new(r, h, 0.5 * r);
+        sp.iso_surface_threshold = 0.6;
+        let mut surface = splashsurf_lib::SurfaceReconstruction::<i64, f32>::default();
+        splashsurf_lib::reconstruct_surface_inplace(&positions, &sp, &mut surface)
+            .expect("splashsurf");
+        println!(
+            "{label}: {} particles, {surfels} surfels; splashsurf (README settings): {} vertices, {} triangles",
+            positions.len(),
+            surface.mesh.vertices.len(),
+            surface.mesh.triangles.len()
+        );
+        group.bench_function(BenchmarkId::new(label, "anisotropic"), |b| {
+            b.iter(|| {
+                black_box(
+                    extractor
+                        .extract(&particles, &params)
+                        .expect("extraction")
+                        .stats
+                        .surfels,
+                )
+            })
+        });
+        group.bench_function(BenchmarkId::new(label, "splashsurf"), |b| {
+            b.iter(|| {
+                splashsurf_lib::reconstruct_surface_inplace(&positions, &sp, &mut surface)
+                    .expect("splashsurf");
+                black_box(surface.mesh.vertices.len())
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, extraction, real_data);
 criterion_main!(benches);
