@@ -19,12 +19,16 @@ fn noise(seed: &mut u64) -> f32 {
     ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
 }
 
-/// `particles` in a domain far larger than they reach, run by PBF.
+/// `particles` in a domain far larger than they reach, run by PBF, with
+/// the fluid's surface tension off (PBF refuses a σ it does not apply).
 fn unbounded(particles: Particles, params: FluidParams, pbf: PbfParams) -> World {
     let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
     World::with_solver(
         particles,
-        params,
+        FluidParams {
+            surface_tension: 0.0,
+            ..params
+        },
         boundary,
         TimeStepping::default(),
         Solver::Pbf(pbf),

@@ -57,9 +57,44 @@ fn message(text: &str) -> String {
     Scene::from_toml(text).unwrap_err().to_string()
 }
 
+/// A surface tension the chosen solver does not apply is an error naming
+/// the field and the solver, for DFSPH as for PBF; WCSPH runs it.
+#[test]
+fn surface_tension_is_refused_by_the_solvers_that_do_not_apply_it() {
+    let text = with("surface_tension = 0.0", "surface_tension = 0.0728");
+    let dfsph = text.replacen("kind = \"pbf\"", "kind = \"dfsph\"", 1);
+    let err = message(&dfsph);
+    assert!(
+        err.contains("fluid.surface_tension") && err.contains("DFSPH"),
+        "{err}"
+    );
+    let wcsph = text.replacen("kind = \"pbf\"", "kind = \"wcsph\"", 1);
+    let mut world = Scene::from_toml(&wcsph).unwrap().build_world().unwrap();
+    world.advance(1.0 / 60.0).unwrap();
+    // The library says the same to a world built without a scene.
+    let mut params = sph_core::FluidParams::water(0.04);
+    params.surface_tension = 0.05;
+    let boundary = sph_core::Boundary::new(sph_core::Aabb::new(
+        sph_core::glam::Vec3::ZERO,
+        sph_core::glam::Vec3::ONE,
+    ));
+    let solver = sph_core::Solver::Pbf(Default::default());
+    let err = solver.program(params, boundary).unwrap_err().to_string();
+    assert!(
+        err.contains("surface_tension") && err.contains("PBF"),
+        "{err}"
+    );
+}
+
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 25] = [
+    let cases: [(&str, &str, &[&str]); 26] = [
+        // σ is applied by WCSPH alone: under PBF it is refused, not dropped.
+        (
+            "surface_tension = 0.0",
+            "surface_tension = 0.0728",
+            &["fluid.surface_tension", "0.0728", "not applied by PBF"],
+        ),
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",

@@ -42,7 +42,7 @@ pub use wcsph::{DensityPressure, Forces};
 pub use world::{FrameReport, World};
 
 use crate::boundary::Boundary;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::processor::Program;
 
 /// Which solver advances a [`World`], with the parameters of its own.
@@ -122,6 +122,36 @@ impl Solver {
         }
     }
 
+    /// Checks that the solver applies every parameter of `params` that is
+    /// set: a fluid parameter the solver would drop is refused, naming the
+    /// field, instead of running a fluid other than the one asked for.
+    /// Today that is a surface tension σ > 0 under PBF or DFSPH, which only
+    /// WCSPH applies (the thesis's colour-field force).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `surface_tension`.
+    pub fn check_applies(&self, params: &FluidParams) -> Result<()> {
+        let reason = match self {
+            Solver::Wcsph => return Ok(()),
+            Solver::Pbf(_) => {
+                "N/m is not applied by PBF: only WCSPH applies surface tension so far; \
+                 set it to 0, or choose kind = \"wcsph\""
+            }
+            Solver::Dfsph(_) => {
+                "N/m is not applied by DFSPH: only WCSPH applies surface tension so far; \
+                 set it to 0, or choose kind = \"wcsph\""
+            }
+        };
+        if params.surface_tension > 0.0 {
+            return Err(Error::InvalidParameter {
+                name: "surface_tension",
+                value: params.surface_tension.to_string(),
+                reason,
+            });
+        }
+        Ok(())
+    }
+
     /// The particle mass for fluid sampled on a cubic lattice of `spacing`
     /// that starts at rest density with the kernel this solver sums
     /// densities with: poly6 for WCSPH and PBF
@@ -141,8 +171,10 @@ impl Solver {
     /// The solver's program for this fluid and these walls.
     ///
     /// # Errors
-    /// Parameters or a boundary that do not validate.
+    /// Parameters or a boundary that do not validate, or a parameter the
+    /// solver does not apply ([`Solver::check_applies`]).
     pub fn program(&self, params: FluidParams, boundary: Boundary) -> Result<Program> {
+        self.check_applies(&params)?;
         match self {
             Solver::Wcsph => wcsph::program(params, boundary),
             Solver::Pbf(p) => pbf::program(params, *p, boundary),
