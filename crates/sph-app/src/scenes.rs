@@ -2,8 +2,9 @@
 
 use std::path::Path;
 
-use sph_core::scene::ObstacleSpec;
-use sph_core::{Scene, SolverKind};
+use sph_core::Scene;
+#[cfg(test)]
+use sph_core::SolverKind;
 
 use crate::error::AppError;
 
@@ -11,66 +12,7 @@ use crate::error::AppError;
 /// that PBF simulates and extracts in real time on two cores.
 pub const DEFAULT: &str = "drop";
 
-/// A built-in scene: name, description, constructor.
-pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
-
-/// Built-in scenes, in key order (keys 1–7). The first five run PBF, the
-/// real-time solver, with the parameters `Scene::pbf_params` derives (3
-/// iterations, and 3 substeps per 60 Hz frame, 5 for `dam-break-fine`, so
-/// that a fall through the fluid's height moves at most 0.6 h per substep);
-/// the last two DFSPH, the accurate one, with physical viscosities: water
-/// (1e-3 Pa·s) and honey (50 Pa·s). `--solver` runs any with another.
-pub const BUILT_IN: [BuiltIn; 7] = [
-    ("dam-break", "thin-slab dam break", || {
-        Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Pbf)
-    }),
-    (
-        "dam-break-3d",
-        "full 3D dam break around a sphere and a low wall",
-        || {
-            // The obstacles of assets/scenes/dam_break_3d.toml.
-            let mut scene = Scene::dam_break(0.25, 0.25, 0.02).with_solver(SolverKind::Pbf);
-            scene.obstacles = vec![
-                ObstacleSpec::Sphere {
-                    centre: [0.6, 0.0, 0.125],
-                    radius: 0.1,
-                },
-                ObstacleSpec::Box {
-                    min: [0.85, 0.0, 0.0],
-                    max: [0.9, 0.1, 0.25],
-                },
-            ];
-            scene
-        },
-    ),
-    (
-        "double-dam-break",
-        "two columns released from both ends",
-        || Scene::double_dam_break(0.2, 0.08, 0.02).with_solver(SolverKind::Pbf),
-    ),
-    ("drop", "a cube of water falling into a pool", || {
-        Scene::drop_into_pool(0.2, 0.02).with_solver(SolverKind::Pbf)
-    }),
-    (
-        "dam-break-fine",
-        "thin-slab dam break at 1 cm spacing",
-        || Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf),
-    ),
-    (
-        "dam-break-water",
-        "thin-slab dam break of water (μ = 1e-3 Pa·s), DFSPH",
-        || {
-            let mut scene = Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Dfsph);
-            scene.fluid.viscosity = 1e-3;
-            scene
-        },
-    ),
-    (
-        "honey",
-        "a cube of honey (μ = 50 Pa·s) slumping, DFSPH",
-        || Scene::honey(0.2, 0.02),
-    ),
-];
+pub use sph_core::scene::BUILT_IN;
 
 /// A built-in scene by name, or a scene file (`.toml`, or any existing path).
 pub fn resolve(scene: &str) -> Result<(String, Scene), AppError> {

@@ -1,0 +1,411 @@
+//! `sph_splat`: sph-splat from Python (PyO3 + maturin, abi3). Worlds from a
+//! built-in scene, a TOML scene file or numpy arrays; stepping with the GIL
+//! released; positions, velocities, densities and pressures as numpy
+//! arrays; particle files of any format sph-core reads
+//! (`sph_core::io::read_particles`) in and PLY/VTK out; surfels as arrays.
+//!
+//! Arrays of points are `(N, 3)` `float32`; any other shape, type or a
+//! non-finite value is a `ValueError` naming the argument, as every
+//! parameter error of the library is (its message names the field). A file
+//! that cannot be read or written is an `OSError`.
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+use numpy::ndarray::{Array1, Array2};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use sph_core::io::{Format, PointCloud};
+use sph_core::{Particles, Scene, Solver, SolverKind, World};
+use surfel_extract::{ExtractParams, Extractor, Surface};
+
+/// A library error as the Python exception a caller expects.
+fn error(e: sph_core::Error) -> PyErr {
+    match e {
+        sph_core::Error::Io { .. } => PyOSError::new_err(e.to_string()),
+        e => PyValueError::new_err(e.to_string()),
+    }
+}
+
+/// An `(N, 3)` float32 array as points, every one finite.
+fn points(name: &str, array: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<Vec3>> {
+    let shape = array.shape();
+    if shape[1] != 3 {
+        return Err(PyValueError::new_err(format!(
+            "{name}: expected an (N, 3) float32 array, got shape {shape:?}"
+        )));
+    }
+    let view = array.as_array();
+    let mut out = Vec::with_capacity(shape[0]);
+    for (i, row) in view.rows().into_iter().enumerate() {
+        let x = Vec3::new(row[0], row[1], row[2]);
+        if !x.is_finite() {
+            return Err(PyValueError::new_err(format!(
+                "{name}: row {i} is {x}, not finite"
+            )));
+        }
+        out.push(x);
+    }
+    Ok(out)
+}
+
+/// Points as an `(N, 3)` float32 array (one copy).
+fn array3<'py>(py: Python<'py>, points: &[Vec3]) -> Bound<'py, PyArray2<f32>> {
+    let flat: Vec<f32> = points.iter().flat_map(|x| x.to_array()).collect();
+    Array2::from_shape_vec((points.len(), 3), flat)
+        .expect("N × 3 values")
+        .into_pyarray(py)
+}
+
+fn solver_kind(name: &str) -> PyResult<SolverKind> {
+    SolverKind::from_name(name).ok_or_else(|| {
+        PyValueError::new_err(format!("solver: `{name}` is not one of wcsph, pbf, dfsph"))
+    })
+}
+
+/// An SPH simulation: particles, a solver and walls, stepped in frames.
+///
+/// `World(scene, solver=None)`: a built-in scene by name (`scenes()` lists
+/// them) or a TOML scene file's path, run by its own solver or `solver`
+/// (`"pbf"`, `"dfsph"`, `"wcsph"`).
+#[pyclass(name = "World", module = "sph_splat", unsendable)]
+struct PyWorld {
+    world: World,
+}
+
+#[pymethods]
+impl PyWorld {
+    #[new]
+    #[pyo3(signature = (scene, solver = None))]
+    fn new(scene: &str, solver: Option<&str>) -> PyResult<Self> {
+        let mut scene = match Scene::built_in(scene) {
+            Some(s) => s,
+            None => {
+                let path = PathBuf::from(scene);
+                if !path.exists() {
+                    let names: Vec<&str> = sph_core::scene::BUILT_IN.iter().map(|b| b.0).collect();
+                    return Err(PyValueError::new_err(format!(
+                        "scene: `{scene}` is neither a built-in scene ({}) nor a file",
+                        names.join(", ")
+                    )));
+                }
+                Scene::load(&path).map_err(error)?
+            }
+        };
+        if let Some(name) = solver {
+            scene.solver.kind = solver_kind(name)?;
+        }
+        Ok(Self {
+            world: scene.build_world().map_err(error)?,
+        })
+    }
+
+    /// A world of particles at `positions` ((N, 3) float32, m) with
+    /// optional `velocities`, on a lattice `spacing` apart (their mass: the
+    /// fluid of rest density 1000 kg/m³ filling it, h = 2 spacings), in the
+    /// box `domain_min`–`domain_max`, under gravity 9.81 m/s² down, run by
+    /// `solver`.
+    #[staticmethod]
+    #[pyo3(signature = (positions, spacing, domain_min, domain_max, velocities = None, solver = "pbf"))]
+    fn from_arrays(
+        positions: PyReadonlyArray2<'_, f32>,
+        spacing: f32,
+        domain_min: [f32; 3],
+        domain_max: [f32; 3],
+        velocities: Option<PyReadonlyArray2<'_, f32>>,
+        solver: &str,
+    ) -> PyResult<Self> {
+        let x = points("positions", &positions)?;
+        let v = match velocities {
+            Some(v) => points("velocities", &v)?,
+            None => vec![Vec3::ZERO; x.len()],
+        };
+        if v.len() != x.len() {
+            return Err(PyValueError::new_err(format!(
+                "velocities: {} rows for {} positions",
+                v.len(),
+                x.len()
+            )));
+        }
+        let mut scene = Scene::dam_break(0.1, 0.1, spacing).with_solver(solver_kind(solver)?);
+        scene.domain.min = domain_min;
+        scene.domain.max = domain_max;
+        scene.blocks.clear();
+        let params = scene.fluid_params();
+        let solver: Solver = scene.solver();
+        let mass = solver.particle_mass(&params, spacing).map_err(error)?;
+        let mut particles = Particles::new();
+        for (x, v) in x.iter().zip(&v) {
+            particles.push(*x, *v, mass);
+        }
+        let stepping = sph_core::TimeStepping::default();
+        let world = World::with_solver(particles, params, scene.boundary(), stepping, solver)
+            .map_err(error)?;
+        Ok(Self { world })
+    }
+
+    /// Advances by `seconds` of simulated time in frames of `frame_dt` (the
+    /// GIL released); returns the last frame's report as a dict (solver,
+    /// substeps, iterations, density_error_avg, density_error_max, time).
+    #[pyo3(signature = (seconds, frame_dt = 1.0 / 60.0))]
+    fn advance<'py>(
+        &mut self,
+        py: Python<'py>,
+        seconds: f64,
+        frame_dt: f32,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if !(seconds.is_finite() && seconds >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "seconds: {seconds} must be finite and ≥ 0"
+            )));
+        }
+        if !(frame_dt.is_finite() && frame_dt > 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "frame_dt: {frame_dt} must be finite and > 0"
+            )));
+        }
+        let world = &mut self.world;
+        let report = py
+            .detach(|| {
+                let end = world.time() + seconds;
+                let mut last = None;
+                while world.time() < end - 1e-9 {
+                    let dt = (end - world.time()).min(f64::from(frame_dt)) as f32;
+                    last = Some(world.advance(dt)?);
+                }
+                Ok::<_, sph_core::Error>(last)
+            })
+            .map_err(error)?;
+        let dict = PyDict::new(py);
+        dict.set_item("time", self.world.time())?;
+        if let Some(r) = report {
+            dict.set_item("solver", r.solver.name())?;
+            dict.set_item("substeps", r.substeps)?;
+            dict.set_item("iterations", r.iterations)?;
+            dict.set_item("density_error_avg", r.density_error_avg)?;
+            dict.set_item("density_error_max", r.density_error_max)?;
+        }
+        Ok(dict)
+    }
+
+    /// Simulated time (s).
+    #[getter]
+    fn time(&self) -> f64 {
+        self.world.time()
+    }
+
+    /// The solver's name.
+    #[getter]
+    fn solver(&self) -> &'static str {
+        self.world.solver().kind().name()
+    }
+
+    fn __len__(&self) -> usize {
+        self.world.particles.len()
+    }
+
+    /// Positions, (N, 3) float32 (a copy).
+    #[getter]
+    fn positions<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+        array3(py, self.world.particles.positions())
+    }
+
+    #[setter]
+    fn set_positions(&mut self, positions: PyReadonlyArray2<'_, f32>) -> PyResult<()> {
+        let x = points("positions", &positions)?;
+        self.set("positions", &x, |p| p.positions_mut())
+    }
+
+    /// Velocities, (N, 3) float32 (a copy).
+    #[getter]
+    fn velocities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f32>> {
+        array3(py, self.world.particles.velocities())
+    }
+
+    #[setter]
+    fn set_velocities(&mut self, velocities: PyReadonlyArray2<'_, f32>) -> PyResult<()> {
+        let v = points("velocities", &velocities)?;
+        self.set("velocities", &v, |p| p.velocities_mut())
+    }
+
+    /// Densities, (N,) float32 (kg/m³, a copy).
+    #[getter]
+    fn densities<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        Array1::from_vec(self.world.particles.densities().to_vec()).into_pyarray(py)
+    }
+
+    /// Pressures, (N,) float32 (Pa, a copy).
+    #[getter]
+    fn pressures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
+        Array1::from_vec(self.world.particles.pressures().to_vec()).into_pyarray(py)
+    }
+
+    /// The surfels of the particles (see `extract`).
+    #[pyo3(signature = (surface = "anisotropic", iterations = 2))]
+    fn extract<'py>(
+        &self,
+        py: Python<'py>,
+        surface: &str,
+        iterations: u32,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let params = extract_params(self.world.params().h, surface, iterations)?;
+        let particles = &self.world.particles;
+        let mut extractor = Extractor::new();
+        let surfels = py
+            .detach(|| {
+                extractor
+                    .extract(particles, &params)
+                    .map(|s| s.surfels.clone())
+            })
+            .map_err(error)?;
+        surfel_dict(py, &surfels)
+    }
+}
+
+impl PyWorld {
+    /// Replaces one field of every particle, the count unchanged.
+    fn set(
+        &mut self,
+        name: &str,
+        values: &[Vec3],
+        field: impl Fn(&mut Particles) -> &mut [Vec3],
+    ) -> PyResult<()> {
+        let n = self.world.particles.len();
+        if values.len() != n {
+            return Err(PyValueError::new_err(format!(
+                "{name}: {} rows for a world of {n} particles",
+                values.len()
+            )));
+        }
+        field(&mut self.world.particles).copy_from_slice(values);
+        Ok(())
+    }
+}
+
+fn extract_params(h: f32, surface: &str, iterations: u32) -> PyResult<ExtractParams> {
+    let surface = match surface {
+        "anisotropic" => Surface::anisotropic(),
+        "isotropic" => Surface::Isotropic,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "surface: `{other}` is not `anisotropic` or `isotropic`"
+            )));
+        }
+    };
+    if !(1..=3).contains(&iterations) {
+        return Err(PyValueError::new_err(format!(
+            "iterations: {iterations} must be 1, 2 or 3"
+        )));
+    }
+    Ok(ExtractParams {
+        surface,
+        iterations,
+        ..ExtractParams::new(h)
+    })
+}
+
+fn surfel_dict<'py>(
+    py: Python<'py>,
+    surfels: &[surfel_extract::Surfel],
+) -> PyResult<Bound<'py, PyDict>> {
+    let dict = PyDict::new(py);
+    let positions: Vec<Vec3> = surfels.iter().map(|s| s.position).collect();
+    let normals: Vec<Vec3> = surfels.iter().map(|s| s.normal).collect();
+    let radii: Vec<f32> = surfels.iter().map(|s| s.radius).collect();
+    dict.set_item("positions", array3(py, &positions))?;
+    dict.set_item("normals", array3(py, &normals))?;
+    dict.set_item("radii", Array1::from_vec(radii).into_pyarray(py))?;
+    Ok(dict)
+}
+
+/// The surfels of particles at `positions` ((N, 3) float32) for kernel
+/// support `h` (m): a dict of `positions` and `normals` ((M, 3)) and
+/// `radii` ((M,)). Particle volumes come from the positions (Shepard), as
+/// for other simulators' files.
+#[pyfunction]
+#[pyo3(signature = (positions, h, surface = "anisotropic", iterations = 2))]
+fn extract<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray2<'_, f32>,
+    h: f32,
+    surface: &str,
+    iterations: u32,
+) -> PyResult<Bound<'py, PyDict>> {
+    let x = points("positions", &positions)?;
+    let params = extract_params(h, surface, iterations)?;
+    let mut extractor = Extractor::new();
+    let surfels = py
+        .detach(|| {
+            extractor
+                .extract_points(&x, &params)
+                .map(|s| s.surfels.clone())
+        })
+        .map_err(error)?;
+    surfel_dict(py, &surfels)
+}
+
+/// The particles of a file (legacy VTK, VTU, PLY, XYZ, BGEO or splashsurf's
+/// JSON, by extension): `(positions, time)`, `time` being the simulated time
+/// the file records (this project's exports) or None.
+#[pyfunction]
+fn read_particles<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+) -> PyResult<(Bound<'py, PyArray2<f32>>, Option<f64>)> {
+    let file = sph_core::io::read_particles(&path).map_err(error)?;
+    Ok((array3(py, &file.positions), file.time))
+}
+
+/// Writes points to `path` as binary PLY or legacy VTK (by its extension)
+/// at simulated `time`, with optional `velocities` ((N, 3)) and
+/// `densities` ((N,)).
+#[pyfunction]
+#[pyo3(signature = (path, positions, time = 0.0, velocities = None, densities = None))]
+fn write_particles(
+    path: PathBuf,
+    positions: PyReadonlyArray2<'_, f32>,
+    time: f64,
+    velocities: Option<PyReadonlyArray2<'_, f32>>,
+    densities: Option<numpy::PyReadonlyArray1<'_, f32>>,
+) -> PyResult<()> {
+    let x = points("positions", &positions)?;
+    let v = velocities.map(|v| points("velocities", &v)).transpose()?;
+    let rho: Option<Vec<f32>> = densities.map(|d| d.as_array().to_vec());
+    let extension = (path.extension().and_then(|e| e.to_str()))
+        .unwrap_or_default()
+        .to_string();
+    let format: Format = extension.parse().map_err(error)?;
+    let mut cloud = PointCloud {
+        positions: &x,
+        ..Default::default()
+    };
+    if let Some(v) = &v {
+        cloud.vectors.push(("velocity", v));
+    }
+    if let Some(rho) = &rho {
+        cloud.scalars.push(("density", rho));
+    }
+    let file = std::fs::File::create(&path)
+        .map_err(|e| PyOSError::new_err(format!("cannot write {}: {e}", path.display())))?;
+    format
+        .write(std::io::BufWriter::new(file), &cloud, time)
+        .map_err(error)
+}
+
+/// The built-in scenes' names.
+#[pyfunction]
+fn scenes() -> Vec<&'static str> {
+    sph_core::scene::BUILT_IN.iter().map(|b| b.0).collect()
+}
+
+#[pymodule]
+fn sph_splat(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyWorld>()?;
+    m.add_function(wrap_pyfunction!(extract, m)?)?;
+    m.add_function(wrap_pyfunction!(read_particles, m)?)?;
+    m.add_function(wrap_pyfunction!(write_particles, m)?)?;
+    m.add_function(wrap_pyfunction!(scenes, m)?)?;
+    Ok(())
+}
