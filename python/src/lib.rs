@@ -2,7 +2,8 @@
 //! built-in scene, a TOML scene file or numpy arrays; stepping with the GIL
 //! released; positions, velocities, densities and pressures as numpy
 //! arrays; particle files of any format sph-core reads
-//! (`sph_core::io::read_particles`) in and PLY/VTK out; surfels as arrays.
+//! (`sph_core::io::read_particles`) in and PLY/VTK out; surfels as arrays;
+//! a frame drawn headless as an image array.
 //!
 //! Arrays of points are `(N, 3)` `float32`; any other shape, type or a
 //! non-finite value is a `ValueError` naming the argument, as every
@@ -12,13 +13,14 @@
 use std::path::PathBuf;
 
 use glam::Vec3;
-use numpy::ndarray::{Array1, Array2};
+use numpy::ndarray::{Array1, Array2, Array3};
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use sph_core::io::{Format, PointCloud};
 use sph_core::{Particles, Scene, Solver, SolverKind, World};
+use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer};
 use surfel_extract::{ExtractParams, Extractor, Surface};
 
 /// A library error as the Python exception a caller expects.
@@ -73,6 +75,8 @@ fn solver_kind(name: &str) -> PyResult<SolverKind> {
 #[pyclass(name = "World", module = "sph_splat", unsendable)]
 struct PyWorld {
     world: World,
+    /// Where `render` looks from.
+    view: sph_core::scene::RenderSpec,
 }
 
 #[pymethods]
@@ -99,6 +103,7 @@ impl PyWorld {
         }
         Ok(Self {
             world: scene.build_world().map_err(error)?,
+            view: scene.render,
         })
     }
 
@@ -143,7 +148,8 @@ impl PyWorld {
         let stepping = sph_core::TimeStepping::default();
         let world = World::with_solver(particles, params, scene.boundary(), stepping, solver)
             .map_err(error)?;
-        Ok(Self { world })
+        let view = sph_core::scene::RenderSpec::framing(domain_min.into(), domain_max.into(), 45.0);
+        Ok(Self { world, view })
     }
 
     /// Advances by `seconds` of simulated time in frames of `frame_dt` (the
@@ -240,6 +246,64 @@ impl PyWorld {
     #[getter]
     fn pressures<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f32>> {
         Array1::from_vec(self.world.particles.pressures().to_vec()).into_pyarray(py)
+    }
+
+    /// The fluid drawn headless (`width` × `height`, the scene's camera, the
+    /// demo's water before the thesis's screen-space background, no tank): a
+    /// dict of `image`, an
+    /// (H, W, 4) uint8 array, and `covered`, the fraction of pixels the
+    /// fluid's splats cover. Needs a GPU adapter (Mesa's lavapipe will do).
+    #[pyo3(signature = (width = 480, height = 270, surface = "anisotropic"))]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        width: u32,
+        height: u32,
+        surface: &str,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        if !((16..=8192).contains(&width) && (16..=8192).contains(&height)) {
+            return Err(PyValueError::new_err(format!(
+                "width, height: {width} × {height} must each lie in 16..=8192"
+            )));
+        }
+        let h = self.world.params().h;
+        let params = extract_params(h, surface, 2)?;
+        let (particles, view) = (&self.world.particles, self.view);
+        let drawn = py.detach(|| -> Result<_, String> {
+            let mut extractor = Extractor::new();
+            let surfels = extractor
+                .extract(particles, &params)
+                .map_err(|e| e.to_string())?;
+            let splats: Vec<Splat> = (surfels.surfels.iter())
+                .map(|s| Splat::new(s.position, s.normal, s.radius))
+                .collect();
+            let ctx = GpuContext::headless().map_err(|e| e.to_string())?;
+            let env = Environment::procedural();
+            let mut renderer =
+                SplatRenderer::new(&ctx, width, height, &env).map_err(|e| e.to_string())?;
+            renderer.upload(&ctx, &splats).map_err(|e| e.to_string())?;
+            let camera = Camera {
+                fov_y: view.fov_y.to_radians(),
+                ..Camera::looking_at(Vec3::from(view.camera), Vec3::from(view.look_at))
+            };
+            (renderer.render(&ctx, &camera, &Shading::water(h))).map_err(|e| e.to_string())?;
+            let image = renderer.read_image(&ctx).map_err(|e| e.to_string())?;
+            let weights = renderer
+                .read_accumulation(&ctx)
+                .map_err(|e| e.to_string())?;
+            let covered = (0..height)
+                .flat_map(|y| (0..width).map(move |x| (x, y)))
+                .filter(|&(x, y)| weights.weight(x, y) > 0.0)
+                .count();
+            Ok((image, covered))
+        });
+        let (image, covered) = drawn.map_err(PyRuntimeError::new_err)?;
+        let pixels = Array3::from_shape_vec((height as usize, width as usize, 4), image.into_raw())
+            .expect("H × W × 4 bytes");
+        let dict = PyDict::new(py);
+        dict.set_item("image", pixels.into_pyarray(py))?;
+        dict.set_item("covered", covered as f64 / f64::from(width * height))?;
+        Ok(dict)
     }
 
     /// The surfels of the particles (see `extract`).

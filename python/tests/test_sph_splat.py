@@ -129,3 +129,21 @@ def test_bad_input_raises_naming_the_argument(tmp_path):
     sigma.write_text(text.replace("surface_tension = 0.0", "surface_tension = 0.07", 1))
     with pytest.raises(ValueError, match="fluid.surface_tension"):
         ss.World(str(sigma))
+
+
+def test_a_rendered_frame_has_its_shape_and_covers_the_fluid():
+    world = ss.World("dam-break")
+    world.advance(0.2)
+    frame = world.render(160, 90)
+    image = frame["image"]
+    assert image.shape == (90, 160, 4) and image.dtype == np.uint8
+    assert (image[:, :, 3] == 255).all(), "opaque"
+    # The collapsing column fills part of the picture, not all of it.
+    assert 0.05 < frame["covered"] < 0.6, frame["covered"]
+    # Where the fluid is, the picture differs from the bare sky's.
+    empty = ss.World.from_arrays(
+        np.array([[10.0, 10.0, 10.0]], np.float32), 0.02, [0, 0, 0], [20, 20, 20]
+    )
+    assert empty.render(160, 90)["covered"] < frame["covered"]
+    with pytest.raises(ValueError, match="width, height"):
+        world.render(8, 8)

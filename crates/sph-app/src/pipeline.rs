@@ -12,13 +12,6 @@ use crate::gpu_extract::GpuExtract;
 use crate::gpu_sim::GpuSim;
 use crate::playback::Playback;
 
-/// The demo's Beer–Lambert absorption per metre (red, green, blue): water
-/// stylised about 15 to 40 times stronger than real water's (0.45, 0.06,
-/// 0.02) per metre, so that a tank tens of centimetres deep shows its
-/// depth: 5 cm keeps 74 %, 91 %, 97 % of the light behind it, 30 cm 17 %,
-/// 58 %, 81 %.
-pub const WATER_ABSORPTION: Vec3 = Vec3::new(6.0, 1.8, 0.7);
-
 /// What one frame did (a row of `frames.csv`, the stats panel).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct FrameStats {
@@ -412,20 +405,9 @@ impl Pipeline {
         }
     }
 
-    /// Shading scaled to the scene: ε = h/2 (the surfels' scale), and
-    /// water whose colour comes from Beer–Lambert absorption through its
-    /// thickness ([`WATER_ABSORPTION`]) rather than a flat tint.
+    /// The demo's water scaled to the scene ([`Shading::water`]).
     pub fn shading(&self) -> Shading {
-        Shading {
-            depth_epsilon: 0.5 * self.world.params().h,
-            fluid_colour: Vec3::new(0.92, 0.97, 1.0),
-            absorption: WATER_ABSORPTION,
-            // The thesis's Fresnel term (eq. 38) reflects 60 % at the
-            // cameras' 27° downward view, where water reflects about 7 %
-            // (Schlick): at 1 the sky's reflection whitens the whole surface.
-            reflectivity: 0.4,
-            ..Default::default()
-        }
+        Shading::water(self.world.params().h)
     }
 
     /// The tank, obstacles and ground drawn around the fluid

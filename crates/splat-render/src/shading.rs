@@ -81,7 +81,31 @@ impl Default for Shading {
     }
 }
 
+/// The demo's Beer–Lambert absorption per metre (red, green, blue): water
+/// stylised about 15 to 40 times stronger than real water's (0.45, 0.06,
+/// 0.02) per metre, so that a tank tens of centimetres deep shows its
+/// depth: 5 cm keeps 74 %, 91 %, 97 % of the light behind it, 30 cm 17 %,
+/// 58 %, 81 %.
+pub const WATER_ABSORPTION: Vec3 = Vec3::new(6.0, 1.8, 0.7);
+
 impl Shading {
+    /// The demo's water for a fluid of smoothing length `h`: ε = h/2 (the
+    /// surfels' scale), and a colour that comes from Beer–Lambert absorption
+    /// through the water's thickness ([`WATER_ABSORPTION`]) rather than a
+    /// flat tint.
+    pub fn water(h: f32) -> Self {
+        Self {
+            depth_epsilon: 0.5 * h,
+            fluid_colour: Vec3::new(0.92, 0.97, 1.0),
+            absorption: WATER_ABSORPTION,
+            // The thesis's Fresnel term (eq. 38) reflects 60 % at the
+            // cameras' 27° downward view, where water reflects about 7 %
+            // (Schlick): at 1 the sky's reflection whitens the whole surface.
+            reflectivity: 0.4,
+            ..Default::default()
+        }
+    }
+
     /// Checks the fields the shaders compute with: with a NaN or infinite
     /// value there, what a pass writes (a NaN depth, a NaN colour) is up to
     /// the driver, not the thesis's shading.
