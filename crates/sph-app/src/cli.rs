@@ -46,6 +46,13 @@ pub struct Args {
     #[arg(long, value_name = "L", default_value_t = 2.0, value_parser = parse_length)]
     pub smoothing_length: f32,
 
+    /// The iso value of the surface the surfels lie on, c = k_iso (thesis
+    /// eq. 34), in (0, 1): lower values give a fuller surface. Default 0.5.
+    /// For any run; with --input it sets the surface around other
+    /// simulators' particles as splashsurf's --surface-threshold does.
+    #[arg(long, value_name = "K", default_value_t = 0.5, value_parser = parse_iso)]
+    pub iso: f32,
+
     /// Print the built-in scenes and exit.
     #[arg(long)]
     pub list_scenes: bool,
@@ -216,6 +223,16 @@ fn parse_length(s: &str) -> Result<f32, String> {
     parse_in_range(s, "the value", None, 1e6).map(|v| v as f32)
 }
 
+/// An iso value strictly between 0 and 1.
+fn parse_iso(s: &str) -> Result<f32, String> {
+    let v: f32 = s.parse().map_err(|_| format!("`{s}` is not a number"))?;
+    if v.is_finite() && v > 0.0 && v < 1.0 {
+        Ok(v)
+    } else {
+        Err("the iso value must lie in (0, 1)".to_string())
+    }
+}
+
 fn parse_seconds(s: &str) -> Result<f64, String> {
     parse_in_range(s, "seconds", None, 3600.0)
 }
@@ -285,6 +302,19 @@ mod tests {
         for bad in ["0", "-1", "nan", "inf"] {
             let line = ["sph-app", "--input", "a.vtk", "--particle-radius", bad];
             assert!(Args::try_parse_from(line).is_err(), "{bad}");
+        }
+        assert_eq!(Args::try_parse_from(["sph-app"]).unwrap().iso, 0.5);
+        assert_eq!(
+            Args::try_parse_from(["sph-app", "--iso", "0.3"])
+                .unwrap()
+                .iso,
+            0.3
+        );
+        for bad in ["0", "1", "-0.2", "nan", "x"] {
+            assert!(
+                Args::try_parse_from(["sph-app", "--iso", bad]).is_err(),
+                "{bad}"
+            );
         }
     }
 }

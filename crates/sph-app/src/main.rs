@@ -77,6 +77,7 @@ fn run(args: &Args) -> Result<(), AppError> {
         }
     };
     pipeline.extract.surface = args.surface_field().into();
+    pipeline.extract.iso = args.iso;
     if args.headless {
         return headless::run(args, pipeline);
     }
