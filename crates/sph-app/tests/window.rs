@@ -12,6 +12,61 @@ use splat_render::textures::{procedural_background, sample_bilinear};
 
 #[test]
 fn window_draws_under_xvfb() {
+    let Some((shot, log)) = window(
+        "window",
+        &["--scene", "dam-break", "--width", "480", "--height", "270"],
+    ) else {
+        return;
+    };
+    let (w, h) = shot.dimensions();
+    let back = procedural_background(1024, 1024);
+    let differing = shot
+        .enumerate_pixels()
+        .filter(|(x, y, p)| {
+            let uv = Vec2::new((*x as f32 + 0.5) / w as f32, (*y as f32 + 0.5) / h as f32);
+            let b = sample_bilinear(&back, uv, false) * 255.0;
+            (0..3).any(|c| (f32::from(p.0[c]) - b[c]).abs() > 12.0)
+        })
+        .count();
+    assert!(
+        differing > (w * h) as usize / 50,
+        "screenshot shows only {differing} fluid pixels: {log}"
+    );
+}
+
+/// The window plays other simulators' files (`--input`) as it runs a
+/// scene: it draws them on their ground and takes its screenshot.
+#[test]
+fn window_plays_input_files_under_xvfb() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data/splashsurf/dam_break_frame_9_6859_particles.bgeo");
+    let Some((shot, log)) = window(
+        "window-input",
+        &[
+            "--input",
+            data.to_str().unwrap(),
+            "--particle-radius",
+            "0.025",
+            "--width",
+            "320",
+            "--height",
+            "180",
+        ],
+    ) else {
+        return;
+    };
+    // The water's blue, which neither the sky nor the grey ground has.
+    let blue = (shot.pixels())
+        .filter(|p| i32::from(p.0[2]) > i32::from(p.0[0]) + 40)
+        .count();
+    let (w, h) = shot.dimensions();
+    assert!(blue > (w * h) as usize / 50, "{blue} blue pixels: {log}");
+}
+
+/// `sph-app ARGS` in a window under Xvfb for 5 frames and its screenshot,
+/// with the run's output; `None` (skipped) without xvfb-run unless
+/// `SPH_REQUIRE_GPU=1`.
+fn window(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
     let has_xvfb = Command::new("sh")
         .args(["-c", "command -v xvfb-run"])
         .output()
@@ -22,9 +77,9 @@ fn window_draws_under_xvfb() {
             "SPH_REQUIRE_GPU=1 but xvfb-run is missing (apt-get install -y xvfb xauth)"
         );
         eprintln!("skipped: xvfb-run not installed");
-        return;
+        return None;
     }
-    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join("window");
+    let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
     let _ = std::fs::remove_dir_all(&out);
     let mut child = Command::new("xvfb-run")
         .args([
@@ -33,7 +88,7 @@ fn window_draws_under_xvfb() {
             "-screen 0 1280x800x24",
             env!("CARGO_BIN_EXE_sph-app"),
         ])
-        .args(["--scene", "dam-break", "--width", "480", "--height", "270"])
+        .args(args)
         .args(["--screenshot-after", "5", "--out", out.to_str().unwrap()])
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .stdout(Stdio::piped())
@@ -65,18 +120,5 @@ fn window_draws_under_xvfb() {
     let shot = image::open(out.join("screenshot_000.png"))
         .unwrap_or_else(|e| panic!("{e}: {log}"))
         .into_rgba8();
-    let (w, h) = shot.dimensions();
-    let back = procedural_background(1024, 1024);
-    let differing = shot
-        .enumerate_pixels()
-        .filter(|(x, y, p)| {
-            let uv = Vec2::new((*x as f32 + 0.5) / w as f32, (*y as f32 + 0.5) / h as f32);
-            let b = sample_bilinear(&back, uv, false) * 255.0;
-            (0..3).any(|c| (f32::from(p.0[c]) - b[c]).abs() > 12.0)
-        })
-        .count();
-    assert!(
-        differing > (w * h) as usize / 50,
-        "screenshot shows only {differing} fluid pixels"
-    );
+    Some((shot, log))
 }
