@@ -217,7 +217,19 @@ fn bad_inputs_are_clear_errors() {
         .flat_map(|v| v.to_le_bytes())
         .collect();
     std::fs::write(dir.join("nan.xyz"), nan).unwrap();
-    let cases: [(String, &str, &str); 7] = [
+    // NaN positions in this project's PLY and VTK (its writers do not check).
+    let nan_points = [sph_core::glam::Vec3::new(0.0, f32::NAN, 0.0); 3];
+    let cloud = sph_core::io::PointCloud {
+        positions: &nan_points,
+        ..Default::default()
+    };
+    for format in [sph_core::io::Format::Ply, sph_core::io::Format::Vtk] {
+        let file = std::fs::File::create(dir.join(format!("nan.{}", format.extension()))).unwrap();
+        format.write(file, &cloud, 0.0).unwrap();
+    }
+    let cases: [(String, &str, &str); 9] = [
+        (path("nan.ply"), "0.01", "not finite"),
+        (path("nan.vtk"), "0.01", "not finite"),
         (path("missing_*.vtk"), "0.01", "no file matches"),
         (path("garbage.bgeo"), "0.01", "garbage.bgeo"),
         (path("empty.xyz"), "0.01", "holds no particle"),
