@@ -134,10 +134,8 @@ impl PyWorld {
                 x.len()
             )));
         }
-        let mut scene = Scene::dam_break(0.1, 0.1, spacing).with_solver(solver_kind(solver)?);
-        scene.domain.min = domain_min;
-        scene.domain.max = domain_max;
-        scene.blocks.clear();
+        let (min, max) = (Vec3::from(domain_min), Vec3::from(domain_max));
+        let scene = Scene::empty("arrays", min, max, spacing).with_solver(solver_kind(solver)?);
         let params = scene.fluid_params();
         let solver: Solver = scene.solver();
         let mass = solver.particle_mass(&params, spacing).map_err(error)?;
@@ -148,8 +146,10 @@ impl PyWorld {
         let stepping = sph_core::TimeStepping::default();
         let world = World::with_solver(particles, params, scene.boundary(), stepping, solver)
             .map_err(error)?;
-        let view = sph_core::scene::RenderSpec::framing(domain_min.into(), domain_max.into(), 45.0);
-        Ok(Self { world, view })
+        Ok(Self {
+            world,
+            view: scene.render,
+        })
     }
 
     /// Advances by `seconds` of simulated time in frames of `frame_dt` (the

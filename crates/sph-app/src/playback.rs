@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use sph_core::io::{ParticleFile, read_particles};
-use sph_core::scene::{BoxSpec, RenderSpec};
 use sph_core::{Particles, Scene};
 
 use crate::error::AppError;
@@ -164,15 +163,8 @@ fn scene_around(positions: &[Vec3], spacing: f32, h: f32, name: &str) -> Result<
     // The floor just under the lowest particle (the ground is drawn there),
     // h of room on every other side.
     let (min, max) = (min - Vec3::new(h, 0.5 * spacing, h), max + h);
-    let mut scene = Scene::dam_break(0.1, 0.1, spacing);
-    scene.name = name.to_string();
+    let mut scene = Scene::empty(name, min, max, spacing);
     scene.fluid.h = h;
-    scene.domain = BoxSpec {
-        min: min.to_array(),
-        max: max.to_array(),
-    };
-    scene.blocks.clear();
-    scene.render = RenderSpec::framing(min, max, 45.0);
     let ratio = h / spacing;
     if ratio > sph_core::solver::MAX_H_OVER_SPACING {
         return Err(AppError::Input {

@@ -664,6 +664,21 @@ impl Scene {
         Ok(world)
     }
 
+    /// A scene with no fluid of its own in the box `min`–`max`, for
+    /// particles that come from elsewhere (other simulators' files, arrays)
+    /// through [`World::with_solver`]: the built-in scenes' fluid (h = 2 ×
+    /// `spacing`), run by PBF, the camera framing the box. It does not
+    /// validate as a scene file ([`Scene::validate`] asks for fluid).
+    pub fn empty(name: &str, min: Vec3, max: Vec3, spacing: f32) -> Self {
+        let mut scene = Self::base(name, max - min, spacing).with_solver(SolverKind::Pbf);
+        scene.domain = BoxSpec {
+            min: min.to_array(),
+            max: max.to_array(),
+        };
+        scene.render = RenderSpec::framing(min, max, 45.0);
+        scene
+    }
+
     /// Common parameters of the built-in scenes: h = 2 × spacing, run by
     /// the thesis's WCSPH (the constructors build the thesis's scenes;
     /// [`Scene::with_solver`] picks another, as the demo picks PBF).
