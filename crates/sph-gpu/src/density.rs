@@ -201,7 +201,10 @@ impl GpuDensity {
 ///
 /// # Errors
 /// [`GpuError::Invalid`] for a non-finite obstacle or a non-positive radius.
-fn obstacles_buffer(device: &wgpu::Device, boundary: &Boundary) -> Result<wgpu::Buffer, GpuError> {
+pub(crate) fn obstacles_buffer(
+    device: &wgpu::Device,
+    boundary: &Boundary,
+) -> Result<wgpu::Buffer, GpuError> {
     const BOX: f32 = 0.0;
     const SPHERE: f32 = 1.0;
     const NONE: f32 = 2.0;

@@ -9,11 +9,11 @@ use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Split, Surfel}
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
+use crate::GpuParticles;
 use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{
     Groups, PassStage, Staging, bind_pairs, pipeline, read, shader, staged_pass, timed_pass,
 };
-use crate::solver::GpuSolver;
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
 #[repr(C)]
@@ -408,7 +408,11 @@ impl GpuExtractor {
     /// # Errors
     /// [`GpuError::Capacity`] for more particles than this extractor's capacity,
     /// [`GpuError::Invalid`] for a solver of another smoothing length.
-    pub fn attach(&mut self, device: &wgpu::Device, solver: &GpuSolver) -> Result<(), GpuError> {
+    pub fn attach(
+        &mut self,
+        device: &wgpu::Device,
+        solver: &dyn GpuParticles,
+    ) -> Result<(), GpuError> {
         if solver.len() > self.grid.capacity() {
             return Err(GpuError::Capacity {
                 given: solver.len(),

@@ -59,6 +59,9 @@ const PASSES: [&str; 7] = [
     "sort_buckets",
 ];
 
+/// Which of [`GpuGrid::build_groups`]' kinds each of `PASSES` dispatches.
+const KINDS: [usize; 7] = [0, 1, 0, 2, 0, 1, 0];
+
 /// The passes' labels (debug labels and profiler scopes).
 const LABELS: [&str; 7] = [
     "grid: clear_counts",
@@ -327,8 +330,6 @@ impl GpuGrid {
         profiler: Option<&GpuProfiler>,
     ) {
         let counts = self.build_groups();
-        // Which kind each of `PASSES` is.
-        const KINDS: [usize; 7] = [0, 1, 0, 2, 0, 1, 0];
         let record = |k: usize| {
             move |pass: &mut wgpu::ComputePass<'_>| {
                 pass.set_bind_group(0, &self.bind_group, &[]);
@@ -343,6 +344,40 @@ impl GpuGrid {
         let records: [_; 7] = std::array::from_fn(record);
         let stages: [PassStage<'_>; 7] = std::array::from_fn(|k| (LABELS[k], &records[k] as _));
         staged_pass(encoder, profiler, "grid build", &stages);
+    }
+
+    /// Records the build's passes into an open compute pass (each dispatch
+    /// sees the one before: wgpu orders a pass's dispatches over the buffers
+    /// they share).
+    pub(crate) fn record_build(&self, pass: &mut wgpu::ComputePass<'_>) {
+        let counts = self.build_groups();
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        for (pipeline, kind) in self.pipelines.iter().zip(KINDS) {
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(counts[kind], 1, 1);
+        }
+    }
+
+    /// Records the neighbour-list pass over the last build into an open
+    /// compute pass: per particle, up to `max_neighbours` indices j with
+    /// |x_i − x_j| ≤ h (i included) in the grid's deterministic order in
+    /// [`lists_buffer`](Self::lists_buffer), and how many there were in all
+    /// in [`list_len_buffer`](Self::list_len_buffer).
+    pub(crate) fn record_lists(&self, pass: &mut wgpu::ComputePass<'_>) {
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_pipeline(&self.query);
+        pass.dispatch_workgroups(self.n.div_ceil(64).max(1), 1, 1);
+    }
+
+    /// The neighbour lists, `max_neighbours` slots of `u32` per particle.
+    pub(crate) fn lists_buffer(&self) -> &wgpu::Buffer {
+        &self.lists
+    }
+
+    /// Per particle: how many neighbours the list pass found (possibly more
+    /// than it kept).
+    pub(crate) fn list_len_buffer(&self) -> &wgpu::Buffer {
+        &self.list_len
     }
 
     /// Particles in the last upload.

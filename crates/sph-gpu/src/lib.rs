@@ -28,12 +28,34 @@ mod density;
 mod extract;
 mod grid;
 mod passes;
+mod pbf;
 mod solver;
 
 pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
+pub use pbf::{GpuPbf, MAX_NEIGHBOURS, PbfFrame, PbfFrameStats};
 pub use solver::{GpuFrame, GpuSolver, GpuState};
+
+/// A GPU solver's particle buffers, which an extractor or renderer reads in
+/// place ([`GpuExtractor::attach`]). Index i of each is particle i of the
+/// `Particles` the solver was built from.
+pub trait GpuParticles {
+    /// Number of particles.
+    fn len(&self) -> usize;
+    /// Whether there are no particles.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// Smoothing length (m).
+    fn h(&self) -> f32;
+    /// Positions (xyz) and masses (w), `vec4<f32>` per particle.
+    fn positions_buffer(&self) -> &wgpu::Buffer;
+    /// Velocities, `vec4<f32>` per particle.
+    fn velocities_buffer(&self) -> &wgpu::Buffer;
+    /// Densities of the last step, `f32` per particle.
+    fn densities_buffer(&self) -> &wgpu::Buffer;
+}
 
 /// Re-export of the GPU pass profiler used by the `_profiled` methods.
 pub use wgpu_profiler;

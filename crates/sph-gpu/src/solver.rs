@@ -17,7 +17,10 @@ use crate::passes::{
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
 
 /// WGSL of the boundary's walls and obstacles, prepended after [`PARAMS`].
-const WALLS: &str = include_str!("shaders/walls.wgsl");
+pub(crate) const WALLS: &str = include_str!("shaders/walls.wgsl");
+
+/// WGSL of the boundary's projection (`Boundary::resolve`), after [`WALLS`].
+pub(crate) const RESOLVE: &str = include_str!("shaders/resolve.wgsl");
 
 /// Mirrors `struct Params` in `shaders/solver_params.wgsl`.
 #[repr(C)]
@@ -250,7 +253,10 @@ impl GpuSolver {
         let integrate = compute_pass(
             device,
             "integrate",
-            format!("{PARAMS}{WALLS}{}", include_str!("shaders/integrate.wgsl")),
+            format!(
+                "{PARAMS}{WALLS}{RESOLVE}{}",
+                include_str!("shaders/integrate.wgsl")
+            ),
             &[
                 &uniform,
                 grid.positions_buffer(),
@@ -568,5 +574,23 @@ impl GpuSolver {
             densities,
             pressures,
         })
+    }
+}
+
+impl crate::GpuParticles for GpuSolver {
+    fn len(&self) -> usize {
+        GpuSolver::len(self)
+    }
+    fn h(&self) -> f32 {
+        GpuSolver::h(self)
+    }
+    fn positions_buffer(&self) -> &wgpu::Buffer {
+        GpuSolver::positions_buffer(self)
+    }
+    fn velocities_buffer(&self) -> &wgpu::Buffer {
+        GpuSolver::velocities_buffer(self)
+    }
+    fn densities_buffer(&self) -> &wgpu::Buffer {
+        GpuSolver::densities_buffer(self)
     }
 }

@@ -232,6 +232,18 @@ impl PbfParams {
     }
 }
 
+impl PbfParams {
+    /// The substeps a frame of `frame_dt` takes: [`Self::substeps`], more
+    /// only where they would be longer than [`Self::max_dt`] (what
+    /// [`crate::World::advance`] takes, each `frame_dt` over this).
+    pub fn substeps_for(&self, frame_dt: f32) -> u32 {
+        // A hair under, so that a frame of exactly k × max_dt takes k
+        // substeps despite rounding.
+        let needed = (frame_dt / self.max_dt * (1.0 - 1e-6)).ceil();
+        needed.max(self.substeps as f32) as u32
+    }
+}
+
 /// The Courant number of [`PbfParams::for_fall`]: a substep's largest
 /// expected displacement over h. Looked at in rendered frames of
 /// `dam-break-fine` (10,000 particles, h = 0.02 m): at 1 (3 substeps per

@@ -271,10 +271,7 @@ impl World {
             Ok(())
         };
         if let Solver::Pbf(pbf) = self.solver {
-            // A hair under, so that a frame of exactly k × max_dt takes k
-            // substeps despite rounding.
-            let needed = (frame_dt / pbf.max_dt * (1.0 - 1e-6)).ceil();
-            let n = needed.max(pbf.substeps as f32) as u32;
+            let n = pbf.substeps_for(frame_dt);
             let dt = frame_dt / n as f32;
             for k in 0..n {
                 take(self, dt, k + 1 == n)?;

@@ -1,0 +1,690 @@
+//! [`GpuPbf`]: position-based fluids (sph-core's `solver::pbf`) as compute
+//! passes, a whole frame recorded in one command encoder.
+//!
+//! A substep is the CPU program's stations in the same order, one dispatch
+//! each (`shaders/pbf.wgsl`): predict (gravity, the displacement guard, the
+//! walls' projection), the grid and its neighbour lists on the predicted
+//! positions, [`PbfParams::iterations`] Jacobi iterations of λ, Δp and the
+//! move, vorticity confinement and XSPH, the boundary, and the substep's
+//! statistics. All substeps of a frame share one length, so the uniform is
+//! written once per frame and nothing is read back inside it: the frame's
+//! statistics (density error, guard clamps, the solve's headway) are copied
+//! to a mappable buffer at its end and collected by a later frame
+//! ([`GpuPbf::encode_frame`]), a frame or two late.
+//!
+//! Every sum runs over a particle's neighbour list in the grid's fixed order
+//! and the statistics are reduced by a fixed tree (integer atomics only for
+//! counts and maxima), so two runs give bitwise the same particles. They
+//! differ from the CPU's by rounding: the CPU sorts its particles by cell and
+//! sums eight lanes at a time.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use sph_core::solver::pbf::MAX_DENSITY_ERROR;
+use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
+
+use crate::GpuParticles;
+use crate::density::obstacles_buffer;
+use crate::grid::{GpuError, GpuGrid};
+use crate::passes::{bind_buffers, check_fits, read, shader};
+use crate::solver::{GpuState, RESOLVE, WALLS};
+
+/// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32
+/// within h = 2 spacings; a particle with more than this many is compressed
+/// far past anything the solve leaves, and the frame's statistics report it
+/// as an error ([`GpuError::Unstable`]).
+pub const MAX_NEIGHBOURS: u32 = 96;
+
+/// Mirrors `struct Pbf` in `shaders/pbf.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Uniform {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    max_neighbours: u32,
+    gravity: [f32; 4],
+    domain_min: [f32; 4],
+    domain_max: [f32; 4],
+    rest_density: f32,
+    inv_rho0: f32,
+    dt: f32,
+    omega: f32,
+    epsilon: f32,
+    scorr_k: f32,
+    scorr_n: u32,
+    inv_w_dq: f32,
+    vorticity: f32,
+    xsph: f32,
+    max_speed: f32,
+    restitution: f32,
+    poly6: f32,
+    spiky: f32,
+    w0: f32,
+    max_error: f32,
+}
+
+/// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct Stats {
+    error_sum: f32,
+    substeps: u32,
+    unstable: u32,
+    unstable_substep: u32,
+    first_error: f32,
+    last_error: f32,
+    error_max: u32,
+    clamped: u32,
+    most_neighbours: u32,
+    nonfinite: u32,
+    first_max: u32,
+    last_max: u32,
+}
+
+/// A frame's statistics as the GPU summed them: what `sph_core::FrameReport`
+/// reports for a CPU frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PbfFrameStats {
+    /// Which frame of this solver (0 for the first) they belong to.
+    pub frame: u64,
+    /// Substeps the frame took.
+    pub substeps: u32,
+    /// max(ρ/ρ0 − 1, 0) averaged over the particles, then over the substeps.
+    pub density_error_avg: f32,
+    /// The largest ρ/ρ0 − 1 of any particle in any substep (at least 0).
+    pub density_error_max: f32,
+    /// Particles the displacement guard slowed, summed over the substeps.
+    pub clamped: u64,
+    /// The most neighbours within h any particle had.
+    pub most_neighbours: u32,
+}
+
+/// What [`GpuPbf::encode_frame`] recorded, and the newest statistics that had
+/// come back by then.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PbfFrame {
+    /// Substeps recorded for this frame (the CPU's rule,
+    /// [`PbfParams::substeps_for`]).
+    pub substeps: u32,
+    /// Constraint iterations recorded for this frame.
+    pub iterations: u32,
+    /// The statistics of earlier frames that have come back since the last
+    /// call, oldest first (usually one: the frame before).
+    pub stats: Vec<PbfFrameStats>,
+}
+
+/// The pipelines of one substep's passes (all bind the same group).
+struct Passes {
+    predict: Pass,
+    /// λ by headway: plain, first iteration, last, both (one iteration).
+    lambda: [Pass; 4],
+    correct: Pass,
+    apply: Pass,
+    curl: Pass,
+    confine: Pass,
+    boundaries: Pass,
+    reduce: Pass,
+}
+
+type Pass = wgpu::ComputePipeline;
+
+/// A mappable copy of one frame's statistics on its way back.
+struct Slot {
+    buffer: wgpu::Buffer,
+    /// The frame whose statistics it holds, while it holds any.
+    frame: Option<u64>,
+    /// Set by the map callback.
+    mapped: Arc<AtomicBool>,
+    /// Whether a map was requested and not yet read.
+    mapping: bool,
+}
+
+/// Position-based fluids on the GPU with the same equations, parameters and
+/// walls as `sph_core::solver::pbf` (domain walls, boxes and spheres, the
+/// clearance, s_corr, vorticity confinement, XSPH). Index i of its state is
+/// particle i of the `Particles` it was built from: the GPU never reorders
+/// them.
+pub struct GpuPbf {
+    uniform: Uniform,
+    pbf: PbfParams,
+    grid: GpuGrid,
+    uniform_buffer: wgpu::Buffer,
+    velocities: wgpu::Buffer,
+    pressures: wgpu::Buffer,
+    densities: wgpu::Buffer,
+    stats: wgpu::Buffer,
+    passes: Passes,
+    group: wgpu::BindGroup,
+    slots: Vec<Slot>,
+    /// The slot the last encoded frame copied its statistics to, still to
+    /// be mapped once that frame is submitted.
+    to_map: Option<usize>,
+    frames: u64,
+    substeps: u64,
+}
+
+impl GpuPbf {
+    /// Uploads `particles` (positions, velocities, masses) and prepares the
+    /// passes.
+    ///
+    /// # Errors
+    /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
+    /// rejects, and for a surface tension PBF does not apply (its reason);
+    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"`, which runs only
+    /// on the CPU; [`GpuError::DeviceLimit`] for more particles than one
+    /// dispatch or storage binding of this device holds.
+    pub fn new(
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        particles: &Particles,
+        fluid: &FluidParams,
+        pbf: &PbfParams,
+        boundary: &Boundary,
+    ) -> Result<Self, GpuError> {
+        particles.validate().map_err(GpuError::Params)?;
+        fluid.validate().map_err(GpuError::Params)?;
+        pbf.validate().map_err(GpuError::Params)?;
+        boundary.validate().map_err(GpuError::Params)?;
+        Solver::Pbf(*pbf)
+            .check_applies(fluid)
+            .map_err(GpuError::Params)?;
+        if pbf.viscosity == PbfViscosity::Implicit {
+            return Err(GpuError::Invalid(
+                "solver.pbf.viscosity = \"implicit\" runs only on the CPU: use \"xsph\" on the GPU",
+            ));
+        }
+        let n = particles.len();
+        let capacity = n.max(1);
+        check_fits(device, "particles", capacity, 64, 32)?;
+        let mut grid = GpuGrid::new(device, capacity, fluid.h, MAX_NEIGHBOURS)?;
+        grid.upload_with_masses(queue, particles.positions(), Some(particles.masses()))?;
+        let h = fluid.h;
+        let poly6 = Poly6::new(h).map_err(GpuError::Params)?;
+        let dq = pbf.scorr_dq * h;
+        let uniform = Uniform {
+            h,
+            inv_h: 1.0 / h,
+            n: n as u32,
+            max_neighbours: MAX_NEIGHBOURS,
+            gravity: fluid.gravity.extend(0.0).to_array(),
+            domain_min: boundary.domain.min.extend(boundary.clearance).to_array(),
+            domain_max: boundary.domain.max.extend(0.0).to_array(),
+            rest_density: fluid.rest_density,
+            inv_rho0: 1.0 / fluid.rest_density,
+            dt: 0.0,
+            omega: pbf.over_relaxation,
+            epsilon: pbf.relaxation / (h * h),
+            scorr_k: pbf.scorr_k,
+            scorr_n: pbf.scorr_n,
+            inv_w_dq: 1.0 / poly6.value_r2(dq * dq),
+            vorticity: pbf.vorticity,
+            xsph: pbf.xsph,
+            max_speed: 0.0,
+            restitution: boundary.restitution,
+            poly6: poly6.coefficients().0,
+            spiky: sph_core::Spiky::new(h)
+                .map_err(GpuError::Params)?
+                .coefficient(),
+            w0: poly6.value_r2(0.0),
+            max_error: MAX_DENSITY_ERROR,
+        };
+        let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pbf params"),
+            size: size_of::<Uniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let storage = |label, bytes_each: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: (bytes_each * capacity as u64).max(16),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_DST
+                    | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let velocities = storage("pbf velocities", 16);
+        let v: Vec<[f32; 4]> = (particles.velocities().iter())
+            .map(|v| v.extend(0.0).to_array())
+            .collect();
+        if !v.is_empty() {
+            queue.write_buffer(&velocities, 0, bytemuck::cast_slice(&v));
+        }
+        let constraints = storage("pbf constraints", 32);
+        let corrections = storage("pbf corrections", 16);
+        let pressures = storage("pbf pressures", 4);
+        let densities = storage("pbf densities", 4);
+        let curls = storage("pbf curls", 16);
+        let means = storage("pbf means", 16);
+        let partials = storage("pbf partial sums", 4);
+        let stats = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("pbf stats"),
+            size: size_of::<Stats>() as u64,
+            usage: wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let obstacles = obstacles_buffer(device, boundary)?;
+        let buffers: [&wgpu::Buffer; 14] = [
+            &uniform_buffer,
+            grid.positions_buffer(),
+            &velocities,
+            grid.lists_buffer(),
+            grid.list_len_buffer(),
+            &constraints,
+            &corrections,
+            &pressures,
+            &densities,
+            &curls,
+            &means,
+            &stats,
+            &obstacles,
+            &partials,
+        ];
+        let storage_buffers = buffers.len() as u32 - 1;
+        if device.limits().max_storage_buffers_per_shader_stage < storage_buffers {
+            return Err(GpuError::DeviceLimit(format!(
+                "GPU PBF binds {storage_buffers} storage buffers per pass; this device allows {}",
+                device.limits().max_storage_buffers_per_shader_stage
+            )));
+        }
+        // One layout for every pass: the uniform, then storage buffers, the
+        // lists, their lengths and the obstacles read-only.
+        let entries: Vec<_> = (0..buffers.len() as u32)
+            .map(|binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: if binding == 0 {
+                        wgpu::BufferBindingType::Uniform
+                    } else {
+                        wgpu::BufferBindingType::Storage {
+                            read_only: matches!(binding, 3 | 4 | 12),
+                        }
+                    },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            })
+            .collect();
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pbf layout"),
+            entries: &entries,
+        });
+        let group = bind_buffers(device, "pbf", &layout, &buffers);
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pbf pipeline layout"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = shader(
+            device,
+            "pbf.wgsl",
+            format!("{}{WALLS}{RESOLVE}", include_str!("shaders/pbf.wgsl")),
+        );
+        let pass = |entry: &str, headway: u32| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(&pipeline_layout),
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &[("HEADWAY", f64::from(headway))],
+                    ..Default::default()
+                },
+                cache: None,
+            })
+        };
+        let passes = Passes {
+            predict: pass("predict", 0),
+            lambda: std::array::from_fn(|k| pass("lambda", k as u32)),
+            correct: pass("correct", 0),
+            apply: pass("apply", 0),
+            curl: pass("curl", 0),
+            confine: pass("confine", 0),
+            boundaries: pass("boundaries", 0),
+            reduce: pass("reduce", 0),
+        };
+        let slots = (0..3)
+            .map(|_| Slot {
+                buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("pbf stats readback"),
+                    size: size_of::<Stats>() as u64,
+                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+                    mapped_at_creation: false,
+                }),
+                frame: None,
+                mapped: Arc::new(AtomicBool::new(false)),
+                mapping: false,
+            })
+            .collect();
+        Ok(Self {
+            uniform,
+            pbf: *pbf,
+            grid,
+            uniform_buffer,
+            velocities,
+            pressures,
+            densities,
+            stats,
+            passes,
+            group,
+            slots,
+            to_map: None,
+            frames: 0,
+            substeps: 0,
+        })
+    }
+
+    /// The parameters it runs.
+    pub fn params(&self) -> &PbfParams {
+        &self.pbf
+    }
+
+    /// Frames encoded so far.
+    pub fn frames(&self) -> u64 {
+        self.frames
+    }
+
+    /// Substeps encoded so far.
+    pub fn substeps(&self) -> u64 {
+        self.substeps
+    }
+
+    /// Records one frame of `frame_dt` seconds into `encoder`: every substep
+    /// and iteration in one compute pass, then a copy of the frame's
+    /// statistics to a mappable buffer. Nothing is submitted or waited for;
+    /// submit `encoder` (with whatever else the frame records: extraction,
+    /// rendering), then call [`submitted`](Self::submitted). Also collects
+    /// the statistics of earlier frames that have come back, waiting only
+    /// when three frames' statistics are still on their way.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and
+    /// positive; [`GpuError::Unstable`] when statistics that came back show a
+    /// frame whose state became non-finite, whose constraint solve diverged
+    /// (as `SolveDensity` judges it on the CPU), or one of whose particles had
+    /// more neighbours than its list holds ([`MAX_NEIGHBOURS`]);
+    /// [`GpuError::Readback`].
+    pub fn encode_frame(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        frame_dt: f32,
+    ) -> Result<PbfFrame, GpuError> {
+        if !(frame_dt.is_finite() && frame_dt > 0.0) {
+            return Err(GpuError::Invalid("frame_dt must be finite and > 0"));
+        }
+        self.submitted();
+        let mut stats = self.collect(device, false)?;
+        let slot = match self.slots.iter().position(|s| s.frame.is_none()) {
+            Some(free) => free,
+            None => {
+                // Three frames in flight: wait for the oldest.
+                stats.extend(self.collect(device, true)?);
+                (self.slots.iter().position(|s| s.frame.is_none()))
+                    .ok_or_else(|| GpuError::Readback("no statistics came back".into()))?
+            }
+        };
+        let substeps = self.pbf.substeps_for(frame_dt);
+        let dt = frame_dt / substeps as f32;
+        self.uniform.dt = dt;
+        self.uniform.max_speed = self.pbf.max_displacement * self.uniform.h / dt;
+        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
+        encoder.clear_buffer(&self.stats, 0, None);
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("pbf frame"),
+                timestamp_writes: None,
+            });
+            for _ in 0..substeps {
+                self.record_substep(&mut pass);
+            }
+        }
+        encoder.copy_buffer_to_buffer(
+            &self.stats,
+            0,
+            &self.slots[slot].buffer,
+            0,
+            Some(size_of::<Stats>() as u64),
+        );
+        self.slots[slot].frame = Some(self.frames);
+        self.to_map = Some(slot);
+        self.frames += 1;
+        self.substeps += u64::from(substeps);
+        Ok(PbfFrame {
+            substeps,
+            iterations: substeps * self.pbf.iterations,
+            stats,
+        })
+    }
+
+    /// Tells the solver that the encoder of the last
+    /// [`encode_frame`](Self::encode_frame) was submitted, so its statistics
+    /// can be mapped. (A later `encode_frame` does it too.)
+    pub fn submitted(&mut self) {
+        if let Some(k) = self.to_map.take() {
+            let slot = &mut self.slots[k];
+            let mapped = slot.mapped.clone();
+            slot.mapping = true;
+            slot.buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+                mapped.store(r.is_ok(), Ordering::Release);
+            });
+        }
+    }
+
+    /// Advances one frame of `frame_dt` seconds: [`encode_frame`](Self::encode_frame)
+    /// in an encoder of its own, submitted once.
+    ///
+    /// # Errors
+    /// As [`encode_frame`](Self::encode_frame).
+    pub fn advance(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        frame_dt: f32,
+    ) -> Result<PbfFrame, GpuError> {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        let frame = self.encode_frame(device, queue, &mut encoder, frame_dt)?;
+        queue.submit([encoder.finish()]);
+        self.submitted();
+        Ok(frame)
+    }
+
+    /// Waits for every frame submitted so far and returns the statistics
+    /// that had not come back yet, oldest first.
+    ///
+    /// # Errors
+    /// As [`encode_frame`](Self::encode_frame).
+    pub fn finish(&mut self, device: &wgpu::Device) -> Result<Vec<PbfFrameStats>, GpuError> {
+        self.submitted();
+        let mut all = Vec::new();
+        while self.slots.iter().any(|s| s.frame.is_some()) {
+            all.extend(self.collect(device, true)?);
+        }
+        Ok(all)
+    }
+
+    /// Reads the statistics that have come back, oldest first; with `wait`,
+    /// waits for the device first.
+    fn collect(
+        &mut self,
+        device: &wgpu::Device,
+        wait: bool,
+    ) -> Result<Vec<PbfFrameStats>, GpuError> {
+        let poll = if wait {
+            wgpu::PollType::wait_indefinitely()
+        } else {
+            wgpu::PollType::Poll
+        };
+        device
+            .poll(poll)
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        let mut ready: Vec<usize> = (0..self.slots.len())
+            .filter(|&k| self.slots[k].mapping && self.slots[k].mapped.load(Ordering::Acquire))
+            .collect();
+        ready.sort_by_key(|&k| self.slots[k].frame);
+        if wait && ready.is_empty() && self.slots.iter().any(|s| s.mapping) {
+            return Err(GpuError::Readback(
+                "a frame's statistics did not map after the device was idle".into(),
+            ));
+        }
+        let mut out = Vec::with_capacity(ready.len());
+        for k in ready {
+            let slot = &mut self.slots[k];
+            let stats: Stats = {
+                let view = slot
+                    .buffer
+                    .get_mapped_range(..)
+                    .map_err(|e| GpuError::Readback(e.to_string()))?;
+                bytemuck::pod_read_unaligned(&view[..size_of::<Stats>()])
+            };
+            slot.buffer.unmap();
+            slot.mapping = false;
+            slot.mapped.store(false, Ordering::Release);
+            let frame = slot.frame.take().unwrap_or(0);
+            check(&stats, frame, &self.pbf)?;
+            out.push(PbfFrameStats {
+                frame,
+                substeps: stats.substeps,
+                density_error_avg: stats.error_sum / stats.substeps.max(1) as f32,
+                density_error_max: f32::from_bits(stats.error_max),
+                clamped: u64::from(stats.clamped),
+                most_neighbours: stats.most_neighbours,
+            });
+        }
+        Ok(out)
+    }
+
+    fn record_substep(&self, pass: &mut wgpu::ComputePass<'_>) {
+        let groups = self.uniform.n.div_ceil(64).max(1);
+        let run = |pass: &mut wgpu::ComputePass<'_>, pipeline: &Pass, groups| {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.dispatch_workgroups(groups, 1, 1);
+        };
+        let p = &self.passes;
+        run(pass, &p.predict, groups);
+        self.grid.record_build(pass);
+        self.grid.record_lists(pass);
+        let iterations = self.pbf.iterations;
+        for k in 0..iterations {
+            let headway = usize::from(k == 0) | (usize::from(k + 1 == iterations) << 1);
+            run(pass, &p.lambda[headway], groups);
+            run(pass, &p.correct, groups);
+            run(pass, &p.apply, groups);
+        }
+        run(pass, &p.curl, groups);
+        run(pass, &p.confine, groups);
+        run(pass, &p.boundaries, groups);
+        run(pass, &p.reduce, 1);
+    }
+
+    /// Reads positions, velocities, densities and pressures back (waits for
+    /// the device).
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`].
+    pub fn read_state(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<GpuState, GpuError> {
+        let n = u64::from(self.uniform.n);
+        let enc = || device.create_command_encoder(&Default::default());
+        let vec3s = |bytes: Vec<u8>| -> Vec<Vec3> {
+            bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+                .into_iter()
+                .map(|v| Vec3::new(v[0], v[1], v[2]))
+                .collect()
+        };
+        let floats = |buffer| -> Result<Vec<f32>, GpuError> {
+            Ok(bytemuck::pod_collect_to_vec(&read(
+                device,
+                queue,
+                enc(),
+                buffer,
+                4 * n,
+            )?))
+        };
+        Ok(GpuState {
+            positions: vec3s(read(
+                device,
+                queue,
+                enc(),
+                self.grid.positions_buffer(),
+                16 * n,
+            )?),
+            velocities: vec3s(read(device, queue, enc(), &self.velocities, 16 * n)?),
+            densities: floats(&self.densities)?,
+            pressures: floats(&self.pressures)?,
+        })
+    }
+}
+
+impl GpuParticles for GpuPbf {
+    fn len(&self) -> usize {
+        self.uniform.n as usize
+    }
+    fn h(&self) -> f32 {
+        self.uniform.h
+    }
+    fn positions_buffer(&self) -> &wgpu::Buffer {
+        self.grid.positions_buffer()
+    }
+    fn velocities_buffer(&self) -> &wgpu::Buffer {
+        &self.velocities
+    }
+    fn densities_buffer(&self) -> &wgpu::Buffer {
+        &self.densities
+    }
+}
+
+/// The error a frame's statistics show, if any.
+fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), GpuError> {
+    let hint = || {
+        format!(
+            "raise solver.pbf.iterations (now {}) or solver.pbf.substeps (now {}), \
+             or lower solver.pbf.max_dt (now {:e} s)",
+            pbf.iterations, pbf.substeps, pbf.max_dt
+        )
+    };
+    let at = format!("frame {frame}, substep {}", stats.unstable_substep);
+    match stats.unstable {
+        0 => {}
+        1 => {
+            return Err(GpuError::Unstable(format!(
+                "a position, velocity or density became non-finite ({at}); {}",
+                hint()
+            )));
+        }
+        _ => {
+            return Err(GpuError::Unstable(format!(
+                "the density constraint solve diverged ({at}): a density error of {:.0} % \
+                 after {} iterations, from {:.0} % at the first (above {:.0} %, no headway); {}",
+                stats.last_error * 100.0,
+                pbf.iterations,
+                stats.first_error * 100.0,
+                MAX_DENSITY_ERROR * 100.0,
+                hint()
+            )));
+        }
+    }
+    if stats.most_neighbours > MAX_NEIGHBOURS {
+        return Err(GpuError::Unstable(format!(
+            "a particle had {} neighbours within h in frame {frame}, more than the {MAX_NEIGHBOURS} \
+             a GPU neighbour list holds: the fluid is compressed far past rest density; {}",
+            stats.most_neighbours,
+            hint()
+        )));
+    }
+    Ok(())
+}

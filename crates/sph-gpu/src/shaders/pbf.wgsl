@@ -1,0 +1,425 @@
+// Position-based fluids (Macklin & Müller 2013) on the GPU: sph-core's
+// `solver::pbf` station by station, one thread per particle, over the
+// neighbour lists the grid found on the predicted positions (grid.wgsl). Each
+// entry point is one dispatch; a substep is
+//   predict → grid build → lists → iterations × (lambda → correct → apply)
+//   → curl → confine → boundaries → reduce,
+// and a frame is its substeps recorded back to back, nothing read back.
+// Expects walls.wgsl and resolve.wgsl appended (they read `f` and `obstacles`).
+
+struct Pbf {
+    h: f32,
+    inv_h: f32,
+    n: u32,
+    max_neighbours: u32,
+    gravity: vec4<f32>,
+    domain_min: vec4<f32>, // w: Boundary::clearance (resolve.wgsl)
+    domain_max: vec4<f32>,
+    rest_density: f32,
+    inv_rho0: f32,
+    dt: f32,                // the frame's substep (s)
+    omega: f32,             // PbfParams::over_relaxation
+    epsilon: f32,           // PbfParams::relaxation / h² (1/m²)
+    scorr_k: f32,
+    scorr_n: u32,
+    inv_w_dq: f32,          // 1 / W_poly6(Δq h)
+    vorticity: f32,         // ε of vorticity confinement (m/s)
+    xsph: f32,              // XSPH's c
+    max_speed: f32,         // PbfParams::max_displacement h / dt
+    restitution: f32,
+    poly6: f32,             // 315 / (64 π h⁹)
+    spiky: f32,             // 45 / (π h⁶)
+    w0: f32,                // W_poly6(0)
+    max_error: f32,         // pbf::MAX_DENSITY_ERROR
+};
+
+// One particle's density constraint (pbf.rs `Constraint`): λ, D = 1/(Σ|∇C|² + ε),
+// ρ, and the walls' ∇(ρ_wall/ρ0) in `wall.xyz`.
+struct Constraint {
+    lambda: f32,
+    d: f32,
+    rho: f32,
+    pad: f32,
+    wall: vec4<f32>,
+};
+
+// What a frame's substeps add up; cleared when a frame starts, read back
+// after it.
+struct Stats {
+    error_sum: f32,             // Σ over substeps of the average max(ρ/ρ0 − 1, 0)
+    substeps: u32,
+    unstable: u32,              // 0; 1: a non-finite state; 2: a solve without headway
+    unstable_substep: u32,      // the substep (of the frame) it happened in
+    first_error: f32,           // the failed solve's largest error, first iteration
+    last_error: f32,            // and last
+    error_max: atomic<u32>,     // f32 bits of the largest ρ/ρ0 − 1 (≥ 0)
+    clamped: atomic<u32>,       // particles the displacement guard slowed
+    most_neighbours: atomic<u32>,
+    nonfinite: atomic<u32>,
+    first_max: atomic<u32>,     // f32 bits of this substep's largest ρ, first iteration
+    last_max: atomic<u32>,      // and last
+};
+
+@group(0) @binding(0) var<uniform> f: Pbf;
+@group(0) @binding(1) var<storage, read_write> positions: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read_write> velocities: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> lists: array<u32>;
+@group(0) @binding(4) var<storage, read> list_len: array<u32>;
+@group(0) @binding(5) var<storage, read_write> constraints: array<Constraint>;
+@group(0) @binding(6) var<storage, read_write> corrections: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> pressures: array<f32>;
+@group(0) @binding(8) var<storage, read_write> densities: array<f32>;
+@group(0) @binding(9) var<storage, read_write> curls: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read_write> means: array<vec4<f32>>;
+@group(0) @binding(11) var<storage, read_write> stats: Stats;
+@group(0) @binding(12) var<storage, read> obstacles: array<Obstacle>;
+@group(0) @binding(13) var<storage, read_write> partials: array<f32>;
+
+// Which iteration a `lambda` pipeline is: bit 0 the first, bit 1 the last
+// (the solve's headway is their largest densities).
+override HEADWAY: u32 = 0u;
+
+const GROUP: u32 = 64u;
+
+// Particle i's neighbours (itself excluded by the callers), as the lists hold
+// them: at most max_neighbours (more are counted in `most_neighbours`).
+fn neighbour_count(i: u32) -> u32 {
+    return min(list_len[i], f.max_neighbours);
+}
+
+fn neighbour(i: u32, k: u32) -> u32 {
+    return lists[i * f.max_neighbours + k];
+}
+
+// W_poly6 and the spiky gradient's factor s (∇W_ij = s (x_i − x_j)) from r²:
+// pbf.rs `LaneKernels::eval`, zero beyond h.
+fn kernels(r2: f32) -> vec2<f32> {
+    let d = max(f.h * f.h - r2, 0.0);
+    let w = f.poly6 * d * d * d;
+    let len = sqrt(r2);
+    let t = max(f.h - len, 0.0);
+    let s = -f.spiky * t * t / max(len, f.h * 1e-6);
+    return vec2<f32>(w, s);
+}
+
+// A wall's fraction of the poly6 volume beyond it and that fraction's slope,
+// at distance d: `WallKernel::fraction_and_density` for poly6.
+fn fraction_and_density(d: f32) -> vec2<f32> {
+    let u = clamp(d / f.h, 0.0, 1.0);
+    let u2 = u * u;
+    let g = u * (1.0 + u2 * (-4.0 / 3.0 + u2 * (6.0 / 5.0 + u2 * (-4.0 / 7.0 + u2 / 9.0))));
+    let g1 = 1.0 - 4.0 / 3.0 + 6.0 / 5.0 - 4.0 / 7.0 + 1.0 / 9.0;
+    let c = 315.0 / 256.0;
+    let w = 1.0 - u2;
+    let w2 = w * w;
+    return vec2<f32>(c * (g1 - g), c / f.h * w2 * w2);
+}
+
+// The walls' density over ρ0 at x (in `.w`) and its gradient (`.xyz`): the
+// union of the half-spaces within h, 1 − Π_k (1 − f_k) (sph-core's
+// `Walls::at`; walls beyond the eighth are added, as there).
+fn walls_at(x: vec3<f32>) -> vec4<f32> {
+    var keep: array<f32, 8>;
+    var grads: array<vec3<f32>, 8>;
+    var count = 0u;
+    var extra = vec4<f32>(0.0);
+    for (var k = 0u; k < wall_count(); k++) {
+        let w = wall(k, x);
+        if w.w >= f.h {
+            continue;
+        }
+        let fd = fraction_and_density(max(w.w, 0.0));
+        let grad = -fd.y * w.xyz;
+        if count < 8u {
+            keep[count] = 1.0 - fd.x;
+            grads[count] = grad;
+            count++;
+        } else {
+            extra += vec4<f32>(grad, fd.x);
+        }
+    }
+    var outside = 1.0;
+    for (var k = 0u; k < count; k++) {
+        outside *= keep[k];
+    }
+    var grad = extra.xyz;
+    for (var k = 0u; k < count; k++) {
+        var others = 1.0;
+        for (var l = 0u; l < count; l++) {
+            if l != k {
+                others *= keep[l];
+            }
+        }
+        grad += others * grads[k];
+    }
+    return vec4<f32>(grad, 1.0 - outside + extra.w);
+}
+
+// Lines 1–4: v ← v + Δt g, limited to the guard's speed, x* ← x + Δt v,
+// projected out of walls with v following the push (pbf.rs `Predict`). The
+// pressure the solve will sum starts at 0.
+@compute @workgroup_size(64)
+fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let dt = f.dt;
+    let p = positions[i];
+    var v = velocities[i].xyz + f.gravity.xyz * dt;
+    let speed = length(v);
+    if speed > f.max_speed {
+        v *= f.max_speed / speed;
+        atomicAdd(&stats.clamped, 1u);
+    }
+    let free = p.xyz + v * dt;
+    let x = resolve(free, vec3<f32>(0.0), 0.0)[0];
+    v += (x - free) / dt;
+    positions[i] = vec4<f32>(x, p.w);
+    velocities[i] = vec4<f32>(v, 0.0);
+    pressures[i] = 0.0;
+}
+
+// Lines 9–11: ρ_i (walls and the particle itself included), λ_i and D_i.
+@compute @workgroup_size(64)
+fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let xi = positions[i];
+    let walls = walls_at(xi.xyz);
+    var rho = 0.0;
+    var grad = vec3<f32>(0.0);
+    var squares = 0.0;
+    let count = neighbour_count(i);
+    for (var k = 0u; k < count; k++) {
+        let j = neighbour(i, k);
+        if j == i {
+            continue;
+        }
+        let y = positions[j];
+        let d = xi.xyz - y.xyz;
+        let ws = kernels(dot(d, d));
+        let g = d * (ws.y * y.w * f.inv_rho0);
+        rho += y.w * ws.x;
+        grad += g;
+        squares += dot(g, g);
+    }
+    rho = f.rest_density * walls.w + xi.w * f.w0 + rho;
+    let grad_i = walls.xyz + grad;
+    let error = rho * f.inv_rho0 - 1.0;
+    let dd = 1.0 / (dot(grad_i, grad_i) + squares + f.epsilon);
+    constraints[i] = Constraint(-max(error, 0.0) * dd, dd, rho, 0.0, vec4<f32>(walls.xyz, 0.0));
+    if (HEADWAY & 1u) != 0u {
+        atomicMax(&stats.first_max, bitcast<u32>(max(rho, 0.0)));
+        atomicMax(&stats.most_neighbours, list_len[i]);
+    }
+    if (HEADWAY & 2u) != 0u {
+        atomicMax(&stats.last_max, bitcast<u32>(max(rho, 0.0)));
+    }
+}
+
+// Lines 12–13: Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij plus the
+// walls' λ_i ∇(ρ_wall/ρ0).
+@compute @workgroup_size(64)
+fn correct(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let xi = positions[i].xyz;
+    let ci = constraints[i];
+    var acc = vec3<f32>(0.0);
+    let count = neighbour_count(i);
+    for (var k = 0u; k < count; k++) {
+        let j = neighbour(i, k);
+        if j == i {
+            continue;
+        }
+        let y = positions[j];
+        let cj = constraints[j];
+        let d = xi - y.xyz;
+        let ws = kernels(dot(d, d));
+        var sum = ci.lambda + cj.lambda;
+        if f.scorr_k > 0.0 {
+            let q = ws.x * f.inv_w_dq;
+            var scorr = q;
+            for (var e = 1u; e < f.scorr_n; e++) {
+                scorr *= q;
+            }
+            sum -= f.scorr_k * scorr * 0.5 * (ci.d + cj.d);
+        }
+        acc += d * (ws.y * y.w * f.inv_rho0 * sum);
+    }
+    corrections[i] = vec4<f32>(ci.lambda * ci.wall.xyz + acc, 0.0);
+}
+
+// Moves each particle by ω Δp_i and back out of walls, its velocity by that
+// motion over Δt (line 21 kept true), and sums the pressure the solve applied,
+// p_i = −ω ρ0 Σ λ_i / Δt².
+@compute @workgroup_size(64)
+fn apply(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let p = positions[i];
+    let dp = f.omega * corrections[i].xyz;
+    let free = p.xyz + dp;
+    let x = resolve(free, vec3<f32>(0.0), 0.0)[0];
+    velocities[i] = vec4<f32>(velocities[i].xyz + (dp + (x - free)) / f.dt, 0.0);
+    positions[i] = vec4<f32>(x, p.w);
+    pressures[i] += -f.omega * f.rest_density / (f.dt * f.dt) * constraints[i].lambda;
+}
+
+// Line 22, first pass: the density at the final positions (walls included),
+// the curl ω_i = Σ_j (m_j/ρ0)(v_j − v_i) × ∇W_ij with |ω_i|, and XSPH's mean
+// Σ_j (m_j/ρ0)(v_j − v_i) W_ij.
+@compute @workgroup_size(64)
+fn curl(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let xi = positions[i];
+    let vi = velocities[i].xyz;
+    var rho = 0.0;
+    var curl = vec3<f32>(0.0);
+    var mean = vec3<f32>(0.0);
+    let count = neighbour_count(i);
+    for (var k = 0u; k < count; k++) {
+        let j = neighbour(i, k);
+        if j == i {
+            continue;
+        }
+        let y = positions[j];
+        let d = xi.xyz - y.xyz;
+        let ws = kernels(dot(d, d));
+        let u = velocities[j].xyz - vi;
+        let vol = y.w * f.inv_rho0;
+        rho += y.w * ws.x;
+        curl += cross(u, d * (ws.y * vol));
+        mean += u * (vol * ws.x);
+    }
+    densities[i] = f.rest_density * walls_at(xi.xyz).w + xi.w * f.w0 + rho;
+    curls[i] = vec4<f32>(curl, length(curl));
+    means[i] = vec4<f32>(mean, 0.0);
+}
+
+// Line 22, second pass: η_i = Σ_j (m_j/ρ0)(|ω_j| − |ω_i|) ∇W_ij, then
+// v_i += c mean_i + Δt ε (η_i/|η_i|) × ω_i.
+@compute @workgroup_size(64)
+fn confine(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let ci = curls[i];
+    var dv = f.xsph * means[i].xyz;
+    if f.vorticity > 0.0 {
+        let xi = positions[i].xyz;
+        var eta = vec3<f32>(0.0);
+        let count = neighbour_count(i);
+        for (var k = 0u; k < count; k++) {
+            let j = neighbour(i, k);
+            if j == i {
+                continue;
+            }
+            let y = positions[j];
+            let d = xi - y.xyz;
+            let ws = kernels(dot(d, d));
+            eta += d * (ws.y * y.w * f.inv_rho0 * (curls[j].w - ci.w));
+        }
+        let len = length(eta);
+        if len > 0.0 && len < 3.0e38 {
+            dv += f.dt * f.vorticity * cross(eta / len, ci.xyz);
+        }
+    }
+    velocities[i] = vec4<f32>(velocities[i].xyz + dv, 0.0);
+}
+
+fn finite(v: f32) -> bool {
+    return (bitcast<u32>(v) & 0x7f800000u) != 0x7f800000u;
+}
+
+var<workgroup> group_sums: array<f32, GROUP>;
+
+// Line 23 and the substep's statistics: the boundary with restitution
+// (sph-core's `Boundaries`), a non-finite state flagged, and each workgroup's
+// sum of max(ρ/ρ0 − 1, 0) by a fixed tree into `partials`.
+@compute @workgroup_size(64)
+fn boundaries(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) t: u32,
+    @builtin(workgroup_id) group: vec3<u32>,
+) {
+    let i = id.x;
+    var error = 0.0;
+    if i < f.n {
+        let p = positions[i];
+        let xv = resolve(p.xyz, velocities[i].xyz, f.restitution);
+        positions[i] = vec4<f32>(xv[0], p.w);
+        velocities[i] = vec4<f32>(xv[1], 0.0);
+        let e = densities[i] * f.inv_rho0 - 1.0;
+        let x = xv[0];
+        let v = xv[1];
+        if !(finite(x.x) && finite(x.y) && finite(x.z) && finite(v.x) && finite(v.y)
+            && finite(v.z) && finite(e)) {
+            atomicMax(&stats.nonfinite, 1u);
+        }
+        error = max(e, 0.0);
+        atomicMax(&stats.error_max, bitcast<u32>(error));
+    }
+    group_sums[t] = error;
+    for (var half = GROUP / 2u; half > 0u; half /= 2u) {
+        workgroupBarrier();
+        if t < half {
+            group_sums[t] += group_sums[t + half];
+        }
+    }
+    if t == 0u {
+        partials[group.x] = group_sums[0];
+    }
+}
+
+var<workgroup> reduce_sums: array<f32, 256>;
+
+// The substep's end, one workgroup: its average error (the partials summed in
+// a fixed order) added to the frame's, the solve's headway checked as
+// `SolveDensity` does (a largest error above max_error at the last iteration
+// and no smaller than at the first is a failed solve), its maxima reset.
+@compute @workgroup_size(256)
+fn reduce(@builtin(local_invocation_index) t: u32) {
+    let groups = (f.n + GROUP - 1u) / GROUP;
+    var sum = 0.0;
+    for (var g = t; g < groups; g += 256u) {
+        sum += partials[g];
+    }
+    reduce_sums[t] = sum;
+    for (var half = 128u; half > 0u; half /= 2u) {
+        workgroupBarrier();
+        if t < half {
+            reduce_sums[t] += reduce_sums[t + half];
+        }
+    }
+    workgroupBarrier();
+    if t != 0u {
+        return;
+    }
+    stats.error_sum += reduce_sums[0] / f32(max(f.n, 1u));
+    let first = bitcast<f32>(atomicExchange(&stats.first_max, 0u)) * f.inv_rho0 - 1.0;
+    let last = bitcast<f32>(atomicExchange(&stats.last_max, 0u)) * f.inv_rho0 - 1.0;
+    if stats.unstable == 0u {
+        if atomicLoad(&stats.nonfinite) != 0u || !finite(stats.error_sum) {
+            stats.unstable = 1u;
+            stats.unstable_substep = stats.substeps;
+        } else if last > f.max_error && last >= first {
+            stats.unstable = 2u;
+            stats.unstable_substep = stats.substeps;
+            stats.first_error = first;
+            stats.last_error = last;
+        }
+    }
+    stats.substeps += 1u;
+}
