@@ -128,9 +128,10 @@ pub struct Args {
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub screenshot_after: Option<u64>,
 
-    /// Run the SPH step on the GPU (wgpu compute, `sph-gpu`) instead of the CPU;
-    /// extraction stays on the CPU unless --gpu-extract. Needs a GPU adapter (lavapipe will do);
-    /// scenes with emitters are not supported on this path.
+    /// Run the scene's solver on the GPU (wgpu compute, `sph-gpu`) instead of
+    /// the CPU: PBF (a frame per submission) or WCSPH; DFSPH stays on the CPU.
+    /// Extraction stays on the CPU unless --gpu-extract. Needs a GPU adapter
+    /// (lavapipe will do); scenes with emitters are not supported on this path.
     #[arg(long)]
     pub gpu_sim: bool,
 

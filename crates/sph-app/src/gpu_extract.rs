@@ -9,7 +9,7 @@
 //! surfel is ever silently lost.
 
 use sph_core::World;
-use sph_gpu::{GpuExtractStats, GpuExtractor, GpuSolver, SURFEL_BYTES};
+use sph_gpu::{GpuExtractStats, GpuExtractor, GpuParticles, SURFEL_BYTES};
 use splat_render::{GpuContext, SplatRenderer, wgpu};
 use surfel_extract::{ColourField, ExtractParams, Surfel};
 
@@ -80,7 +80,7 @@ impl GpuExtract {
     pub fn run(
         &mut self,
         world: &World,
-        solver: Option<&GpuSolver>,
+        solver: Option<&dyn GpuParticles>,
     ) -> Result<GpuExtractStats, AppError> {
         let n = world.particles.len();
         if n > self.particles {

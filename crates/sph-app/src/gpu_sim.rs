@@ -1,31 +1,60 @@
-//! `--gpu-sim`: the SPH step on the GPU (`sph-gpu`) instead of the CPU world.
+//! `--gpu-sim`: the scene's solver on the GPU (`sph-gpu`) instead of the CPU
+//! world: PBF (the default) or the thesis's WCSPH.
 //!
-//! Each frame advances in adaptive substeps whose length the GPU chooses as
-//! `World::advance` does (`GpuSolver::advance`: CFL and force condition,
-//! landing on the frame time). The particles stay on the GPU: nothing but the
-//! 32-byte step state is read back per batch of steps. [`GpuSim::read_into`]
-//! copies the state into the CPU world when something there needs it (CPU
-//! extraction, exports, the particles view, switching back to the CPU, a
-//! world rebuilt after a parameter change). The CPU world stays the reference:
-//! switching back continues from the read-back state.
+//! - PBF records a whole frame (every substep and iteration) in one
+//!   submission and reads nothing back inside it; the frame's statistics
+//!   (density errors, guard clamps) come back a frame or two later
+//!   ([`GpuStep::late`]).
+//! - WCSPH advances in adaptive substeps whose length the GPU chooses as
+//!   `World::advance` does (`GpuSolver::advance`: CFL and force condition,
+//!   landing on the frame time), reading a 32-byte step state back per
+//!   batch of steps.
+//!
+//! The particles stay on the GPU. [`GpuSim::read_into`] copies them into the
+//! CPU world when something there needs them (CPU extraction, exports,
+//! switching back to the CPU, a world rebuilt after a parameter change). The
+//! CPU world stays the reference: switching back continues from the
+//! read-back state.
 
-use sph_core::World;
-use sph_gpu::GpuSolver;
+use sph_core::{Solver, SolverKind, World};
+use sph_gpu::{GpuParticles, GpuPbf, GpuSolver, GpuState, PbfFrameStats};
 use splat_render::GpuContext;
 
 use crate::error::AppError;
 
+/// The solver on the GPU.
+enum Stepper {
+    Pbf(GpuPbf),
+    Wcsph {
+        solver: GpuSolver,
+        /// Steps the next frame records per batch: the last frame's substeps
+        /// and a quarter more, so a frame usually takes one batch and one
+        /// readback (steps past the frame's end dispatch no work).
+        batch: u32,
+    },
+}
+
+/// What one GPU frame did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GpuStep {
+    /// The solver that took the steps.
+    pub solver: SolverKind,
+    /// Substeps of the frame.
+    pub substeps: u32,
+    /// Constraint iterations of the frame (PBF; 0 for WCSPH).
+    pub iterations: u32,
+    /// Statistics of earlier PBF frames that came back during this one,
+    /// oldest first; `frame` counts this solver's frames from 0.
+    pub late: Vec<PbfFrameStats>,
+}
+
 /// A GPU solver over a world's particles, with the device it runs on.
 pub struct GpuSim {
-    solver: GpuSolver,
+    stepper: Stepper,
     device: splat_render::wgpu::Device,
     queue: splat_render::wgpu::Queue,
     /// Simulated time on the GPU (s).
     pub time: f64,
-    /// Steps the next frame records per batch: the last frame's substeps and
-    /// a quarter more, so a frame usually takes one batch and one readback
-    /// (steps past the frame's end dispatch no work).
-    batch: u32,
 }
 
 impl GpuSim {
@@ -33,7 +62,7 @@ impl GpuSim {
     ///
     /// # Errors
     /// [`AppError::Gpu`] where the GPU path does not support the scene
-    /// (emitters, a solver other than WCSPH) or the data is invalid.
+    /// (emitters, DFSPH, PBF's implicit viscosity) or the data is invalid.
     pub fn new(ctx: &GpuContext, world: &World, scene: &sph_core::Scene) -> Result<Self, AppError> {
         Self::on(&ctx.device, &ctx.queue, world, scene)
     }
@@ -57,54 +86,106 @@ impl GpuSim {
                 "emitters are not on the GPU path (its particle count is fixed): run this scene on the CPU".into(),
             ));
         }
-        if world.solver().kind() != sph_core::SolverKind::Wcsph {
-            return Err(AppError::Gpu(format!(
-                "the GPU path runs only the thesis's WCSPH, and this scene runs {}: pass --solver wcsph to run WCSPH on the GPU, or leave out --gpu-sim",
-                world.solver().kind()
-            )));
-        }
-        let mut solver = GpuSolver::new(
-            device,
-            queue,
-            &world.particles,
-            world.params(),
-            &scene.boundary(),
-        )?;
-        solver.set_time_stepping(world.time_stepping())?;
+        let boundary = scene.boundary();
+        let stepper = match world.solver() {
+            Solver::Pbf(pbf) => Stepper::Pbf(GpuPbf::new(
+                device,
+                queue,
+                &world.particles,
+                world.params(),
+                pbf,
+                &boundary,
+            )?),
+            Solver::Wcsph => {
+                let mut solver =
+                    GpuSolver::new(device, queue, &world.particles, world.params(), &boundary)?;
+                solver.set_time_stepping(world.time_stepping())?;
+                Stepper::Wcsph { solver, batch: 0 }
+            }
+            other => {
+                return Err(AppError::Gpu(format!(
+                    "the GPU path runs PBF and the thesis's WCSPH, and this scene runs {}: pass --solver pbf or --solver wcsph, or leave out --gpu-sim",
+                    other.kind()
+                )));
+            }
+        };
         Ok(Self {
-            solver,
+            stepper,
             device: device.clone(),
             queue: queue.clone(),
             time: 0.0,
-            batch: 0,
         })
     }
 
-    /// The solver (its buffers feed `--gpu-extract`).
-    pub fn solver(&self) -> &GpuSolver {
-        &self.solver
+    /// The solver's particle buffers (they feed `--gpu-extract`).
+    pub fn particles(&self) -> &dyn GpuParticles {
+        match &self.stepper {
+            Stepper::Pbf(pbf) => pbf,
+            Stepper::Wcsph { solver, .. } => solver,
+        }
     }
 
-    /// Advances `frame_dt` seconds on the GPU (the first frame sizes its batches
-    /// from `world`'s stable step, later ones from the frame before) and
-    /// returns the substeps taken. The world's
-    /// particles are left as they were: see [`GpuSim::read_into`].
+    /// Advances `frame_dt` seconds on the GPU. The world's particles are
+    /// left as they were (see [`GpuSim::read_into`]); WCSPH's first frame
+    /// sizes its batches from `world`'s stable step.
     ///
     /// # Errors
-    /// [`AppError::Gpu`] on a readback failure or a blow-up (a non-finite
-    /// velocity or acceleration makes the GPU's stable step vanish).
-    pub fn advance(&mut self, world: &World, frame_dt: f64) -> Result<u32, AppError> {
-        let with_margin = |substeps: u32| substeps.saturating_add(substeps / 4 + 1);
-        if self.batch == 0 {
-            let substeps = (frame_dt / f64::from(world.stable_dt())).ceil();
-            self.batch = with_margin(substeps.clamp(1.0, 1e4) as u32);
-        }
-        let frame = self
-            .solver
-            .advance(&self.device, &self.queue, frame_dt as f32, self.batch)?;
-        self.batch = with_margin(frame.substeps);
+    /// [`AppError::Gpu`] on a readback failure or a blow-up (WCSPH: the
+    /// stable step vanished; PBF: statistics that came back show a
+    /// non-finite state or a diverged solve).
+    pub fn advance(&mut self, world: &World, frame_dt: f64) -> Result<GpuStep, AppError> {
+        let step = match &mut self.stepper {
+            Stepper::Pbf(pbf) => {
+                let frame = pbf.advance(&self.device, &self.queue, frame_dt as f32)?;
+                GpuStep {
+                    solver: SolverKind::Pbf,
+                    substeps: frame.substeps,
+                    iterations: frame.iterations,
+                    late: frame.stats,
+                }
+            }
+            Stepper::Wcsph { solver, batch } => {
+                let with_margin = |substeps: u32| substeps.saturating_add(substeps / 4 + 1);
+                if *batch == 0 {
+                    let substeps = (frame_dt / f64::from(world.stable_dt())).ceil();
+                    *batch = with_margin(substeps.clamp(1.0, 1e4) as u32);
+                }
+                let frame = solver.advance(&self.device, &self.queue, frame_dt as f32, *batch)?;
+                *batch = with_margin(frame.substeps);
+                GpuStep {
+                    solver: SolverKind::Wcsph,
+                    substeps: frame.substeps,
+                    iterations: 0,
+                    late: Vec::new(),
+                }
+            }
+        };
         self.time += frame_dt;
-        Ok(frame.substeps)
+        Ok(step)
+    }
+
+    /// Waits for the GPU and returns the PBF statistics still on their way,
+    /// oldest first (none for WCSPH).
+    ///
+    /// # Errors
+    /// As [`GpuSim::advance`].
+    pub fn finish(&mut self) -> Result<Vec<PbfFrameStats>, AppError> {
+        Ok(match &mut self.stepper {
+            Stepper::Pbf(pbf) => pbf.finish(&self.device)?,
+            Stepper::Wcsph { .. } => Vec::new(),
+        })
+    }
+
+    /// The GPU's positions, velocities, densities and pressures (waits for
+    /// the device).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] on a readback failure.
+    pub fn read_state(&self) -> Result<GpuState, AppError> {
+        Ok(match &self.stepper {
+            Stepper::Pbf(pbf) => pbf.read_state(&self.device, &self.queue)?,
+            Stepper::Wcsph { solver, .. } => solver.read_state(&self.device, &self.queue)?,
+        })
     }
 
     /// Writes the GPU's positions, velocities, densities and pressures into
@@ -113,13 +194,16 @@ impl GpuSim {
     /// # Errors
     /// [`AppError::Gpu`] on a readback failure or a non-finite state.
     pub fn read_into(&self, world: &mut World) -> Result<(), AppError> {
-        let state = self.solver.read_state(&self.device, &self.queue)?;
+        let state = self.read_state()?;
         if let Some(i) = (0..state.positions.len())
             .find(|&i| !state.positions[i].is_finite() || !state.velocities[i].is_finite())
         {
+            let steps = match &self.stepper {
+                Stepper::Pbf(pbf) => pbf.substeps(),
+                Stepper::Wcsph { solver, .. } => solver.steps(),
+            };
             return Err(AppError::Gpu(format!(
-                "particle {i} is not finite after {} GPU steps: lower k or the time step",
-                self.solver.steps()
+                "particle {i} is not finite after {steps} GPU steps: lower the time step"
             )));
         }
         let f = world.particles.fields_mut();

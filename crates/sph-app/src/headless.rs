@@ -2,6 +2,7 @@
 //! and optional particle/surfel exports.
 
 use std::cell::RefCell;
+use std::collections::VecDeque;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
@@ -17,7 +18,7 @@ use splat_render::{GpuContext, SplatRenderer, wgpu};
 
 use crate::cli::Args;
 use crate::error::AppError;
-use crate::pipeline::Pipeline;
+use crate::pipeline::{FrameStats, LateStats, Pipeline};
 use crate::playback::Playback;
 
 /// Runs `args.frame_count()` frames of `pipeline` and writes them to `args.out`.
@@ -30,15 +31,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     let out = &args.out;
     std::fs::create_dir_all(out).map_err(|e| AppError::output(out, e))?;
     let csv_path = out.join("frames.csv");
-    let mut csv =
-        BufWriter::new(File::create(&csv_path).map_err(|e| AppError::output(&csv_path, e))?);
-    writeln!(
-        csv,
-        "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
-         solver,substeps,iterations,density_error_avg,density_error_max,clamped,\
-         divergence_iterations,viscosity_iterations,unconverged"
-    )
-    .map_err(|e| AppError::output(&csv_path, e))?;
+    let mut rows = Rows::create(&csv_path, pipeline.playback.is_some())?;
 
     let gpu = match GpuContext::headless() {
         Ok(ctx) => {
@@ -182,39 +175,8 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             }
             let s = pipeline.stats;
             let render_gpu = render_gpu_ms.map_or(String::new(), |ms| format!("{ms:.3}"));
-            // Density errors as fractions; empty where the GPU solver ran.
-            let error = |e: f32| {
-                if e.is_finite() {
-                    format!("{e:.6}")
-                } else {
-                    String::new()
-                }
-            };
-            writeln!(
-                csv,
-                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{},{},{},{}",
-                s.time,
-                s.particles,
-                s.surfels,
-                s.evaluations,
-                s.step_ms,
-                s.extract_ms,
-                s.render_ms,
-                match pipeline.playback {
-                    Some(_) => "input".to_string(),
-                    None => s.solver.to_string(),
-                },
-                s.substeps,
-                s.iterations,
-                error(s.density_error_avg),
-                error(s.density_error_max),
-                s.clamped,
-                s.divergence_iterations,
-                s.viscosity_iterations,
-                s.unconverged
-            )
-            .and_then(|()| csv.flush())
-            .map_err(|e| AppError::output(&csv_path, e))?;
+            let late = pipeline.take_late();
+            rows.push(frame, s, render_gpu, late)?;
             bar.set_message(format!("{} surfels", s.surfels));
             bar.inc(1);
             Ok(())
@@ -225,6 +187,15 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             source: Box::new(source),
         })?;
     }
+    // The last GPU frames' statistics, then their rows.
+    pipeline
+        .finish_gpu()
+        .and_then(|()| rows.finish(pipeline.take_late()))
+        .map_err(|source| AppError::Incomplete {
+            frame: frames,
+            csv: csv_path.clone(),
+            source: Box::new(source),
+        })?;
     bar.finish_and_clear();
     if let Some(gif) = gif {
         gif.finish()?;
@@ -249,6 +220,116 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         display(out)
     );
     Ok(())
+}
+
+/// The rows of `frames.csv`, each written once its statistics are complete:
+/// at once on the CPU path, a frame or two late where PBF runs on the GPU
+/// ([`crate::pipeline::FrameStats::pending`]).
+struct Rows {
+    csv: BufWriter<File>,
+    path: std::path::PathBuf,
+    /// Whether the frames are played files (solver column `input`).
+    input: bool,
+    /// Rows waiting for their statistics, in frame order.
+    held: VecDeque<(u32, FrameStats, String)>,
+}
+
+impl Rows {
+    /// Creates `path` and writes the header.
+    fn create(path: &Path, input: bool) -> Result<Self, AppError> {
+        let file = File::create(path).map_err(|e| AppError::output(path, e))?;
+        let mut rows = Self {
+            csv: BufWriter::new(file),
+            path: path.to_path_buf(),
+            input,
+            held: VecDeque::new(),
+        };
+        writeln!(
+            rows.csv,
+            "frame,time,particles,surfels,evaluations,step_ms,extract_ms,render_ms,render_gpu_ms,\
+             solver,substeps,iterations,density_error_avg,density_error_max,clamped,\
+             divergence_iterations,viscosity_iterations,unconverged"
+        )
+        .map_err(|e| AppError::output(path, e))?;
+        Ok(rows)
+    }
+
+    /// Adds frame `index`'s row and the statistics that came back for
+    /// earlier ones, and writes every row that is complete.
+    fn push(
+        &mut self,
+        index: u32,
+        stats: FrameStats,
+        render_gpu: String,
+        late: Vec<LateStats>,
+    ) -> Result<(), AppError> {
+        self.held.push_back((index, stats, render_gpu));
+        self.fill(late);
+        self.write(false)
+    }
+
+    /// Fills in the last statistics and writes every row left.
+    fn finish(&mut self, late: Vec<LateStats>) -> Result<(), AppError> {
+        self.fill(late);
+        self.write(true)
+    }
+
+    fn fill(&mut self, late: Vec<LateStats>) {
+        for l in late {
+            if let Some((_, s, _)) = self.held.iter_mut().find(|(_, s, _)| s.frame == l.frame) {
+                s.density_error_avg = l.density_error_avg;
+                s.density_error_max = l.density_error_max;
+                s.clamped = l.clamped;
+                s.pending = false;
+            }
+        }
+    }
+
+    /// Writes the complete rows at the front (with `all`, every row).
+    fn write(&mut self, all: bool) -> Result<(), AppError> {
+        // Density errors as fractions; empty where WCSPH ran on the GPU.
+        let error = |e: f32| {
+            if e.is_finite() {
+                format!("{e:.6}")
+            } else {
+                String::new()
+            }
+        };
+        while let Some((frame, s, render_gpu)) = self.held.front() {
+            if s.pending && !all {
+                break;
+            }
+            writeln!(
+                self.csv,
+                "{frame},{:.6},{},{},{},{:.3},{:.3},{:.3},{render_gpu},{},{},{},{},{},{},{},{},{}",
+                s.time,
+                s.particles,
+                s.surfels,
+                s.evaluations,
+                s.step_ms,
+                s.extract_ms,
+                s.render_ms,
+                if self.input {
+                    "input".to_string()
+                } else {
+                    s.solver.to_string()
+                },
+                s.substeps,
+                s.iterations,
+                error(s.density_error_avg),
+                error(s.density_error_max),
+                s.clamped,
+                s.divergence_iterations,
+                s.viscosity_iterations,
+                s.unconverged
+            )
+            .map_err(|e| AppError::output(&self.path, e))?;
+            self.held.pop_front();
+        }
+        self.csv
+            .flush()
+            .map_err(|e| AppError::output(&self.path, e))
+    }
 }
 
 /// An animated GIF of the rendered frames, written frame by frame.

@@ -33,13 +33,18 @@ pub struct FrameStats {
     /// all substeps (0 for WCSPH).
     pub iterations: u32,
     /// Average density error max(ρ/ρ0 − 1, 0) of the frame
-    /// ([`sph_core::FrameReport::density_error_avg`]); NaN where the GPU
-    /// solver stepped (it reports no densities per frame).
+    /// ([`sph_core::FrameReport::density_error_avg`]); NaN where WCSPH
+    /// stepped on the GPU (it reports no densities per frame), and while
+    /// [`Self::pending`].
     pub density_error_avg: f32,
-    /// Largest density error ρ/ρ0 − 1 of the frame; NaN on the GPU path.
+    /// Largest density error ρ/ρ0 − 1 of the frame; NaN as the average.
     pub density_error_max: f32,
     /// Particles the solver's guard slowed in the frame (PBF).
     pub clamped: u64,
+    /// The density errors and clamps of this frame are still on their way
+    /// back from the GPU (PBF on the GPU): they arrive a frame or two later
+    /// as [`LateStats`] ([`Pipeline::take_late`]).
+    pub pending: bool,
     /// Divergence-solve iterations of the frame, all substeps (DFSPH).
     pub divergence_iterations: u32,
     /// Implicit-viscosity CG iterations of the frame, all substeps (DFSPH).
@@ -53,6 +58,20 @@ pub struct FrameStats {
     pub extract_ms: f64,
     /// Rendering wall time (ms), filled in by the caller.
     pub render_ms: f64,
+}
+
+/// A GPU frame's statistics that came back after the frame
+/// ([`FrameStats::pending`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LateStats {
+    /// The frame they belong to ([`FrameStats::frame`]).
+    pub frame: u64,
+    /// Its average density error max(ρ/ρ0 − 1, 0).
+    pub density_error_avg: f32,
+    /// Its largest density error.
+    pub density_error_max: f32,
+    /// Particles its guard slowed.
+    pub clamped: u64,
 }
 
 /// The scene being shown, its world, and the last extracted surfels.
@@ -81,6 +100,14 @@ pub struct Pipeline {
     gpu_time: f64,
     /// The GPU solver has stepped past `world.particles`.
     gpu_ahead: bool,
+    /// [`FrameStats::frame`] when the GPU solver started: its frame k is
+    /// the pipeline's frame `gpu_start + k + 1`.
+    gpu_start: u64,
+    /// Statistics of GPU frames that came back, not yet taken.
+    late: Vec<LateStats>,
+    /// The newest statistics that came back from the GPU (the panel shows
+    /// them while a frame's own are pending).
+    pub latest_late: Option<LateStats>,
     /// Particle files played instead of the simulation (`--input`): each
     /// frame replaces the world's particles by the next file's.
     pub playback: Option<Playback>,
@@ -114,6 +141,9 @@ impl Pipeline {
             gpu_extract: None,
             gpu_time: 0.0,
             gpu_ahead: false,
+            gpu_start: 0,
+            late: Vec::new(),
+            latest_late: None,
             playback: None,
         };
         p.stats.particles = p.world.particles.len();
@@ -167,6 +197,10 @@ impl Pipeline {
         self.world = self.scene.build_world()?;
         self.gpu_time = 0.0;
         self.gpu_ahead = false;
+        // The old run's statistics belong to frames before the reset.
+        self.late.clear();
+        self.latest_late = None;
+        self.gpu_start = 0;
         if let Some(gpu) = &self.gpu {
             self.gpu = Some(gpu.restart(&self.world, &self.scene)?);
         }
@@ -186,11 +220,45 @@ impl Pipeline {
     /// [`AppError::Gpu`] where the GPU path does not support the scene, or on a
     /// readback failure.
     pub fn set_gpu_sim(&mut self, ctx: Option<&GpuContext>) -> Result<(), AppError> {
+        self.finish_gpu()?;
         self.sync_world()?;
         self.gpu = ctx
             .map(|ctx| GpuSim::new(ctx, &self.world, &self.scene))
             .transpose()?;
+        self.gpu_start = self.stats.frame;
         Ok(())
+    }
+
+    /// Waits for the GPU solver and collects the statistics still on their
+    /// way ([`take_late`](Self::take_late) returns them).
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] where they show a failed frame.
+    pub fn finish_gpu(&mut self) -> Result<(), AppError> {
+        if let Some(gpu) = self.gpu.as_mut() {
+            let late = gpu.finish()?;
+            self.add_late(late);
+        }
+        Ok(())
+    }
+
+    /// The statistics of GPU frames that came back since the last call,
+    /// oldest first.
+    pub fn take_late(&mut self) -> Vec<LateStats> {
+        std::mem::take(&mut self.late)
+    }
+
+    fn add_late(&mut self, stats: Vec<sph_gpu::PbfFrameStats>) {
+        for s in stats {
+            let late = LateStats {
+                frame: self.gpu_start + s.frame + 1,
+                density_error_avg: s.density_error_avg,
+                density_error_max: s.density_error_max,
+                clamped: s.clamped,
+            };
+            self.latest_late = Some(late);
+            self.late.push(late);
+        }
     }
 
     /// Extracts on the GPU of `ctx` (`Some`, thesis mode) or on the CPU (`None`).
@@ -276,16 +344,18 @@ impl Pipeline {
             self.extracted = false;
             return Ok(());
         }
-        let report = match self.gpu.as_mut() {
+        let (report, pending) = match self.gpu.as_mut() {
             Some(gpu) => {
-                let substeps = gpu.advance(&self.world, frame_dt)?;
+                let step = gpu.advance(&self.world, frame_dt)?;
                 self.gpu_time += frame_dt;
                 self.gpu_ahead = true;
-                sph_core::FrameReport {
-                    solver: sph_core::SolverKind::Wcsph,
-                    substeps,
+                let pending = step.solver == sph_core::SolverKind::Pbf;
+                self.add_late(step.late);
+                let report = sph_core::FrameReport {
+                    solver: step.solver,
+                    substeps: step.substeps,
                     dt_range: (f32::NAN, f32::NAN),
-                    iterations: 0,
+                    iterations: step.iterations,
                     divergence_iterations: 0,
                     viscosity_iterations: 0,
                     unconverged: 0,
@@ -293,12 +363,13 @@ impl Pipeline {
                     density_error_max: f32::NAN,
                     clamped: 0,
                     time: self.world.time() + self.gpu_time,
-                }
+                };
+                (report, pending)
             }
             None => {
                 let mut report = self.world.advance(frame_dt as f32)?;
                 report.time += self.gpu_time;
-                report
+                (report, false)
             }
         };
         self.stats.step_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -308,6 +379,7 @@ impl Pipeline {
         self.stats.density_error_avg = report.density_error_avg;
         self.stats.density_error_max = report.density_error_max;
         self.stats.clamped = report.clamped;
+        self.stats.pending = pending;
         self.stats.divergence_iterations = report.divergence_iterations;
         self.stats.viscosity_iterations = report.viscosity_iterations;
         self.stats.unconverged = report.unconverged;
@@ -324,7 +396,7 @@ impl Pipeline {
     pub fn extract_surfels(&mut self) -> Result<(), AppError> {
         let start = Instant::now();
         if let Some(gpu) = self.gpu_extract.as_mut() {
-            let solver = self.gpu.as_ref().map(GpuSim::solver);
+            let solver = self.gpu.as_ref().map(GpuSim::particles);
             let stats = gpu.run(&self.world, solver)?;
             self.stats.surfels = stats.surfels;
             self.stats.evaluations = stats.evaluations + stats.particle_evaluations;
@@ -435,23 +507,24 @@ mod tests {
         let Some(ctx) = GpuContext::headless_or_skip() else {
             return;
         };
-        let scene = Scene::dam_break(0.2, 0.06, 0.02);
+        for kind in [sph_core::SolverKind::Wcsph, sph_core::SolverKind::Pbf] {
+            gpu_frames_leave_the_particles(ctx, kind);
+        }
+    }
+
+    fn gpu_frames_leave_the_particles(ctx: &GpuContext, kind: sph_core::SolverKind) {
+        let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(kind);
         let mut p = Pipeline::new("dam".into(), scene, 2).unwrap();
         let start = p.world.particles.positions().to_vec();
         p.set_gpu_sim(Some(ctx)).unwrap();
         p.set_gpu_extract(Some(ctx)).unwrap();
-        let gpu_positions = |p: &Pipeline| {
-            let solver = p.gpu.as_ref().unwrap().solver();
-            solver
-                .read_state(&ctx.device, &ctx.queue)
-                .unwrap()
-                .positions
-        };
+        let gpu_positions = |p: &Pipeline| p.gpu.as_ref().unwrap().read_state().unwrap().positions;
         for _ in 0..3 {
             p.advance(1.0 / 60.0).unwrap();
             p.extract_surfels().unwrap();
         }
         assert!(p.stats.surfels > 0);
+        assert_eq!(p.stats.solver, kind);
         assert_eq!(p.world.particles.positions(), &start[..], "read back");
         let moved = gpu_positions(&p)
             .iter()

@@ -487,6 +487,7 @@ impl App {
         let realtime = self.realtime;
         let extract_before = self.pipeline.extract;
         let stats = self.pipeline.stats;
+        let latest_late = self.pipeline.latest_late;
         let (fps, render_ms) = (self.fps, self.render_ms);
         let settings = &mut self.settings;
         let extract = &mut self.pipeline.extract;
@@ -534,10 +535,24 @@ impl App {
                                 }
                             });
                     });
+                    // A GPU frame's own statistics come back a frame or two
+                    // later: the newest that came back, and which frame.
+                    let (errors, clamped, of) = match (stats.pending, latest_late) {
+                        (true, Some(l)) => (
+                            (l.density_error_avg, l.density_error_max),
+                            l.clamped,
+                            format!(" (frame {}, from the GPU)", l.frame),
+                        ),
+                        _ => (
+                            (stats.density_error_avg, stats.density_error_max),
+                            stats.clamped,
+                            String::new(),
+                        ),
+                    };
                     ui.label(match stats.solver {
                         SolverKind::Pbf => format!(
-                            "{} iterations per frame, {} clamped",
-                            stats.iterations, stats.clamped
+                            "{} iterations per frame, {clamped} clamped{of}",
+                            stats.iterations
                         ),
                         SolverKind::Wcsph => "adaptive step, no iterations".into(),
                         SolverKind::Dfsph => format!(
@@ -550,9 +565,9 @@ impl App {
                         ),
                     });
                     ui.label(format!(
-                        "density error {:.2} % avg, {:.1} % max",
-                        100.0 * stats.density_error_avg,
-                        100.0 * stats.density_error_max
+                        "density error {:.2} % avg, {:.1} % max{of}",
+                        100.0 * errors.0,
+                        100.0 * errors.1
                     ));
                 }
                 ui.label(format!(
@@ -561,7 +576,7 @@ impl App {
                 ));
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
-                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu); ctrl+drag push acts on the CPU path only");
+                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag push acts on the CPU path only");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");

@@ -263,10 +263,12 @@ fn bulk(path: &Path) -> (glam::Vec3, f32) {
     (mean, v.iter().map(|v| v.length()).sum::<f32>() / n)
 }
 
+/// `--gpu-sim` runs the scene's solver on the GPU, and its particles and
+/// frame statistics follow the CPU's: WCSPH and PBF.
 #[test]
 fn gpu_sim_follows_the_cpu_solver() {
-    let run = |name: &str, gpu: bool| {
-        let out = scratch(name);
+    let run = |name: &str, solver: &str, gpu: bool| {
+        let out = scratch(&format!("{name}-{solver}"));
         let mut args = vec![
             "--headless",
             "--scene",
@@ -279,44 +281,80 @@ fn gpu_sim_follows_the_cpu_solver() {
             "48",
             "--export-particles",
             "ply",
+            "--solver",
+            solver,
             "--out",
             out.to_str().unwrap(),
         ];
-        // The GPU runs WCSPH only: both paths run it.
-        args.extend(["--solver", "wcsph"]);
         if gpu {
             args.push("--gpu-sim");
         }
         (app(&args), out)
     };
-    let (o, gpu) = run("gpu-sim", true);
-    if skipped_without_adapter(&o) {
-        return;
-    }
-    assert!(o.status.success(), "{}", stderr(&o));
-    assert!(
-        String::from_utf8_lossy(&o.stdout).contains("SPH step on the GPU"),
-        "{}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    let (o, cpu) = run("cpu-sim", false);
-    assert!(o.status.success(), "{}", stderr(&o));
-    // 0.1 s of collapse, the same adaptive substeps on both paths (the GPU
-    // chooses its step as World::advance does): the bulk motion agrees.
-    // Measured on lavapipe (2026-11-22): mean positions within 9.3e-7 m,
-    // mean speeds within 1.3e-4 of each other (relative); bounds 10× and 8×.
-    for i in 0..3 {
-        let file = format!("particles_{i:05}.ply");
-        let ((xg, vg), (xc, vc)) = (bulk(&gpu.join(&file)), bulk(&cpu.join(&file)));
-        eprintln!(
-            "frame {i}: |Δ mean x| = {:.3e} m, mean speed {vg:.5} vs {vc:.5} m/s",
-            (xg - xc).length()
-        );
-        assert!((xg - xc).length() < 1e-5, "frame {i}: mean {xg} vs {xc}");
+    for solver in ["wcsph", "pbf"] {
+        let (o, gpu) = run("gpu-sim", solver, true);
+        if skipped_without_adapter(&o) {
+            return;
+        }
+        assert!(o.status.success(), "{}", stderr(&o));
+        let stdout = String::from_utf8_lossy(&o.stdout);
         assert!(
-            (vg - vc).abs() < 1e-3 * vc.max(1e-3),
-            "frame {i}: speed {vg} vs {vc}"
+            stdout.contains(&format!("solver {solver} (SPH step on the GPU)")),
+            "{stdout}"
         );
+        let (o, cpu) = run("cpu-sim", solver, false);
+        assert!(o.status.success(), "{}", stderr(&o));
+        // 0.1 s of collapse, the same substeps on both paths (WCSPH: the
+        // GPU chooses its step as World::advance does): the bulk motion
+        // agrees. Measured on lavapipe: WCSPH (2026-11-22) mean positions
+        // within 9.3e-7 m, mean speeds within 1.3e-4 of each other
+        // (relative); PBF (2026-11-26) 1.6e-7 m, mean speeds equal to
+        // five digits. Bounds 10× and 8× WCSPH's.
+        for i in 0..3 {
+            let file = format!("particles_{i:05}.ply");
+            let ((xg, vg), (xc, vc)) = (bulk(&gpu.join(&file)), bulk(&cpu.join(&file)));
+            eprintln!(
+                "{solver} frame {i}: |Δ mean x| = {:.3e} m, mean speed {vg:.5} vs {vc:.5} m/s",
+                (xg - xc).length()
+            );
+            assert!((xg - xc).length() < 1e-5, "frame {i}: mean {xg} vs {xc}");
+            assert!(
+                (vg - vc).abs() < 1e-3 * vc.max(1e-3),
+                "frame {i}: speed {vg} vs {vc}"
+            );
+        }
+        // Each frame's row: the same substeps and iterations; PBF's density
+        // errors (back from the GPU a frame late) close to the CPU's, WCSPH
+        // on the GPU reports none.
+        let rows = |dir: &Path| -> Vec<Vec<String>> {
+            let csv = std::fs::read_to_string(dir.join("frames.csv")).unwrap();
+            (csv.lines().skip(1))
+                .map(|l| l.split(',').map(str::to_owned).collect())
+                .collect()
+        };
+        let (g, c) = (rows(&gpu), rows(&cpu));
+        assert_eq!(g.len(), 3, "three rows");
+        for (i, (g, c)) in g.iter().zip(&c).enumerate() {
+            assert_eq!(g[0], i.to_string(), "rows in frame order");
+            assert_eq!(
+                g[9..12],
+                c[9..12],
+                "frame {i}: solver, substeps, iterations"
+            );
+            if solver == "pbf" {
+                let (eg, ec): (f32, f32) = (g[12].parse().unwrap(), c[12].parse().unwrap());
+                eprintln!("pbf frame {i}: density error avg {eg} on the GPU, {ec} on the CPU");
+                assert!(
+                    (eg - ec).abs() <= 0.02 * ec + 1e-5,
+                    "frame {i}: {eg} vs {ec}"
+                );
+            } else {
+                assert_eq!(
+                    g[12], "",
+                    "frame {i}: WCSPH on the GPU has no density error"
+                );
+            }
+        }
     }
 }
 
@@ -446,12 +484,11 @@ fn cull_extracts_only_front_facing_surfels() {
     assert!(0 < front && front < 3 * all / 4, "{front} of {all} surfels");
 }
 
-/// The GPU path runs WCSPH only: `--gpu-sim` on a PBF or DFSPH scene is
-/// refused with the way out, not switched silently; `--solver wcsph` runs
-/// it.
+/// The GPU path runs PBF and WCSPH: `--gpu-sim` on a DFSPH scene is refused
+/// with the way out, not switched silently; the scene's own PBF runs.
 #[test]
-fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
-    let out = scratch("gpu-sim-pbf");
+fn gpu_sim_refuses_dfsph_and_says_which_solvers_it_runs() {
+    let out = scratch("gpu-sim-dfsph");
     let args = [
         "--headless",
         "--scene",
@@ -466,29 +503,22 @@ fn gpu_sim_refuses_pbf_and_says_which_solver_it_runs() {
         "--out",
         out.to_str().unwrap(),
     ];
-    let o = app(&args);
+    let o = app(&[&args[..], &["--solver", "dfsph"]].concat());
     assert!(!o.status.success());
     if skipped_without_adapter(&o) {
         return;
     }
     let err = stderr(&o);
     assert!(
-        err.contains("the GPU path runs only the thesis's WCSPH, and this scene runs pbf")
-            && err.contains("--solver wcsph"),
+        err.contains("the GPU path runs PBF and the thesis's WCSPH, and this scene runs dfsph")
+            && err.contains("--solver pbf"),
         "{err}"
     );
-    let o = app(&[&args[..], &["--solver", "dfsph"]].concat());
-    assert!(!o.status.success());
-    assert!(
-        stderr(&o).contains("and this scene runs dfsph"),
-        "{}",
-        stderr(&o)
-    );
-    let o = app(&[&args[..], &["--solver", "wcsph"]].concat());
+    let o = app(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(
-        stdout.contains("solver wcsph (SPH step on the GPU)"),
+        stdout.contains("solver pbf (SPH step on the GPU)"),
         "{stdout}"
     );
 }

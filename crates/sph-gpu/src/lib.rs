@@ -9,7 +9,9 @@
 //! hashed into a power-of-two table, counting sort (atomic counts, prefix sum,
 //! scatter), bucket start table and a deterministic order inside each bucket
 //! (a bucket may hold several cells) — all compute passes with no CPU readback; [`GpuDensity`], sph-core's density and pressure (with the walls' and
-//! obstacles' density) as a compute pass over it; [`GpuSolver`], the whole step of
+//! obstacles' density) as a compute pass over it; [`GpuPbf`], sph-core's
+//! position-based fluids with a whole frame recorded in one command encoder
+//! and its statistics read back asynchronously; [`GpuSolver`], the whole step of
 //! `sph_core::solver::default_program` (domain walls, box and sphere
 //! obstacles) with the particles resident on the GPU, in fixed steps or in
 //! adaptive ones whose length the GPU chooses; [`GpuExtractor`], surfel-extract's thesis-mode extraction
