@@ -190,7 +190,7 @@ fn gpu_free_cluster_keeps_its_momentum() {
             .sum()
     };
     let before = momentum(particles.velocities());
-    let scale = f64::from(particles.total_mass()) * 0.1;
+    let scale = particles.total_mass() * 0.1;
     for over_relaxation in [1.0, 1.25] {
         let pbf = PbfParams {
             vorticity: 0.0,
