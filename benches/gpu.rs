@@ -1,30 +1,42 @@
 //! `cargo bench --bench gpu`: the CPU path and the GPU path (`sph-gpu`) in the
-//! same run, for 100k and 1M particles of a 3D dam break at 1 cm spacing:
+//! same run, for 100k and 1M particles of a 3D dam break at 1 cm spacing
+//! (`SPH_GPU_SIZES`, e.g. `10k,100k`, chooses others):
 //!
-//! - `sph_step`: one SPH step (`World::step`, all threads, vs
-//!   `GpuSolver::step`, waiting for the device);
+//! - `pbf_frame`: one whole 1/60 s frame of PBF, the demo's solver
+//!   (`World::advance` on all threads, vs `GpuPbf::advance`, one
+//!   submission, waiting for the device); the CPU only up to 100k;
+//! - `pbf_frame_1080p`: that frame, then the surfels and a 1920×1080 image:
+//!   the CPU path extracts in its default covered mode and uploads its
+//!   surfels; the GPU path records the frame, the thesis-mode extraction
+//!   reading the solver's buffers and the render in one submission, and
+//!   nothing leaves the GPU;
+//! - `wcsph_step`: one step of the thesis's WCSPH (`World::step` vs
+//!   `GpuSolver::step`, waiting for the device) — one step, not a frame: a
+//!   1/60 s frame of the dam break takes 50–100 of them;
 //! - `extraction`: the surfels of that state (a `surfel_extract::Extractor`
 //!   kept across iterations, as the demo keeps one, in the default covered
 //!   mode and the thesis mode, vs `GpuExtractor` reading the
 //!   solver's buffers, thesis mode, waiting for the device);
-//! - `frame_1080p`: one whole frame at 1920×1080 — step, extraction, splat rendering
-//!   (the CPU path, in covered and in thesis mode, uploads its surfels; the GPU
-//!   path, thesis mode, draws them indirectly and nothing leaves the GPU);
-//! - `advance_batch`: one adaptive GPU frame of a small dam break (8,000
-//!   particles) recorded in batches of its substeps + 1 and of 4 × them.
+//! - `wcsph_step_1080p`: one WCSPH step, extraction and splat rendering at
+//!   1920×1080 — again one step, not a frame;
+//! - `advance_batch`: one adaptive WCSPH frame on the GPU of a small dam
+//!   break (8,000 particles) recorded in batches of its substeps + 1 and of
+//!   4 × them.
 //!
 //! Before the timed groups it prints, for each size, the GPU path's time per
 //! compute and render pass from timestamp queries (`wgpu_profiler`): medians
-//! of `SPH_PROFILE_RUNS` runs (default 10; 0 skips the profiles) of one
-//! adaptive step (`GpuSolver::advance_profiled` over a frame half a stable
-//! step long), the extraction and the 1080p render.
+//! of `SPH_PROFILE_RUNS` runs (default 10; 0 skips the profiles) of one PBF
+//! frame (`GpuPbf::encode_frame_profiled`, each kind of pass summed over
+//! the frame's substeps and iterations), one adaptive WCSPH step
+//! (`GpuSolver::advance_profiled` over a frame half a stable step long),
+//! the extraction and the 1080p render.
 //!
 //! Without a GPU this runs on lavapipe: software figures, the "GPU" path on the
 //! same CPU cores.
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use sph_core::{Scene, World};
-use sph_gpu::{GpuExtractor, GpuSolver};
+use sph_core::{Scene, SolverKind, World};
+use sph_gpu::{GpuExtractor, GpuParticles, GpuPbf, GpuSolver};
 use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
 use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, wgpu};
 use surfel_extract::{ExtractParams, Extractor, extract};
@@ -55,7 +67,7 @@ fn wait(ctx: &GpuContext) {
 }
 
 /// A GPU extractor attached to `gpu`, sized after a first run.
-fn gpu_extractor(ctx: &GpuContext, gpu: &GpuSolver, params: &ExtractParams) -> GpuExtractor {
+fn gpu_extractor(ctx: &GpuContext, gpu: &dyn GpuParticles, params: &ExtractParams) -> GpuExtractor {
     let limit = ctx.device.limits().max_storage_buffer_binding_size / sph_gpu::SURFEL_BYTES;
     let capacity = (1usize << 23).min(limit as usize);
     let mut x = GpuExtractor::new(&ctx.device, gpu.len(), capacity, params).expect("extractor");
@@ -173,6 +185,145 @@ fn print_profile(ctx: &GpuContext, title: &str, mut record: impl FnMut(&GpuProfi
     true
 }
 
+/// The sizes to run: `SPH_GPU_SIZES` (comma-separated counts such as `10k`,
+/// `100k`, `1M`), by default 100k and 1M; each as the label and the side a
+/// of a dam break a × 2a × a at 1 cm (a = 0.37: 37 × 74 × 37 ≈ 101k
+/// particles; 0.8: 80 × 160 × 80 ≈ 1.02M).
+fn sizes() -> Vec<(String, f32)> {
+    let list = std::env::var("SPH_GPU_SIZES").unwrap_or_else(|_| "100k,1M".into());
+    list.split(',')
+        .map(|label| {
+            let label = label.trim();
+            let count: f32 = match label.to_ascii_lowercase() {
+                l if l.ends_with('k') => l[..l.len() - 1].parse::<f32>().map(|n| n * 1e3),
+                l if l.ends_with('m') => l[..l.len() - 1].parse::<f32>().map(|n| n * 1e6),
+                l => l.parse(),
+            }
+            .unwrap_or_else(|_| panic!("SPH_GPU_SIZES: `{label}` is not a count such as 100k"));
+            let a = match label {
+                "100k" => 0.37,
+                "1M" => 0.8,
+                _ => (count * 0.5e-6).cbrt(),
+            };
+            (label.to_string(), a)
+        })
+        .collect()
+}
+
+/// A camera and shading for `scene`'s 1080p frames.
+fn view(scene: &Scene, h: f32) -> (Camera, Shading) {
+    let r = &scene.render;
+    let camera = Camera {
+        fov_y: r.fov_y.to_radians(),
+        ..Camera::looking_at(r.camera.into(), r.look_at.into())
+    };
+    let shading = Shading {
+        depth_epsilon: 0.5 * h,
+        ..Default::default()
+    };
+    (camera, shading)
+}
+
+/// `pbf_frame` and `pbf_frame_1080p` for a dam break of side `a`, after its
+/// profile.
+fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
+    const FRAME: f32 = 1.0 / 60.0;
+    let scene = Scene::dam_break(a, a, 0.01).with_solver(SolverKind::Pbf);
+    let mut world = scene.build_world().expect("scene");
+    let n = world.particles.len();
+    let h = world.params().h;
+    let mut gpu = GpuPbf::new(
+        &ctx.device,
+        &ctx.queue,
+        &world.particles,
+        world.params(),
+        &scene.pbf_params(),
+        &scene.boundary(),
+    )
+    .expect("GPU PBF");
+    // A first frame, so that the profile and the extractor see a flow.
+    gpu.advance(&ctx.device, &ctx.queue, FRAME).expect("frame");
+    gpu.finish(&ctx.device).expect("frame");
+    let pbf = scene.pbf_params();
+    println!(
+        "{label}: {n} particles, PBF {} substeps × {} iterations per 1/60 s frame",
+        pbf.substeps_for(FRAME),
+        pbf.iterations
+    );
+    print_profile(ctx, &format!("{label} PBF frame"), |profiler| {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        gpu.encode_frame_profiled(&ctx.device, &ctx.queue, &mut encoder, FRAME, profiler)
+            .expect("frame");
+        ctx.queue.submit([encoder.finish()]);
+        gpu.submitted();
+    });
+    let cpu_too = n <= 200_000;
+    let mut group = c.benchmark_group("pbf_frame");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(n as u64));
+    if cpu_too {
+        group.bench_function(BenchmarkId::new("cpu", label), |b| {
+            b.iter(|| world.advance(FRAME).expect("frame").substeps)
+        });
+    }
+    group.bench_function(BenchmarkId::new("gpu", label), |b| {
+        b.iter(|| {
+            gpu.advance(&ctx.device, &ctx.queue, FRAME).expect("frame");
+            wait(ctx);
+        })
+    });
+    group.finish();
+
+    let covered = ExtractParams::new(h);
+    let thesis = covered.thesis();
+    let mut extractor = gpu_extractor(ctx, &gpu, &thesis);
+    let mut renderer =
+        SplatRenderer::new(ctx, 1920, 1080, &Environment::procedural()).expect("renderer");
+    let (camera, shading) = view(&scene, h);
+    let mut group = c.benchmark_group("pbf_frame_1080p");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(n as u64));
+    if cpu_too {
+        let mut cpu = Extractor::new();
+        group.bench_function(BenchmarkId::new("cpu_covered", label), |b| {
+            b.iter(|| {
+                world.advance(FRAME).expect("frame");
+                let out = cpu.extract(&world.particles, &covered).expect("extract");
+                let splats: Vec<Splat> = (out.surfels.iter())
+                    .map(|s| Splat::new(s.position, s.normal, s.radius))
+                    .collect();
+                renderer.upload(ctx, &splats).expect("upload");
+                renderer.render(ctx, &camera, &shading).expect("render");
+                wait(ctx);
+            })
+        });
+    }
+    renderer
+        .use_gpu_splats(
+            ctx,
+            extractor.surfels_buffer(),
+            extractor.draw_args_buffer(),
+        )
+        .expect("GPU splats");
+    group.bench_function(BenchmarkId::new("gpu", label), |b| {
+        b.iter(|| {
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            gpu.encode_frame(&ctx.device, &ctx.queue, &mut encoder, FRAME)
+                .expect("frame");
+            extractor
+                .encode_attached(&ctx.queue, &mut encoder)
+                .expect("encode");
+            renderer
+                .encode(ctx, &mut encoder, &camera, &shading)
+                .expect("render");
+            ctx.queue.submit([encoder.finish()]);
+            gpu.submitted();
+            wait(ctx);
+        })
+    });
+    group.finish();
+}
+
 fn gpu_vs_cpu(c: &mut Criterion) {
     let ctx = match GpuContext::headless() {
         Ok(ctx) => ctx,
@@ -182,8 +333,9 @@ fn gpu_vs_cpu(c: &mut Criterion) {
         }
     };
     println!("adapter: {}", ctx.adapter_summary());
-    // a = 0.37 → 37 × 74 × 37 ≈ 101k particles; a = 0.8 → 80 × 160 × 80 ≈ 1.02M.
-    for (label, a) in [("100k", 0.37f32), ("1M", 0.8)] {
+    for (label, a) in sizes() {
+        pbf_frames(c, &ctx, &label, a);
+        let label = &label;
         let (scene, mut world, mut gpu) = setup(&ctx, a);
         let n = world.particles.len();
         let dt = world.stable_dt();
@@ -223,7 +375,7 @@ fn gpu_vs_cpu(c: &mut Criterion) {
             ctx.queue.submit([encoder.finish()]);
         });
 
-        let mut group = c.benchmark_group("sph_step");
+        let mut group = c.benchmark_group("wcsph_step");
         group.sample_size(10);
         group.throughput(Throughput::Elements(n as u64));
         group.bench_function(BenchmarkId::new("cpu", label), |b| {
@@ -271,16 +423,8 @@ fn gpu_vs_cpu(c: &mut Criterion) {
 
         let mut renderer =
             SplatRenderer::new(&ctx, 1920, 1080, &Environment::procedural()).expect("renderer");
-        let r = &scene.render;
-        let camera = Camera {
-            fov_y: r.fov_y.to_radians(),
-            ..Camera::looking_at(r.camera.into(), r.look_at.into())
-        };
-        let shading = Shading {
-            depth_epsilon: 0.5 * h,
-            ..Default::default()
-        };
-        let mut group = c.benchmark_group("frame_1080p");
+        let (camera, shading) = view(&scene, h);
+        let mut group = c.benchmark_group("wcsph_step_1080p");
         group.sample_size(10);
         group.throughput(Throughput::Elements(n as u64));
         // The CPU frame in both modes: covered is the demo's default, thesis

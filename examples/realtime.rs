@@ -24,8 +24,13 @@
 //! the particles that left it. It has no extraction and no iteration
 //! columns (its iterations are not public).
 //!
+//! `pbf-gpu` (not in the default list; it needs a GPU adapter) runs PBF on
+//! the GPU (`sph_gpu::GpuPbf`, a frame per submission) over the same rows
+//! and two more, about 333k and 1M particles, without the extraction
+//! column, and bisects up to about 3M.
+//!
 //! ```text
-//! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf,dfsph,salva] [--max-particles N]
+//! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf,dfsph,salva,pbf-gpu] [--max-particles N]
 //!     [--pbf substeps=2,iterations=4]
 //! ```
 
@@ -39,6 +44,9 @@ use surfel_extract::{ExtractParams, Extractor};
 /// 103,896 particles.
 const SPACINGS: [f32; 5] = [0.02, 0.0133, 0.01, 0.0067, 0.00455];
 const FRAME_DT: f32 = 1.0 / 60.0;
+
+/// The GPU's further rows: 331,452 and 1,000,000 particles... about.
+const GPU_SPACINGS: [f32; 2] = [0.0031, 0.00215];
 
 struct Row {
     /// The solver's name: ours, or `salva` for the peer.
@@ -256,10 +264,63 @@ fn run_salva(spacing: f32, seconds: f64) -> Result<Row, Box<dyn std::error::Erro
     Ok(row)
 }
 
-/// One of the compared solvers: ours, or salva.
+/// The slab dam break at `spacing` run by PBF on the GPU of `ctx`
+/// (`sph_gpu::GpuPbf`) for `seconds`: each frame one submission, the wall
+/// time from the first frame's recording to the device finishing the last
+/// (frames overlap: the CPU records frame k + 1 while the GPU runs frame
+/// k), the density errors from the frames' statistics read back late. No
+/// extraction column: the `gpu` bench times the whole GPU frame.
+fn run_gpu_pbf(
+    ctx: &splat_render::GpuContext,
+    spacing: f32,
+    seconds: f64,
+    pbf: Option<&PbfParams>,
+) -> Result<Row, Box<dyn std::error::Error>> {
+    let mut scene = Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Pbf);
+    if let Some(pbf) = pbf {
+        scene.solver.pbf = Some(*pbf);
+    }
+    let particles = scene.particles()?;
+    let mut gpu = sph_gpu::GpuPbf::new(
+        &ctx.device,
+        &ctx.queue,
+        &particles,
+        &scene.fluid_params(),
+        &scene.pbf_params(),
+        &scene.boundary(),
+    )?;
+    let frames = (seconds / f64::from(FRAME_DT)).round() as u32;
+    let mut row = Row {
+        extract_s: f64::NAN,
+        ..Row::new("pbf-gpu", particles.len())
+    };
+    let mut stats = Vec::new();
+    let start = Instant::now();
+    for _ in 0..frames {
+        let frame = gpu.advance(&ctx.device, &ctx.queue, FRAME_DT)?;
+        row.substeps += f64::from(frame.substeps);
+        row.iterations += f64::from(frame.iterations);
+        stats.extend(frame.stats);
+    }
+    stats.extend(gpu.finish(&ctx.device)?);
+    row.sim_s = start.elapsed().as_secs_f64();
+    for s in &stats {
+        row.error_avg += f64::from(s.density_error_avg);
+        row.error_max = row.error_max.max(s.density_error_max);
+        row.clamped += s.clamped;
+    }
+    let frames = f64::from(frames);
+    row.substeps /= frames;
+    row.iterations /= frames;
+    row.error_avg /= frames;
+    Ok(row)
+}
+
+/// One of the compared solvers: ours on the CPU or on the GPU, or salva.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Runner {
     Ours(SolverKind),
+    GpuPbf,
     Salva,
 }
 
@@ -267,19 +328,45 @@ impl Runner {
     fn name(self) -> &'static str {
         match self {
             Runner::Ours(kind) => kind.name(),
+            Runner::GpuPbf => "pbf-gpu",
             Runner::Salva => "salva",
         }
     }
 
     fn run(
         self,
+        gpu: Option<&splat_render::GpuContext>,
         spacing: f32,
         seconds: f64,
         pbf: Option<&PbfParams>,
     ) -> Result<Row, Box<dyn std::error::Error>> {
         match self {
             Runner::Ours(kind) => run(kind, spacing, seconds, pbf),
+            Runner::GpuPbf => run_gpu_pbf(
+                gpu.ok_or("pbf-gpu needs a GPU adapter")?,
+                spacing,
+                seconds,
+                pbf,
+            ),
             Runner::Salva => run_salva(spacing, seconds),
+        }
+    }
+
+    /// The rows' spacings: the GPU's go on to 333k and 1M particles.
+    fn spacings(self) -> Vec<f32> {
+        let mut all = SPACINGS.to_vec();
+        if self == Runner::GpuPbf {
+            all.extend(GPU_SPACINGS);
+        }
+        all
+    }
+
+    /// The bisection's finest spacing.
+    fn finest(self) -> f32 {
+        if self == Runner::GpuPbf {
+            0.0012
+        } else {
+            0.003
         }
     }
 }
@@ -301,6 +388,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     .split(',')
                     .map(|s| match s {
                         "salva" => Ok(Runner::Salva),
+                        "pbf-gpu" => Ok(Runner::GpuPbf),
                         _ => SolverKind::from_name(s)
                             .map(Runner::Ours)
                             .ok_or(format!("unknown solver {s}")),
@@ -336,14 +424,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "err max %",
         "clamped"
     );
+    let gpu = if solvers.contains(&Runner::GpuPbf) {
+        let ctx = splat_render::GpuContext::headless()?;
+        println!("pbf-gpu on {}", ctx.adapter_summary());
+        Some(ctx)
+    } else {
+        None
+    };
     let mut rows = Vec::new();
-    for spacing in SPACINGS {
+    let mut spacings: Vec<f32> = solvers.iter().flat_map(|s| s.spacings()).collect();
+    spacings.sort_by(|a, b| b.total_cmp(a));
+    spacings.dedup();
+    for spacing in spacings {
         for &kind in &solvers {
             let count = Scene::dam_break(0.25, 0.08, spacing).particles()?.len();
-            if count > max_particles {
+            if count > max_particles || !kind.spacings().contains(&spacing) {
                 continue;
             }
-            let r = kind.run(spacing, seconds, pbf.as_ref())?;
+            let r = kind.run(gpu.as_ref(), spacing, seconds, pbf.as_ref())?;
             let per = |s: f64| s / seconds;
             println!(
                 "{:<6} {:>9} {:>12.3} {:>14.3} {:>9.1} {:>11.1} {:>8.1} {:>10.3} {:>10.2} {:>8}",
@@ -370,11 +468,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             println!("salva: no bisection (see its rows)");
             continue;
         }
-        let (mut lo, mut hi) = (0.003f32, 0.04f32); // fine (slow) .. coarse (fast)
+        let (mut lo, mut hi) = (kind.finest(), 0.04f32); // fine (slow) .. coarse (fast)
         let mut best: Option<Row> = None;
         for _ in 0..7 {
             let mid = (lo * hi).sqrt();
-            let r = kind.run(mid, seconds, pbf.as_ref())?;
+            let r = kind.run(gpu.as_ref(), mid, seconds, pbf.as_ref())?;
             if r.sim_s <= seconds {
                 hi = mid;
                 if best.as_ref().is_none_or(|b| r.particles > b.particles) {

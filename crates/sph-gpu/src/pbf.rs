@@ -25,11 +25,12 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use sph_core::solver::pbf::MAX_DENSITY_ERROR;
 use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
+use wgpu_profiler::GpuProfiler;
 
 use crate::GpuParticles;
 use crate::density::obstacles_buffer;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{bind_buffers, check_fits, read, shader};
+use crate::passes::{bind_buffers, check_fits, read, shader, timed_pass};
 use crate::solver::{GpuState, RESOLVE, WALLS};
 
 /// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32
@@ -420,6 +421,38 @@ impl GpuPbf {
         encoder: &mut wgpu::CommandEncoder,
         frame_dt: f32,
     ) -> Result<PbfFrame, GpuError> {
+        self.encode_frame_timed(device, queue, encoder, frame_dt, None)
+    }
+
+    /// [`encode_frame`](Self::encode_frame) with each kind of pass in its
+    /// own compute pass, timed by `profiler`: "pbf: predict", "pbf: grid",
+    /// "pbf: lists", "pbf: lambda", "pbf: correct", "pbf: apply", "pbf:
+    /// curl", "pbf: confine", "pbf: boundaries", "pbf: reduce", once per
+    /// substep (and iteration). The caller resolves the profiler's queries
+    /// and ends its frame. The split costs pass boundaries the plain path
+    /// does not have.
+    ///
+    /// # Errors
+    /// As [`encode_frame`](Self::encode_frame).
+    pub fn encode_frame_profiled(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        frame_dt: f32,
+        profiler: &GpuProfiler,
+    ) -> Result<PbfFrame, GpuError> {
+        self.encode_frame_timed(device, queue, encoder, frame_dt, Some(profiler))
+    }
+
+    fn encode_frame_timed(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        frame_dt: f32,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<PbfFrame, GpuError> {
         if !(frame_dt.is_finite() && frame_dt > 0.0) {
             return Err(GpuError::Invalid("frame_dt must be finite and > 0"));
         }
@@ -440,13 +473,22 @@ impl GpuPbf {
         self.uniform.max_speed = self.pbf.max_displacement * self.uniform.h / dt;
         queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
         encoder.clear_buffer(&self.stats, 0, None);
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("pbf frame"),
-                timestamp_writes: None,
-            });
-            for _ in 0..substeps {
-                self.record_substep(&mut pass);
+        match profiler {
+            None => {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("pbf frame"),
+                    timestamp_writes: None,
+                });
+                for _ in 0..substeps {
+                    self.record_substep(&mut |_, record| record(&mut pass));
+                }
+            }
+            Some(profiler) => {
+                for _ in 0..substeps {
+                    self.record_substep(&mut |label, record| {
+                        timed_pass(encoder, Some(profiler), label, record);
+                    });
+                }
             }
         }
         encoder.copy_buffer_to_buffer(
@@ -564,28 +606,38 @@ impl GpuPbf {
         Ok(out)
     }
 
-    fn record_substep(&self, pass: &mut wgpu::ComputePass<'_>) {
-        let groups = self.uniform.n.div_ceil(64).max(1);
-        let run = |pass: &mut wgpu::ComputePass<'_>, pipeline: &Pass, groups| {
+    /// A dispatch of `groups` workgroups of `pipeline` over the passes' group.
+    fn dispatch<'a>(
+        &'a self,
+        pipeline: &'a Pass,
+        groups: u32,
+    ) -> impl Fn(&mut wgpu::ComputePass<'_>) + 'a {
+        move |pass| {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.group, &[]);
             pass.dispatch_workgroups(groups, 1, 1);
-        };
+        }
+    }
+
+    /// Records one substep, each stage handed to `stage` with its label.
+    fn record_substep(&self, stage: &mut dyn FnMut(&str, &dyn Fn(&mut wgpu::ComputePass<'_>))) {
+        let groups = self.uniform.n.div_ceil(64).max(1);
+        let run = |pipeline, groups| self.dispatch(pipeline, groups);
         let p = &self.passes;
-        run(pass, &p.predict, groups);
-        self.grid.record_build(pass);
-        self.grid.record_lists(pass);
+        stage("pbf: predict", &run(&p.predict, groups));
+        stage("pbf: grid", &|pass| self.grid.record_build(pass));
+        stage("pbf: lists", &|pass| self.grid.record_lists(pass));
         let iterations = self.pbf.iterations;
         for k in 0..iterations {
             let headway = usize::from(k == 0) | (usize::from(k + 1 == iterations) << 1);
-            run(pass, &p.lambda[headway], groups);
-            run(pass, &p.correct, groups);
-            run(pass, &p.apply, groups);
+            stage("pbf: lambda", &run(&p.lambda[headway], groups));
+            stage("pbf: correct", &run(&p.correct, groups));
+            stage("pbf: apply", &run(&p.apply, groups));
         }
-        run(pass, &p.curl, groups);
-        run(pass, &p.confine, groups);
-        run(pass, &p.boundaries, groups);
-        run(pass, &p.reduce, 1);
+        stage("pbf: curl", &run(&p.curl, groups));
+        stage("pbf: confine", &run(&p.confine, groups));
+        stage("pbf: boundaries", &run(&p.boundaries, groups));
+        stage("pbf: reduce", &run(&p.reduce, 1));
     }
 
     /// Reads positions, velocities, densities and pressures back (waits for

@@ -384,3 +384,96 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     println!("{e}");
     assert!(e.contains("neighbours") || e.contains("diverged"), "{e}");
 }
+
+/// A profiled frame gives bitwise the same state as a plain one, and its
+/// profile names every pass of every substep and iteration, in order, with
+/// a finite, non-negative time.
+#[test]
+fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
+    use sph_gpu::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    let pbf = scene.pbf_params();
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let new = || {
+        GpuPbf::new(
+            device,
+            queue,
+            &world.particles,
+            world.params(),
+            &pbf,
+            &scene.boundary(),
+        )
+        .unwrap()
+    };
+    let (mut plain, mut timed) = (new(), new());
+    let mut profiler = GpuProfiler::new(device, GpuProfilerSettings::default()).unwrap();
+    let frame_dt = 1.0 / 60.0;
+    let a = plain.advance(device, queue, frame_dt).unwrap();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    let b = timed
+        .encode_frame_profiled(device, queue, &mut encoder, frame_dt, &profiler)
+        .unwrap();
+    profiler.resolve_queries(&mut encoder);
+    queue.submit([encoder.finish()]);
+    timed.submitted();
+    profiler.end_frame().unwrap();
+    assert_eq!(a, b);
+    let (sa, sb) = (
+        plain.read_state(device, queue).unwrap(),
+        timed.read_state(device, queue).unwrap(),
+    );
+    assert_eq!(sa.positions, sb.positions);
+    assert_eq!(sa.velocities, sb.velocities);
+    assert_eq!(sa.densities, sb.densities);
+    assert_eq!(plain.finish(device).unwrap(), timed.finish(device).unwrap());
+
+    let results = profiler
+        .process_finished_frame(queue.get_timestamp_period())
+        .expect("the frame's queries are resolved");
+    let mut substep = vec!["pbf: predict", "pbf: grid", "pbf: lists"];
+    for _ in 0..pbf.iterations {
+        substep.extend(["pbf: lambda", "pbf: correct", "pbf: apply"]);
+    }
+    substep.extend([
+        "pbf: curl",
+        "pbf: confine",
+        "pbf: boundaries",
+        "pbf: reduce",
+    ]);
+    let labels: Vec<&str> = results.iter().map(|r| r.label.as_str()).collect();
+    assert_eq!(
+        labels.len(),
+        b.substeps as usize * substep.len(),
+        "{labels:?}"
+    );
+    for step in labels.chunks(substep.len()) {
+        assert_eq!(step, substep);
+    }
+    let timestamps = device
+        .features()
+        .contains(splat_render::wgpu::Features::TIMESTAMP_QUERY);
+    let mut total = 0.0;
+    for r in &results {
+        match (&r.time, timestamps) {
+            (Some(t), true) => {
+                assert!(t.end >= t.start, "{}: {t:?}", r.label);
+                total += t.end - t.start;
+            }
+            (None, false) => {}
+            (t, _) => panic!("{}: {t:?} with timestamps {timestamps}", r.label),
+        }
+    }
+    println!(
+        "{} substeps, {} passes; timestamps: {timestamps}, GPU time of the passes {:.3} ms",
+        b.substeps,
+        labels.len(),
+        total * 1e3
+    );
+    if timestamps {
+        assert!(total > 0.0, "no GPU time at all");
+    }
+}
