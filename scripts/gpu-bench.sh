@@ -4,6 +4,7 @@
 #
 #   scripts/gpu-bench.sh render [criterion args…]   # `cargo bench --bench render`
 #   scripts/gpu-bench.sh gpu [criterion args…]      # `cargo bench --bench gpu`
+#   scripts/gpu-bench.sh realtime [args…]           # `cargo run --release --example realtime --`
 #
 # Extra arguments go to criterion (a filter such as `sph_step/`, or
 # `--warm-up-time 1 --measurement-time 5`). The figures are those of the
@@ -11,7 +12,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 kit=.gpu-kit
-bench=${1:?"usage: $0 render|gpu [criterion args…]"}
+bench=${1:?"usage: $0 render|gpu|realtime [args…]"}
 shift
 [ -x "$kit/$bench" ] || { echo "no $kit/$bench: run scripts/gpu-kit.sh first" >&2; exit 1; }
 
@@ -34,4 +35,8 @@ mkdir -p "$out"
     nvidia-smi -L 2>/dev/null || true
     nproc
 } | tee "$out/$bench-machine.txt"
-"$kit/$bench" --bench "$@" 2>&1 | tee "$out/$bench.txt"
+if [ "$bench" = realtime ]; then
+    "$kit/$bench" "$@" 2>&1 | tee "$out/$bench.txt"
+else
+    "$kit/$bench" --bench "$@" 2>&1 | tee "$out/$bench.txt"
+fi

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Packs what a GPU machine without a Rust toolchain or network access needs to
-# run the GPU benches (`render` and `gpu`) into .gpu-kit/ (git-ignored):
-# the two criterion bench binaries, stripped, and Debian's Vulkan loader
-# package. Copy the repository with .gpu-kit/ to that machine (same x86-64
+# run the GPU benches (`render` and `gpu`) and the `realtime` example into
+# .gpu-kit/ (git-ignored): the three binaries, stripped, and Debian's Vulkan
+# loader package. Copy the repository with .gpu-kit/ to that machine (same x86-64
 # Linux, glibc 2.35 or later) and run scripts/gpu-bench.sh there.
 #
 #   scripts/gpu-kit.sh            # here: build and pack (about 20 MB)
@@ -14,9 +14,11 @@ rm -rf "$kit"
 mkdir -p "$kit/deb"
 
 # Cargo's JSON messages name each bench binary: the "executable" of the
-# artifact whose target is named after the bench.
-json=$(CARGO_TERM_COLOR=never cargo bench --bench gpu --bench render --no-run --message-format=json)
-for bench in gpu render; do
+# artifact whose target is named after the bench (the realtime example too:
+# its `pbf-gpu` column).
+json=$(CARGO_TERM_COLOR=never cargo bench --bench gpu --bench render --no-run --message-format=json
+    CARGO_TERM_COLOR=never cargo build --release --example realtime --message-format=json)
+for bench in gpu render realtime; do
     exe=$(printf '%s\n' "$json" |
         sed -n "s|.*\"target\":{[^}]*\"name\":\"$bench\".*\"executable\":\"\([^\"]*\)\".*|\1|p" | tail -1)
     [ -n "$exe" ] || { echo "gpu-kit: no executable for bench $bench" >&2; exit 1; }

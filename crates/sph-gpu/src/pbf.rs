@@ -133,6 +133,9 @@ struct Passes {
 
 type Pass = wgpu::ComputePipeline;
 
+/// What one stage of a substep records into a compute pass.
+type Record<'a> = &'a dyn Fn(&mut wgpu::ComputePass<'_>);
+
 /// A mappable copy of one frame's statistics on its way back.
 struct Slot {
     buffer: wgpu::Buffer,
@@ -620,7 +623,7 @@ impl GpuPbf {
     }
 
     /// Records one substep, each stage handed to `stage` with its label.
-    fn record_substep(&self, stage: &mut dyn FnMut(&str, &dyn Fn(&mut wgpu::ComputePass<'_>))) {
+    fn record_substep(&self, stage: &mut dyn FnMut(&str, Record<'_>)) {
         let groups = self.uniform.n.div_ceil(64).max(1);
         let run = |pipeline, groups| self.dispatch(pipeline, groups);
         let p = &self.passes;
