@@ -344,46 +344,49 @@ impl Pipeline {
             self.extracted = false;
             return Ok(());
         }
-        let (report, pending) = match self.gpu.as_mut() {
+        let s = &mut self.stats;
+        match self.gpu.as_mut() {
             Some(gpu) => {
                 let step = gpu.advance(&self.world, frame_dt)?;
                 self.gpu_time += frame_dt;
                 self.gpu_ahead = true;
-                let pending = step.solver == sph_core::SolverKind::Pbf;
-                self.add_late(step.late);
-                let report = sph_core::FrameReport {
+                // PBF's density errors and clamps come later (`take_late`);
+                // WCSPH on the GPU reports none.
+                *s = FrameStats {
                     solver: step.solver,
                     substeps: step.substeps,
-                    dt_range: (f32::NAN, f32::NAN),
                     iterations: step.iterations,
-                    divergence_iterations: 0,
-                    viscosity_iterations: 0,
-                    unconverged: 0,
                     density_error_avg: f32::NAN,
                     density_error_max: f32::NAN,
                     clamped: 0,
+                    pending: step.solver == sph_core::SolverKind::Pbf,
+                    divergence_iterations: 0,
+                    viscosity_iterations: 0,
+                    unconverged: 0,
                     time: self.world.time() + self.gpu_time,
+                    ..*s
                 };
-                (report, pending)
+                self.add_late(step.late);
             }
             None => {
-                let mut report = self.world.advance(frame_dt as f32)?;
-                report.time += self.gpu_time;
-                (report, false)
+                let r = self.world.advance(frame_dt as f32)?;
+                *s = FrameStats {
+                    solver: r.solver,
+                    substeps: r.substeps,
+                    iterations: r.iterations,
+                    density_error_avg: r.density_error_avg,
+                    density_error_max: r.density_error_max,
+                    clamped: r.clamped,
+                    pending: false,
+                    divergence_iterations: r.divergence_iterations,
+                    viscosity_iterations: r.viscosity_iterations,
+                    unconverged: r.unconverged,
+                    time: r.time + self.gpu_time,
+                    ..*s
+                };
             }
-        };
+        }
         self.stats.step_ms = start.elapsed().as_secs_f64() * 1e3;
-        self.stats.solver = report.solver;
-        self.stats.substeps = report.substeps;
-        self.stats.iterations = report.iterations;
-        self.stats.density_error_avg = report.density_error_avg;
-        self.stats.density_error_max = report.density_error_max;
-        self.stats.clamped = report.clamped;
-        self.stats.pending = pending;
-        self.stats.divergence_iterations = report.divergence_iterations;
-        self.stats.viscosity_iterations = report.viscosity_iterations;
-        self.stats.unconverged = report.unconverged;
-        self.stats.time = report.time;
         self.stats.frame += 1;
         self.stats.particles = self.world.particles.len();
         self.extracted = false;
