@@ -18,7 +18,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMet
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use sph_core::io::{Format, PointCloud};
+use sph_core::io::PointCloud;
 use sph_core::{Particles, Scene, Solver, SolverKind, World};
 use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer};
 use surfel_extract::{ExtractParams, Extractor, Surface};
@@ -422,9 +422,11 @@ fn read_particles<'py>(
     Ok((array3(py, &file.positions), file.time))
 }
 
-/// Writes points to `path` as binary PLY or legacy VTK (by its extension)
-/// at simulated `time`, with optional `velocities` ((N, 3)) and
-/// `densities` ((N,)).
+/// Writes points to `path`, its format by its extension: binary PLY or
+/// legacy VTK at simulated `time` with optional `velocities` ((N, 3)) and
+/// `densities` ((N,)), or positions alone as XYZ, VTU or BGEO (what
+/// `read_particles` reads back). Attributes for a positions-only format are
+/// a `ValueError`, not dropped.
 #[pyfunction]
 #[pyo3(signature = (path, positions, time = 0.0, velocities = None, densities = None))]
 fn write_particles(
@@ -437,10 +439,6 @@ fn write_particles(
     let x = points("positions", &positions)?;
     let v = velocities.map(|v| points("velocities", &v)).transpose()?;
     let rho: Option<Vec<f32>> = densities.map(|d| d.as_array().to_vec());
-    let extension = (path.extension().and_then(|e| e.to_str()))
-        .unwrap_or_default()
-        .to_string();
-    let format: Format = extension.parse().map_err(error)?;
     let mut cloud = PointCloud {
         positions: &x,
         ..Default::default()
@@ -451,11 +449,7 @@ fn write_particles(
     if let Some(rho) = &rho {
         cloud.scalars.push(("density", rho));
     }
-    let file = std::fs::File::create(&path)
-        .map_err(|e| PyOSError::new_err(format!("cannot write {}: {e}", path.display())))?;
-    format
-        .write(std::io::BufWriter::new(file), &cloud, time)
-        .map_err(error)
+    sph_core::io::write_particles(&path, &cloud, time).map_err(error)
 }
 
 /// The built-in scenes' names.

@@ -63,12 +63,19 @@ def test_particle_files_round_trip_through_numpy(tmp_path):
         read, time = ss.read_particles(path)
         assert time == 1.25
         np.testing.assert_array_equal(read, positions)
-    # XYZ: binary f32 triples, as splashsurf reads them.
-    path = tmp_path / "points.xyz"
-    positions.tofile(path)
-    read, time = ss.read_particles(path)
-    assert time is None
-    np.testing.assert_array_equal(read, positions)
+    # Positions alone through the other simulators' formats.
+    for ext in ["xyz", "vtu", "bgeo"]:
+        path = tmp_path / f"points.{ext}"
+        ss.write_particles(path, positions)
+        read, time = ss.read_particles(path)
+        assert time is None, ext
+        np.testing.assert_array_equal(read, positions, err_msg=ext)
+        with pytest.raises(ValueError, match="positions only"):
+            ss.write_particles(path, positions, 0.0, velocities)
+    # XYZ is binary f32 triples, as splashsurf reads them.
+    np.testing.assert_array_equal(
+        np.fromfile(tmp_path / "points.xyz", np.float32).reshape(-1, 3), positions
+    )
     # Other simulators' files.
     for name, count in [
         ("dam_break_frame_9_6859_particles.bgeo", 6859),

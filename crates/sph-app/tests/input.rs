@@ -227,9 +227,55 @@ fn bad_inputs_are_clear_errors() {
         let file = std::fs::File::create(dir.join(format!("nan.{}", format.extension()))).unwrap();
         format.write(file, &cloud, 0.0).unwrap();
     }
-    let cases: [(String, &str, &str); 9] = [
+    // A NaN in a BGEO file: one written with a marker value, the marker's
+    // big-endian bytes then replaced by a NaN's.
+    let marked = [
+        sph_core::glam::Vec3::ZERO,
+        sph_core::glam::Vec3::new(0.5, 1234.5, 0.5),
+    ];
+    let bgeo = dir.join("nan.bgeo");
+    sph_core::io::write_particles(
+        &bgeo,
+        &sph_core::io::PointCloud {
+            positions: &marked,
+            ..Default::default()
+        },
+        0.0,
+    )
+    .unwrap();
+    let mut bytes = std::fs::read(&bgeo).unwrap();
+    let marker = 1234.5f32.to_be_bytes();
+    let at = (bytes.windows(4))
+        .position(|w| w == marker)
+        .expect("the marker in the BGEO file");
+    bytes[at..at + 4].copy_from_slice(&f32::NAN.to_be_bytes());
+    std::fs::write(&bgeo, bytes).unwrap();
+    // And in a VTU file, written as ASCII.
+    std::fs::write(
+        dir.join("nan.vtu"),
+        r#"<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian">
+  <UnstructuredGrid>
+    <Piece NumberOfPoints="2" NumberOfCells="2">
+      <Points>
+        <DataArray type="Float32" NumberOfComponents="3" format="ascii">0 0 0 0.5 nan 0.5</DataArray>
+      </Points>
+      <Cells>
+        <DataArray type="UInt64" Name="connectivity" format="ascii">0 1</DataArray>
+        <DataArray type="UInt64" Name="offsets" format="ascii">1 2</DataArray>
+        <DataArray type="UInt8" Name="types" format="ascii">1 1</DataArray>
+      </Cells>
+    </Piece>
+  </UnstructuredGrid>
+</VTKFile>
+"#,
+    )
+    .unwrap();
+    let cases: [(String, &str, &str); 11] = [
         (path("nan.ply"), "0.01", "not finite"),
         (path("nan.vtk"), "0.01", "not finite"),
+        (path("nan.bgeo"), "0.01", "not finite"),
+        (path("nan.vtu"), "0.01", "not finite"),
         (path("missing_*.vtk"), "0.01", "no file matches"),
         (path("garbage.bgeo"), "0.01", "garbage.bgeo"),
         (path("empty.xyz"), "0.01", "holds no particle"),

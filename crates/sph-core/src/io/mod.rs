@@ -5,7 +5,8 @@
 //! files: for tests and tools), and a [`FrameWriter`] that writes numbered
 //! frames plus a CSV index (`{prefix}_index.csv`: frame, time, points, file).
 //! [`read_particles`] reads any particle file by its extension, other
-//! simulators' with the `readers` feature (splashsurf_lib's readers).
+//! simulators' with the `readers` feature (splashsurf_lib's readers), and
+//! [`write_particles`] writes one (XYZ; VTU and BGEO with that feature).
 //!
 //! Both formats are read by ParaView, Blender (PLY) and splashsurf (PLY,
 //! VTK). Every writer flushes and reports a failed write as [`Error::Io`]
@@ -22,11 +23,13 @@ mod frames;
 mod ply;
 mod read;
 mod vtk;
+mod write;
 
 pub use frames::FrameWriter;
 pub use ply::{read_ply, write_ply};
 pub use read::{PARTICLE_EXTENSIONS, ParticleFile, read_particles};
 pub use vtk::{read_vtk, write_vtk};
+pub use write::{WRITE_EXTENSIONS, write_particles};
 
 /// A set of points with named per-point attributes, borrowed from their owner.
 #[derive(Debug, Clone, Default)]

@@ -1,0 +1,257 @@
+//! Particle files for anyone, by extension: this project's PLY and VTK
+//! frames with their attributes and simulated time ([`super::write_ply`],
+//! [`super::write_vtk`]), and positions in the formats other tools read
+//! (what [`super::read_particles`] reads back):
+//! - XYZ: binary f32 triples in the machine's byte order, as splashsurf
+//!   reads them (no header, no attributes, no time);
+//! - VTU (with the `readers` feature): VTK's XML unstructured grid of vertex
+//!   cells, written by `vtkio` (base64 inline binary, which `vtkio` and
+//!   ParaView read; `vtkio` does not read the raw appended VTU some tools
+//!   write);
+//! - BGEO (with the `readers` feature): Houdini's geometry, uncompressed,
+//!   written by splashsurf_lib.
+//!
+//! A file is written in memory by the format's writer, then to disk in one
+//! checked write and flush: a full disk or an unwritable path is an error
+//! naming the file, never a short file without a word.
+
+use std::io::Write;
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::{PointCloud, write_ply, write_vtk};
+use crate::error::{Error, Result};
+
+/// The extensions [`write_particles`] takes (lower case, without the dot).
+pub const WRITE_EXTENSIONS: [&str; 5] = ["ply", "vtk", "xyz", "vtu", "bgeo"];
+
+/// Writes `cloud` to the file at `path`, its format from its extension (any
+/// of [`WRITE_EXTENSIONS`], in any case): PLY and VTK with every attribute
+/// and the simulated `time`, XYZ, VTU and BGEO with the positions alone.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming the file: an extension not among
+/// those (`format`), attributes for a format that holds positions only,
+/// rather than dropping them (`format`), a non-finite position
+/// (`positions`); [`Error::Io`] naming the file: a format that needs the
+/// `readers` feature without it, or a write that failed.
+pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) -> Result<()> {
+    let path = path.as_ref();
+    let name = path.display().to_string();
+    let fail = |reason: String| Error::Io {
+        path: name.clone(),
+        reason,
+    };
+    let extension = (path.extension().and_then(|e| e.to_str()))
+        .map(str::to_ascii_lowercase)
+        .filter(|e| WRITE_EXTENSIONS.contains(&e.as_str()))
+        .ok_or_else(|| Error::InvalidParameter {
+            name: "format",
+            value: name.clone(),
+            reason: "the file name must end in .ply, .vtk, .xyz, .vtu or .bgeo",
+        })?;
+    if let Some(i) = cloud.positions.iter().position(|x| !x.is_finite()) {
+        return Err(Error::InvalidParameter {
+            name: "positions",
+            value: format!("{} at row {i} for {name}", cloud.positions[i]),
+            reason: "every position must be finite",
+        });
+    }
+    let positions_only = !matches!(extension.as_str(), "ply" | "vtk");
+    if positions_only && !(cloud.vectors.is_empty() && cloud.scalars.is_empty()) {
+        let names: Vec<&str> = (cloud.vectors.iter().map(|(n, _)| *n))
+            .chain(cloud.scalars.iter().map(|(n, _)| *n))
+            .collect();
+        return Err(Error::InvalidParameter {
+            name: "format",
+            value: format!("{name} with {}", names.join(", ")),
+            reason: "a .xyz, .vtu or .bgeo file holds positions only: write attributes to .ply or .vtk",
+        });
+    }
+    let mut bytes = Vec::new();
+    match extension.as_str() {
+        "ply" => write_ply(&mut bytes, cloud, time)?,
+        "vtk" => write_vtk(&mut bytes, cloud, time)?,
+        "xyz" => write_xyz(&mut bytes, cloud.positions),
+        other => foreign(other, &mut bytes, cloud.positions).map_err(fail)?,
+    }
+    let mut file = std::fs::File::create(path).map_err(|e| fail(e.to_string()))?;
+    file.write_all(&bytes)
+        .and_then(|()| file.flush())
+        .map_err(|e| fail(e.to_string()))
+}
+
+/// XYZ: each position as three f32 in the machine's byte order.
+fn write_xyz(bytes: &mut Vec<u8>, positions: &[Vec3]) {
+    bytes.reserve(12 * positions.len());
+    for p in positions {
+        for c in p.to_array() {
+            bytes.extend_from_slice(&c.to_ne_bytes());
+        }
+    }
+}
+
+/// VTU and BGEO, by the crates that read them.
+#[cfg(feature = "readers")]
+fn foreign(
+    extension: &str,
+    bytes: &mut Vec<u8>,
+    positions: &[Vec3],
+) -> std::result::Result<(), String> {
+    let flat: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
+    let n = positions.len();
+    match extension {
+        "vtu" => {
+            use splashsurf_lib::vtkio::model::{
+                Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
+                VertexNumbers, Vtk,
+            };
+            let piece = UnstructuredGridPiece {
+                points: flat.into(),
+                cells: Cells {
+                    cell_verts: VertexNumbers::XML {
+                        connectivity: (0..n as u64).collect(),
+                        offsets: (1..=n as u64).collect(),
+                    },
+                    types: vec![CellType::Vertex; n],
+                },
+                data: Attributes::new(),
+            };
+            let vtk = Vtk {
+                version: Version::new_xml(1, 0),
+                title: "particles".into(),
+                byte_order: ByteOrder::LittleEndian,
+                data: DataSet::inline(piece),
+                file_path: None,
+            };
+            vtk.write_xml(bytes).map_err(|e| e.to_string())
+        }
+        "bgeo" => {
+            use splashsurf_lib::io::bgeo_format::{
+                AttributeStorage, BgeoFile, BgeoHeader, write_bgeo_file,
+            };
+            let num_points = i32::try_from(n)
+                .map_err(|_| format!("{n} particles are more than BGEO's {}", i32::MAX))?;
+            let bgeo = BgeoFile {
+                header: BgeoHeader {
+                    magic_bytes: *b"Bgeo",
+                    version_char: b'V',
+                    version: 5,
+                    num_points,
+                    num_prims: 0,
+                    num_point_groups: 0,
+                    num_prim_groups: 0,
+                    num_point_attrib: 0,
+                    num_vertex_attrib: 0,
+                    num_prim_attrib: 0,
+                    num_attrib: 0,
+                },
+                positions: AttributeStorage::Vector(3, flat),
+                weights: AttributeStorage::Float(vec![1.0; n]),
+                attribute_definitions: Vec::new(),
+                attribute_data: Vec::new(),
+            };
+            write_bgeo_file(&bgeo, bytes, false).map_err(|e| format!("{e:#}"))
+        }
+        _ => unreachable!("only the foreign extensions reach here"),
+    }
+}
+
+#[cfg(not(feature = "readers"))]
+fn foreign(extension: &str, _: &mut Vec<u8>, _: &[Vec3]) -> std::result::Result<(), String> {
+    Err(format!(
+        ".{extension} files need sph-core's `readers` feature"
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("sph-core-write-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    /// Every format's file reads back as the positions written (and PLY and
+    /// VTK with their time).
+    #[test]
+    fn every_format_reads_back() {
+        let positions: Vec<Vec3> = (0..50)
+            .map(|i| {
+                Vec3::new(
+                    i as f32 * 0.01,
+                    (i % 7) as f32 * -0.3,
+                    1e-3 * (i * i) as f32,
+                )
+            })
+            .collect();
+        let cloud = PointCloud {
+            positions: &positions,
+            ..Default::default()
+        };
+        let formats: &[&str] = if cfg!(feature = "readers") {
+            &WRITE_EXTENSIONS
+        } else {
+            &["ply", "vtk"]
+        };
+        for ext in formats {
+            let path = scratch(&format!("round.{ext}"));
+            write_particles(&path, &cloud, 0.25).unwrap();
+            let back = super::super::read_particles(&path).unwrap();
+            assert_eq!(back.positions, positions, "{ext}");
+            let time = matches!(*ext, "ply" | "vtk").then_some(0.25);
+            assert_eq!(back.time, time, "{ext}");
+        }
+    }
+
+    /// Attributes a format cannot hold, NaN and unknown extensions are
+    /// errors naming the file; so is a write to a full device.
+    #[test]
+    fn bad_writes_are_errors_naming_the_file() {
+        let positions = vec![Vec3::ONE; 3];
+        let velocities = vec![Vec3::X; 3];
+        let mut cloud = PointCloud {
+            positions: &positions,
+            ..Default::default()
+        };
+        cloud.vectors.push(("velocity", &velocities));
+        let e = write_particles(scratch("v.xyz"), &cloud, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("v.xyz") && e.contains("velocity") && e.contains("positions only"),
+            "{e}"
+        );
+        let e = write_particles(scratch("v.obj"), &cloud, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("v.obj") && e.contains(".ply"), "{e}");
+        let nan = vec![Vec3::new(0.0, f32::NAN, 0.0)];
+        let e = write_particles(
+            scratch("nan.ply"),
+            &PointCloud {
+                positions: &nan,
+                ..Default::default()
+            },
+            0.0,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("nan.ply") && e.contains("finite"), "{e}");
+        if std::path::Path::new("/dev/full").exists() {
+            // /dev/full takes no extension: a link to it that has one.
+            let link = scratch("full.xyz");
+            let _ = std::fs::remove_file(&link);
+            std::os::unix::fs::symlink("/dev/full", &link).unwrap();
+            let plain = PointCloud {
+                positions: &positions,
+                ..Default::default()
+            };
+            let e = write_particles(&link, &plain, 0.0).unwrap_err().to_string();
+            assert!(e.contains("full.xyz"), "{e}");
+        }
+    }
+}
