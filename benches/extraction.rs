@@ -25,7 +25,11 @@
 //! them (r = 0.025 m, h = 4r, the anisotropic surface, 2 iterations), against
 //! splashsurf reconstructing the same particles with its README's
 //! recommended settings (the particle radius, smoothing length 2r: support
-//! 4r, surface threshold 0.6, cubes of 0.5r), unsmoothed.
+//! 4r, surface threshold 0.6, cubes of 0.5r), unsmoothed: `splashsurf_lib`
+//! in memory, and, where the splashsurf CLI runs (`SPLASHSURF=path` or
+//! `splashsurf` on the PATH; `cargo install splashsurf --version 0.14.1`),
+//! the CLI as a user runs it on the file (`splashsurf-cli`: the whole
+//! process, reading the file and writing the mesh).
 
 use std::hint::black_box;
 
@@ -288,6 +292,30 @@ fn real_data(c: &mut Criterion) {
                 )
             })
         });
+        // As `sph-app --input` takes a frame: the file read (by the same
+        // reader), the particles built, the surfels extracted.
+        group.bench_function(BenchmarkId::new(label, "anisotropic+read"), |b| {
+            b.iter(|| {
+                let read: Vec<Vector3<f32>> =
+                    splashsurf_lib::io::particles_from_file(dir.join(file)).expect("read");
+                let mut p = Particles::new();
+                for x in &read {
+                    p.push(
+                        sph_core::glam::Vec3::new(x.x, x.y, x.z),
+                        Default::default(),
+                        mass,
+                    );
+                }
+                p.densities_mut().fill(1000.0);
+                black_box(
+                    extractor
+                        .extract(&p, &params)
+                        .expect("extraction")
+                        .stats
+                        .surfels,
+                )
+            })
+        });
         group.bench_function(BenchmarkId::new(label, "splashsurf"), |b| {
             b.iter(|| {
                 splashsurf_lib::reconstruct_surface_inplace(&positions, &sp, &mut surface)
@@ -295,8 +323,43 @@ fn real_data(c: &mut Criterion) {
                 black_box(surface.mesh.vertices.len())
             })
         });
+        // The CLI itself, where one is installed: the whole process, reading
+        // the file and writing the mesh included.
+        match splashsurf_cli() {
+            Some(cli) => {
+                let out = std::env::temp_dir().join(format!("real-data-{label}.vtk"));
+                let run = || {
+                    let status = std::process::Command::new(&cli)
+                        .arg("reconstruct")
+                        .arg(dir.join(file))
+                        .args([
+                            "-r", "0.025", "-l", "2.0", "-c", "0.5", "-t", "0.6", "-q", "-o",
+                        ])
+                        .arg(&out)
+                        .status()
+                        .expect("the splashsurf CLI runs");
+                    assert!(status.success(), "splashsurf CLI: {status}");
+                };
+                run();
+                group.bench_function(BenchmarkId::new(label, "splashsurf-cli"), |b| b.iter(run));
+            }
+            None => println!(
+                "{label}: no splashsurf CLI (`cargo install splashsurf --version 0.14.1`, \
+                 or SPLASHSURF=path): its row is skipped"
+            ),
+        }
     }
     group.finish();
+}
+
+/// The splashsurf CLI: `SPLASHSURF`, else `splashsurf` where it runs.
+fn splashsurf_cli() -> Option<std::path::PathBuf> {
+    let cli = std::env::var_os("SPLASHSURF").unwrap_or_else(|| "splashsurf".into());
+    let runs = std::process::Command::new(&cli)
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    runs.then(|| cli.into())
 }
 
 criterion_group!(benches, extraction, real_data);
