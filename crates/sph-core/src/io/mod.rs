@@ -19,11 +19,14 @@ use glam::Vec3;
 use crate::error::{Error, Result};
 use crate::particles::Particles;
 
+mod bgeo;
 mod frames;
 mod ply;
 mod read;
 mod vtk;
+mod vtu;
 mod write;
+mod xyz;
 
 pub use frames::FrameWriter;
 pub use ply::{read_ply, write_ply};

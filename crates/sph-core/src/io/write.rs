@@ -1,15 +1,8 @@
 //! Particle files for anyone, by extension: this project's PLY and VTK
 //! frames with their attributes and simulated time ([`super::write_ply`],
 //! [`super::write_vtk`]), and positions in the formats other tools read
-//! (what [`super::read_particles`] reads back):
-//! - XYZ: binary f32 triples in the machine's byte order, as splashsurf
-//!   reads them (no header, no attributes, no time);
-//! - VTU (with the `readers` feature): VTK's XML unstructured grid of vertex
-//!   cells, written by `vtkio` (base64 inline binary, which `vtkio` and
-//!   ParaView read; `vtkio` does not read the raw appended VTU some tools
-//!   write);
-//! - BGEO (with the `readers` feature): Houdini's geometry, uncompressed,
-//!   written by splashsurf_lib.
+//! (what [`super::read_particles`] reads back): XYZ (`xyz.rs`), and with
+//! the `readers` feature VTU (`vtu.rs`) and BGEO (`bgeo.rs`).
 //!
 //! A file is written in memory by the format's writer, then to disk in one
 //! checked write and flush: a full disk or an unwritable path is an error
@@ -17,8 +10,6 @@
 
 use std::io::Write;
 use std::path::Path;
-
-use glam::Vec3;
 
 use super::{PointCloud, write_ply, write_vtk};
 use crate::error::{Error, Result};
@@ -73,8 +64,10 @@ pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) ->
     match extension.as_str() {
         "ply" => write_ply(&mut bytes, cloud, time)?,
         "vtk" => write_vtk(&mut bytes, cloud, time)?,
-        "xyz" => write_xyz(&mut bytes, cloud.positions),
-        other => foreign(other, &mut bytes, cloud.positions).map_err(fail)?,
+        "xyz" => super::xyz::write_xyz(&mut bytes, cloud.positions),
+        "vtu" => super::vtu::write_vtu(&mut bytes, cloud.positions).map_err(fail)?,
+        "bgeo" => super::bgeo::write_bgeo(&mut bytes, cloud.positions).map_err(fail)?,
+        _ => unreachable!("an extension of WRITE_EXTENSIONS"),
     }
     let mut file = std::fs::File::create(path).map_err(|e| fail(e.to_string()))?;
     file.write_all(&bytes)
@@ -82,92 +75,10 @@ pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) ->
         .map_err(|e| fail(e.to_string()))
 }
 
-/// XYZ: each position as three f32 in the machine's byte order.
-fn write_xyz(bytes: &mut Vec<u8>, positions: &[Vec3]) {
-    bytes.reserve(12 * positions.len());
-    for p in positions {
-        for c in p.to_array() {
-            bytes.extend_from_slice(&c.to_ne_bytes());
-        }
-    }
-}
-
-/// VTU and BGEO, by the crates that read them.
-#[cfg(feature = "readers")]
-fn foreign(
-    extension: &str,
-    bytes: &mut Vec<u8>,
-    positions: &[Vec3],
-) -> std::result::Result<(), String> {
-    let flat: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
-    let n = positions.len();
-    match extension {
-        "vtu" => {
-            use splashsurf_lib::vtkio::model::{
-                Attributes, ByteOrder, CellType, Cells, DataSet, UnstructuredGridPiece, Version,
-                VertexNumbers, Vtk,
-            };
-            let piece = UnstructuredGridPiece {
-                points: flat.into(),
-                cells: Cells {
-                    cell_verts: VertexNumbers::XML {
-                        connectivity: (0..n as u64).collect(),
-                        offsets: (1..=n as u64).collect(),
-                    },
-                    types: vec![CellType::Vertex; n],
-                },
-                data: Attributes::new(),
-            };
-            let vtk = Vtk {
-                version: Version::new_xml(1, 0),
-                title: "particles".into(),
-                byte_order: ByteOrder::LittleEndian,
-                data: DataSet::inline(piece),
-                file_path: None,
-            };
-            vtk.write_xml(bytes).map_err(|e| e.to_string())
-        }
-        "bgeo" => {
-            use splashsurf_lib::io::bgeo_format::{
-                AttributeStorage, BgeoFile, BgeoHeader, write_bgeo_file,
-            };
-            let num_points = i32::try_from(n)
-                .map_err(|_| format!("{n} particles are more than BGEO's {}", i32::MAX))?;
-            let bgeo = BgeoFile {
-                header: BgeoHeader {
-                    magic_bytes: *b"Bgeo",
-                    version_char: b'V',
-                    version: 5,
-                    num_points,
-                    num_prims: 0,
-                    num_point_groups: 0,
-                    num_prim_groups: 0,
-                    num_point_attrib: 0,
-                    num_vertex_attrib: 0,
-                    num_prim_attrib: 0,
-                    num_attrib: 0,
-                },
-                positions: AttributeStorage::Vector(3, flat),
-                weights: AttributeStorage::Float(vec![1.0; n]),
-                attribute_definitions: Vec::new(),
-                attribute_data: Vec::new(),
-            };
-            write_bgeo_file(&bgeo, bytes, false).map_err(|e| format!("{e:#}"))
-        }
-        _ => unreachable!("only the foreign extensions reach here"),
-    }
-}
-
-#[cfg(not(feature = "readers"))]
-fn foreign(extension: &str, _: &mut Vec<u8>, _: &[Vec3]) -> std::result::Result<(), String> {
-    Err(format!(
-        ".{extension} files need sph-core's `readers` feature"
-    ))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn scratch(name: &str) -> std::path::PathBuf {
         let dir = std::env::temp_dir().join(format!("sph-core-write-{}", std::process::id()));
