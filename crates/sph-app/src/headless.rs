@@ -173,6 +173,10 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             if let Some(w) = surfels_out.as_mut() {
                 write_surfels(w, &pipeline, time)?;
             }
+            // An error the device reported on its own during the frame.
+            if let Some(ctx) = &gpu {
+                ctx.check()?;
+            }
             let s = pipeline.stats;
             let render_gpu = render_gpu_ms.map_or(String::new(), |ms| format!("{ms:.3}"));
             let late = pipeline.take_late();

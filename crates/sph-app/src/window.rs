@@ -434,6 +434,8 @@ impl App {
         let Some(gfx) = self.gfx.as_mut() else {
             return Ok(());
         };
+        // An error the device reported on its own since the last frame.
+        gfx.ctx.check()?;
         let start = Instant::now();
         if self.geometry != Some(self.settings.scenery) {
             let geometry = if self.settings.scenery {

@@ -1,5 +1,7 @@
 //! [`GpuContext`]: one owner of the wgpu instance, adapter, device and queue.
 
+use std::sync::{Arc, Mutex};
+
 use crate::error::{RenderError, Result};
 
 /// The device and queue every renderer object is created on, for a window surface
@@ -19,6 +21,10 @@ pub struct GpuContext {
     pub device: wgpu::Device,
     /// Its queue.
     pub queue: wgpu::Queue,
+    /// The first error the device reported on its own (an uncaptured
+    /// validation or out-of-memory error, or the device lost), for
+    /// [`GpuContext::check`].
+    fault: Arc<Mutex<Option<String>>>,
 }
 
 impl GpuContext {
@@ -75,12 +81,59 @@ impl GpuContext {
                 adapter: info.name.clone(),
                 source,
             })?;
+        // wgpu's default handler panics on an error no call returns; here
+        // the first is kept for `check`, every one logged.
+        let fault = Arc::new(Mutex::new(None));
+        let keep = |fault: &Arc<Mutex<Option<String>>>, message: String| {
+            if let Ok(mut f) = fault.lock() {
+                f.get_or_insert(message);
+            }
+        };
+        let kept = Arc::clone(&fault);
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            let line = e
+                .to_string()
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" ");
+            log::error!("GPU device: {line}");
+            keep(&kept, line);
+        }));
+        let kept = Arc::clone(&fault);
+        device.set_device_lost_callback(move |reason, message| {
+            // Destroyed: by `destroy` or as the device is dropped at exit,
+            // which is no news; any other reason is.
+            if reason != wgpu::DeviceLostReason::Destroyed {
+                log::error!("GPU device lost ({reason:?}): {message}");
+            }
+            let why = if message.trim().is_empty() {
+                String::new()
+            } else {
+                format!(": {}", message.trim())
+            };
+            keep(&kept, format!("the device was lost ({reason:?}){why}"));
+        });
         Ok(Self {
             instance,
             adapter,
             device,
             queue,
+            fault,
         })
+    }
+
+    /// The first error the device reported outside any call that returns
+    /// one since it was created: an uncaptured validation or out-of-memory
+    /// error (wgpu's default would panic), or the device lost. Frames call
+    /// it once each, so that such an error ends the run with a message.
+    ///
+    /// # Errors
+    /// [`RenderError::Device`] with the device's message.
+    pub fn check(&self) -> Result<()> {
+        match self.fault.lock().ok().and_then(|f| f.clone()) {
+            Some(message) => Err(RenderError::Device(message)),
+            None => Ok(()),
+        }
     }
 
     /// For GPU tests: one headless context for the whole process (the tests

@@ -45,6 +45,11 @@ pub enum RenderError {
         /// wgpu's reason.
         source: wgpu::RequestDeviceError,
     },
+    /// The device reported an error outside any call that returns one (a
+    /// validation error wgpu would otherwise panic on), or was lost
+    /// ([`crate::GpuContext::check`]).
+    #[error("the GPU device failed: {0}")]
+    Device(String),
     /// A width or height of zero or beyond the device's texture limit.
     #[error("render size {width}×{height} is invalid (each side must be 1..={max})")]
     InvalidSize {
