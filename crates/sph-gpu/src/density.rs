@@ -239,3 +239,34 @@ pub(crate) fn obstacles_buffer(
         }),
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Fluid;
+
+    #[test]
+    fn fluid_matches_its_wgsl() {
+        let source = concat!(
+            include_str!("shaders/hash.wgsl"),
+            include_str!("shaders/walls.wgsl"),
+            include_str!("shaders/density.wgsl")
+        );
+        splat_render::wgsl_layout!(
+            source,
+            "Fluid",
+            Fluid {
+                h,
+                inv_h,
+                n,
+                table,
+                rest_density,
+                stiffness,
+                suction,
+                poly6,
+                domain_min,
+                domain_max
+            }
+        )
+        .unwrap();
+    }
+}

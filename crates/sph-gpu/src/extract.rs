@@ -613,3 +613,51 @@ impl GpuExtractor {
         Ok((surfels, stats))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{Stage, Uniform};
+
+    #[test]
+    fn layouts_match_their_wgsl() {
+        let source = concat!(
+            include_str!("shaders/hash.wgsl"),
+            include_str!("shaders/extract.wgsl")
+        );
+        splat_render::wgsl_layout!(
+            source,
+            "Extract",
+            Uniform {
+                h,
+                inv_h,
+                n,
+                table,
+                iso,
+                interior_step,
+                discard_step,
+                split_laplacian,
+                covariance_threshold,
+                all_around,
+                radius,
+                has_camera,
+                camera,
+                poly6,
+                poly6_grad,
+                work_capacity,
+                out_capacity
+            }
+        )
+        .unwrap();
+        splat_render::wgsl_layout!(
+            source,
+            "Stage",
+            Stage {
+                src,
+                dst,
+                last,
+                iteration
+            }
+        )
+        .unwrap();
+    }
+}

@@ -455,3 +455,29 @@ impl GpuGrid {
             .collect())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Params;
+
+    #[test]
+    fn params_match_their_wgsl() {
+        let source = concat!(
+            include_str!("shaders/hash.wgsl"),
+            include_str!("shaders/grid.wgsl")
+        );
+        splat_render::wgsl_layout!(
+            source,
+            "Params",
+            Params {
+                h,
+                inv_h,
+                n,
+                table,
+                max_neighbours,
+                pad
+            }
+        )
+        .unwrap();
+    }
+}

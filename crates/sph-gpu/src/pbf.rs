@@ -743,3 +743,62 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), GpuError> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{RESOLVE, Stats, Uniform, WALLS};
+
+    #[test]
+    fn layouts_match_their_wgsl() {
+        let source = format!("{}{WALLS}{RESOLVE}", include_str!("shaders/pbf.wgsl"));
+        splat_render::wgsl_layout!(
+            &source,
+            "Pbf",
+            Uniform {
+                h,
+                inv_h,
+                n,
+                max_neighbours,
+                gravity,
+                domain_min,
+                domain_max,
+                rest_density,
+                inv_rho0,
+                dt,
+                omega,
+                epsilon,
+                scorr_k,
+                scorr_n,
+                inv_w_dq,
+                vorticity,
+                xsph,
+                max_speed,
+                restitution,
+                poly6,
+                spiky,
+                w0,
+                max_error
+            }
+        )
+        .unwrap();
+        splat_render::wgsl_layout!(
+            &source,
+            "Stats",
+            Stats {
+                error_sum,
+                substeps,
+                unstable,
+                unstable_substep,
+                first_error,
+                last_error,
+                error_max,
+                clamped,
+                most_neighbours,
+                nonfinite,
+                first_max,
+                last_max
+            }
+        )
+        .unwrap();
+    }
+}

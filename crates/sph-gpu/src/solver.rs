@@ -594,3 +594,58 @@ impl crate::GpuParticles for GpuSolver {
         GpuSolver::densities_buffer(self)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{PARAMS, Params, StepState};
+
+    /// The Rust uniform and state structs match their WGSL declarations.
+    #[test]
+    fn layouts_match_their_wgsl() {
+        splat_render::wgsl_layout!(
+            PARAMS,
+            "Params",
+            Params {
+                h,
+                inv_h,
+                n,
+                table,
+                rest_density,
+                viscosity,
+                surface_tension,
+                surface_threshold,
+                gravity,
+                domain_min,
+                domain_max,
+                poly6_grad,
+                visc_lap,
+                spiky_grad,
+                spiky_pressure,
+                dt,
+                restitution,
+                cfl,
+                force_factor,
+                max_dt,
+                min_dt,
+                sound_speed,
+                frame_dt
+            }
+        )
+        .unwrap();
+        let timestep = format!("{PARAMS}{}", include_str!("shaders/timestep.wgsl"));
+        splat_render::wgsl_layout!(
+            &timestep,
+            "StepState",
+            StepState {
+                v_max,
+                a_max,
+                dt,
+                elapsed,
+                steps,
+                unstable,
+                pad
+            }
+        )
+        .unwrap();
+    }
+}

@@ -40,6 +40,7 @@ mod camera;
 mod context;
 mod error;
 pub mod geometry;
+pub mod layout;
 mod readback;
 mod renderer;
 pub mod shading;

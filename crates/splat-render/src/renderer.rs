@@ -1366,3 +1366,44 @@ fn upload_environment(
         upload("background", &env.background),
     )
 }
+
+#[cfg(test)]
+mod layout_tests {
+    use super::FrameUniform;
+    use crate::splat::GpuSplat;
+
+    /// The Rust uniform and vertex structs match their WGSL declarations.
+    #[test]
+    fn uniforms_match_their_wgsl() {
+        crate::wgsl_layout!(
+            include_str!("shaders/frame.wgsl"),
+            "Frame",
+            FrameUniform {
+                view,
+                proj,
+                inv_view,
+                viewport,
+                ray,
+                params,
+                fluid,
+                flags,
+                sun,
+                absorption
+            }
+        )
+        .unwrap();
+        let splat = concat!(
+            include_str!("shaders/frame.wgsl"),
+            include_str!("shaders/splat.wgsl")
+        );
+        crate::wgsl_layout!(
+            splat,
+            "Splat",
+            GpuSplat {
+                position_radius,
+                normal
+            }
+        )
+        .unwrap();
+    }
+}
