@@ -19,7 +19,7 @@
 //! sums eight lanes at a time.
 
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicU8, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
@@ -136,13 +136,20 @@ type Pass = wgpu::ComputePipeline;
 /// What one stage of a substep records into a compute pass.
 type Record<'a> = &'a dyn Fn(&mut wgpu::ComputePass<'_>);
 
+/// A slot's map: not back yet.
+const PENDING: u8 = 0;
+/// A slot's map: readable.
+const MAPPED: u8 = 1;
+/// A slot's map: failed (a lost device).
+const FAILED: u8 = 2;
+
 /// A mappable copy of one frame's statistics on its way back.
 struct Slot {
     buffer: wgpu::Buffer,
     /// The frame whose statistics it holds, while it holds any.
     frame: Option<u64>,
-    /// Set by the map callback.
-    mapped: Arc<AtomicBool>,
+    /// Set by the map callback: [`PENDING`], [`MAPPED`] or [`FAILED`].
+    mapped: Arc<AtomicU8>,
     /// Whether a map was requested and not yet read.
     mapping: bool,
 }
@@ -365,7 +372,7 @@ impl GpuPbf {
                     mapped_at_creation: false,
                 }),
                 frame: None,
-                mapped: Arc::new(AtomicBool::new(false)),
+                mapped: Arc::new(AtomicU8::new(PENDING)),
                 mapping: false,
             })
             .collect();
@@ -521,7 +528,7 @@ impl GpuPbf {
             let mapped = slot.mapped.clone();
             slot.mapping = true;
             slot.buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-                mapped.store(r.is_ok(), Ordering::Release);
+                mapped.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
             });
         }
     }
@@ -559,29 +566,61 @@ impl GpuPbf {
     }
 
     /// Reads the statistics that have come back, oldest first; with `wait`,
-    /// waits for the device first.
+    /// first waits for the oldest frame still on its way.
     fn collect(
         &mut self,
         device: &wgpu::Device,
         wait: bool,
     ) -> Result<Vec<PbfFrameStats>, GpuError> {
-        let poll = if wait {
-            wgpu::PollType::wait_indefinitely()
-        } else {
-            wgpu::PollType::Poll
+        let poll = |kind| {
+            device
+                .poll(kind)
+                .map(|_| ())
+                .map_err(|e| GpuError::Readback(e.to_string()))
         };
-        device
-            .poll(poll)
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let mut ready: Vec<usize> = (0..self.slots.len())
-            .filter(|&k| self.slots[k].mapping && self.slots[k].mapped.load(Ordering::Acquire))
-            .collect();
-        ready.sort_by_key(|&k| self.slots[k].frame);
-        if wait && ready.is_empty() && self.slots.iter().any(|s| s.mapping) {
+        let oldest = (0..self.slots.len())
+            .filter(|&k| self.slots[k].mapping)
+            .min_by_key(|&k| self.slots[k].frame);
+        match oldest {
+            Some(k) if wait => {
+                // The map callback runs in whichever thread's poll finds it
+                // done: on a device shared by threads it may still be on its
+                // way when this thread's wait returns.
+                let start = std::time::Instant::now();
+                loop {
+                    poll(wgpu::PollType::wait_indefinitely())?;
+                    if self.slots[k].mapped.load(Ordering::Acquire) != PENDING {
+                        break;
+                    }
+                    if start.elapsed() > std::time::Duration::from_secs(30) {
+                        return Err(GpuError::Readback(
+                            "a frame's statistics did not map within 30 s of the device's idle"
+                                .into(),
+                        ));
+                    }
+                    std::thread::sleep(std::time::Duration::from_micros(200));
+                }
+            }
+            _ => poll(wgpu::PollType::Poll)?,
+        }
+        if self
+            .slots
+            .iter()
+            .any(|s| s.mapping && s.mapped.load(Ordering::Acquire) == FAILED)
+        {
             return Err(GpuError::Readback(
-                "a frame's statistics did not map after the device was idle".into(),
+                "mapping a frame's statistics failed (is the device lost?)".into(),
             ));
         }
+        // In frame order, up to the first still on its way: a later frame's
+        // map can come back before an earlier one's.
+        let mut waiting: Vec<usize> = (0..self.slots.len())
+            .filter(|&k| self.slots[k].mapping)
+            .collect();
+        waiting.sort_by_key(|&k| self.slots[k].frame);
+        let ready: Vec<usize> = (waiting.into_iter())
+            .take_while(|&k| self.slots[k].mapped.load(Ordering::Acquire) == MAPPED)
+            .collect();
         let mut out = Vec::with_capacity(ready.len());
         for k in ready {
             let slot = &mut self.slots[k];
@@ -594,7 +633,7 @@ impl GpuPbf {
             };
             slot.buffer.unmap();
             slot.mapping = false;
-            slot.mapped.store(false, Ordering::Release);
+            slot.mapped.store(PENDING, Ordering::Release);
             let frame = slot.frame.take().unwrap_or(0);
             check(&stats, frame, &self.pbf)?;
             out.push(PbfFrameStats {
