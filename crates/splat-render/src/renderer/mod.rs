@@ -1,0 +1,535 @@
+//! [`SplatRenderer`]: the thesis's two-pass splatting with deferred shading,
+//! in front of opaque scene geometry. One module per pass, the plumbing
+//! they share written once:
+//! - `scene`: backdrop and meshes into the scene image and depth;
+//! - `splats`: the back surface, visibility and attribute passes;
+//! - `shade`: normalise and shade (compute);
+//! - `blit`: the result onto a window surface;
+//! - `targets`: the render targets and the environment's textures;
+//! - `plumbing`: layout entries, bind groups, shader modules, timed passes.
+
+mod blit;
+mod plumbing;
+mod scene;
+mod shade;
+mod splats;
+mod targets;
+
+use bytemuck::{Pod, Zeroable};
+use image::RgbaImage;
+use wgpu_profiler::GpuProfiler;
+
+use crate::camera::Camera;
+use crate::context::GpuContext;
+use crate::error::{RenderError, Result};
+use crate::geometry::{Backdrop, SceneGeometry};
+use crate::readback::{Accumulation, read_texture};
+use crate::shading::Shading;
+use crate::splat::{GpuSplat, Splat};
+use crate::textures::Environment;
+
+use blit::Blit;
+use scene::ScenePass;
+use shade::ShadePass;
+use splats::SplatPasses;
+pub use targets::OUTPUT_FORMAT;
+use targets::{Surroundings, Targets, check_size};
+
+const MIN_SPLAT_CAPACITY: usize = 1024;
+
+/// Uniforms of every pass; mirrors `struct Frame` in `shaders/frame.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct FrameUniform {
+    view: [[f32; 4]; 4],
+    proj: [[f32; 4]; 4],
+    inv_view: [[f32; 4]; 4],
+    viewport: [f32; 4],
+    ray: [f32; 4],
+    params: [f32; 4],
+    fluid: [f32; 4],
+    flags: [f32; 4],
+    sun: [f32; 4],
+    absorption: [f32; 4],
+}
+
+/// Draws splats by two-pass splatting and deferred shading (thesis figure 2),
+/// in front of opaque scene geometry.
+///
+/// A frame is five passes: the **scene pass** draws the backdrop and the
+/// [`SceneGeometry`] (none unless [`set_geometry`](Self::set_geometry) gave
+/// some) into an image and the depth buffer; the **back surface pass**
+/// (only with [`Shading::absorption`] non-zero) finds the farthest
+/// back-facing splat, or the geometry where nearer, for the fluid's thickness;
+/// the **visibility** and **attribute passes** splat over the scene's
+/// depth, so geometry hides the fluid behind it; the **shade pass**
+/// normalises, and refracts the scene's image with Beer–Lambert absorption
+/// through the thickness.
+///
+/// Create it once per [`GpuContext`]; each frame [`upload`](Self::upload) the
+/// splats (the storage buffer only grows, so steady frames allocate nothing on
+/// the GPU), then [`render`](Self::render) and either read the result back
+/// ([`read_image`](Self::read_image), [`read_accumulation`](Self::read_accumulation),
+/// [`read_depth`](Self::read_depth)) or copy it onto a window surface with
+/// [`render_to_surface`](Self::render_to_surface).
+pub struct SplatRenderer {
+    accum_format: wgpu::TextureFormat,
+    frame: wgpu::Buffer,
+    splats: wgpu::Buffer,
+    splat_capacity: usize,
+    splat_count: u32,
+    /// The splats produced on the GPU and their indirect draw arguments
+    /// ([`use_gpu_splats`](Self::use_gpu_splats)); `None` draws the uploaded ones.
+    gpu_source: Option<GpuSource>,
+    staging: Vec<GpuSplat>,
+    buffer_allocations: u32,
+    scene: ScenePass,
+    splat_passes: SplatPasses,
+    shade: ShadePass,
+    blit: Blit,
+    around: Surroundings,
+    targets: Targets,
+}
+
+impl SplatRenderer {
+    /// A renderer drawing `width`×`height` images with the given environment.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSize`] for a zero or oversized side,
+    /// [`RenderError::InvalidTexture`] for an empty image or one larger than
+    /// the device's textures can be.
+    pub fn new(ctx: &GpuContext, width: u32, height: u32, env: &Environment) -> Result<Self> {
+        check_size(ctx, width, height)?;
+        env.validate(ctx.device.limits().max_texture_dimension_2d)?;
+        let device = &ctx.device;
+        // Float32 blending where the device has it, else half floats.
+        let accum_format = if device
+            .features()
+            .contains(wgpu::Features::FLOAT32_BLENDABLE)
+        {
+            wgpu::TextureFormat::Rgba32Float
+        } else {
+            wgpu::TextureFormat::Rgba16Float
+        };
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame uniforms"),
+            size: size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let splats = create_splat_buffer(device, MIN_SPLAT_CAPACITY);
+        let targets = Targets::new(device, width, height, accum_format);
+        let around = Surroundings::new(ctx, env);
+        Ok(Self {
+            accum_format,
+            scene: ScenePass::new(device, &frame, &around),
+            splat_passes: SplatPasses::new(device, accum_format, &frame, &splats, &targets),
+            shade: ShadePass::new(device, &frame, &targets, &around),
+            blit: Blit::new(device, &targets),
+            frame,
+            splats,
+            splat_capacity: MIN_SPLAT_CAPACITY,
+            splat_count: 0,
+            gpu_source: None,
+            staging: Vec::new(),
+            buffer_allocations: 1,
+            around,
+            targets,
+        })
+    }
+
+    /// Image size in pixels.
+    pub fn size(&self) -> (u32, u32) {
+        (self.targets.width, self.targets.height)
+    }
+
+    /// Format of the attribute accumulation target: `Rgba32Float` where the
+    /// device can blend it, `Rgba16Float` otherwise.
+    pub fn accumulation_format(&self) -> wgpu::TextureFormat {
+        self.accum_format
+    }
+
+    /// Number of splats last uploaded (0 while drawing GPU-resident splats,
+    /// whose count stays on the GPU).
+    pub fn splat_count(&self) -> usize {
+        self.splat_count as usize
+    }
+
+    /// How many times the splat storage buffer has been (re)allocated, the first
+    /// included. Grows only when an upload exceeds the capacity.
+    pub fn buffer_allocations(&self) -> u32 {
+        self.buffer_allocations
+    }
+
+    /// Changes the image size (recreating the targets when it differs).
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSize`].
+    pub fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
+        check_size(ctx, width, height)?;
+        if (width, height) != self.size() {
+            self.targets = Targets::new(&ctx.device, width, height, self.accum_format);
+            self.rebind(ctx);
+        }
+        Ok(())
+    }
+
+    /// Replaces the environment map and background.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidTexture`] for an empty image or one larger than
+    /// the device's textures can be.
+    pub fn set_environment(&mut self, ctx: &GpuContext, env: &Environment) -> Result<()> {
+        env.validate(ctx.device.limits().max_texture_dimension_2d)?;
+        self.around.set(ctx, env);
+        self.rebind(ctx);
+        Ok(())
+    }
+
+    /// Binds the passes to the current targets and surroundings.
+    fn rebind(&mut self, ctx: &GpuContext) {
+        let device = &ctx.device;
+        self.shade
+            .rebind(device, &self.frame, &self.targets, &self.around);
+        self.scene.rebind(device, &self.frame, &self.around);
+        self.splat_passes.rebind_targets(device, &self.targets);
+        self.blit.rebind(device, &self.targets);
+    }
+
+    /// Replaces the opaque geometry drawn around the splats and what fills
+    /// the pixels it leaves (see [`SceneGeometry`]). The default, no objects
+    /// before the screen-space background, is the thesis's picture.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidGeometry`] naming the object and field that is
+    /// non-finite or negative; nothing changes then.
+    pub fn set_geometry(&mut self, ctx: &GpuContext, geometry: &SceneGeometry) -> Result<()> {
+        self.scene.set_geometry(&ctx.device, geometry)
+    }
+
+    /// Uploads the splats to draw. The GPU buffer is reused while it is large
+    /// enough and otherwise grows to the next power of two.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSplat`] naming the first splat with a non-finite
+    /// field, a zero normal or a non-positive radius (nothing is uploaded then);
+    /// [`RenderError::TooManySplats`] beyond the device's storage binding limit.
+    pub fn upload(&mut self, ctx: &GpuContext, splats: &[Splat]) -> Result<()> {
+        // Converted into a CPU buffer kept between frames (no allocation once it
+        // is large enough); the GPU buffer is untouched if a splat is invalid.
+        self.staging.clear();
+        for (i, s) in splats.iter().enumerate() {
+            self.staging.push(GpuSplat::from_splat(i, s)?);
+        }
+        let gpu = &self.staging;
+        let bytes = std::mem::size_of_val(gpu.as_slice()) as u64;
+        let max = ctx
+            .device
+            .limits()
+            .max_storage_buffer_binding_size
+            .min(ctx.device.limits().max_buffer_size);
+        if bytes > max || u32::try_from(gpu.len()).is_err() {
+            return Err(RenderError::TooManySplats {
+                count: gpu.len(),
+                bytes,
+                max,
+            });
+        }
+        if self.gpu_source.take().is_some() {
+            self.splat_passes
+                .bind(&ctx.device, &self.frame, &self.splats);
+        }
+        if gpu.len() > self.splat_capacity {
+            let per = size_of::<GpuSplat>() as u64;
+            let capacity = gpu.len().next_power_of_two().min((max / per) as usize);
+            self.splats = create_splat_buffer(&ctx.device, capacity);
+            self.splat_capacity = capacity;
+            self.buffer_allocations += 1;
+            self.splat_passes
+                .bind(&ctx.device, &self.frame, &self.splats);
+        }
+        if !gpu.is_empty() {
+            ctx.queue
+                .write_buffer(&self.splats, 0, bytemuck::cast_slice(gpu));
+        }
+        self.splat_count = gpu.len() as u32;
+        Ok(())
+    }
+
+    /// Draws splats that live on the GPU from now on (until the next
+    /// [`upload`](Self::upload)): `splats` holds `vec4(position, radius),
+    /// vec4(normal, 0)` per splat (32 bytes, unit normals, positive radii) and
+    /// `draw_args` a `wgpu::util::DrawIndirectArgs` of 4 vertices and one
+    /// instance per splat — what a GPU surface extractor writes. Nothing goes
+    /// through the CPU; the buffers are only referenced.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSource`] when `splats` is not a storage buffer of
+    /// one or more whole splats within the binding limit or `draw_args` not an indirect
+    /// buffer of at least 16 bytes.
+    pub fn use_gpu_splats(
+        &mut self,
+        ctx: &GpuContext,
+        splats: &wgpu::Buffer,
+        draw_args: &wgpu::Buffer,
+    ) -> Result<()> {
+        use wgpu::BufferUsages as U;
+        let per = size_of::<GpuSplat>() as u64;
+        let max = ctx.device.limits().max_storage_buffer_binding_size;
+        if !splats.usage().contains(U::STORAGE)
+            || !splats.size().is_multiple_of(per)
+            || splats.size() < per
+            || splats.size() > max
+        {
+            return Err(RenderError::InvalidSource(
+                "splats must be a storage buffer of one or more whole 32-byte splats within the binding limit",
+            ));
+        }
+        if !draw_args.usage().contains(U::INDIRECT) || draw_args.size() < 16 {
+            return Err(RenderError::InvalidSource(
+                "draw_args must be an indirect buffer of at least 16 bytes",
+            ));
+        }
+        // Called every frame with the same buffers: bind them only when they change.
+        if self.gpu_source.as_ref().is_none_or(|g| g.splats != *splats) {
+            self.splat_passes.bind(&ctx.device, &self.frame, splats);
+        }
+        self.gpu_source = Some(GpuSource {
+            splats: splats.clone(),
+            draw_args: draw_args.clone(),
+        });
+        self.splat_count = 0;
+        Ok(())
+    }
+
+    /// Records the splat draw of a pass: uploaded or GPU-resident splats.
+    fn draw_splats(&self, pass: &mut wgpu::RenderPass<'_>) {
+        match &self.gpu_source {
+            Some(g) => pass.draw_indirect(&g.draw_args, 0),
+            None => pass.draw(0..4, 0..self.splat_count),
+        }
+    }
+
+    /// Records the passes into `encoder` (scene, back surface when
+    /// absorbing, visibility, attribute, shade).
+    ///
+    /// The camera and shading go into the renderer's one uniform buffer by
+    /// `queue.write_buffer`, which takes effect before the next submit: two
+    /// `encode` calls recorded into encoders submitted together both draw
+    /// with the second call's camera and shading. Submit between calls.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidCamera`], [`RenderError::InvalidShading`].
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        shading: &Shading,
+    ) -> Result<()> {
+        self.encode_timed(ctx, encoder, camera, shading, None)
+    }
+
+    /// [`encode`](Self::encode) with each pass timed by `profiler` ("scene
+    /// pass", "back surface pass" when absorbing, "visibility pass",
+    /// "attribute pass", "normalise and shade"), where the device has
+    /// `wgpu::Features::TIMESTAMP_QUERY`. The caller resolves the profiler's
+    /// queries and ends its frame.
+    ///
+    /// # Errors
+    /// As [`encode`](Self::encode).
+    pub fn encode_profiled(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        shading: &Shading,
+        profiler: &GpuProfiler,
+    ) -> Result<()> {
+        self.encode_timed(ctx, encoder, camera, shading, Some(profiler))
+    }
+
+    fn encode_timed(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        camera: &Camera,
+        shading: &Shading,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<()> {
+        camera.validate()?;
+        shading.validate()?;
+        let (width, height) = self.size();
+        let absorbing = shading.absorption.max_element() > 0.0;
+        let flag = |on: bool| if on { 1.0 } else { 0.0 };
+        let view = camera.view();
+        let proj = camera.projection(width, height);
+        let uniform = FrameUniform {
+            view: view.to_cols_array_2d(),
+            proj: proj.to_cols_array_2d(),
+            inv_view: view.inverse().to_cols_array_2d(),
+            viewport: [
+                width as f32,
+                height as f32,
+                1.0 / width as f32,
+                1.0 / height as f32,
+            ],
+            ray: [
+                1.0 / proj.x_axis.x,
+                1.0 / proj.y_axis.y,
+                camera.near,
+                camera.far,
+            ],
+            params: [
+                shading.depth_epsilon,
+                shading.refraction,
+                shading.weight_scale,
+                shading.view.code(),
+            ],
+            fluid: shading.fluid_colour.extend(shading.reflectivity).to_array(),
+            flags: [
+                flag(shading.cull_back_faces),
+                flag(self.scene.backdrop_kind == Backdrop::Environment),
+                flag(absorbing),
+                0.0,
+            ],
+            sun: self.scene.sun.extend(0.0).to_array(),
+            absorption: shading.absorption.extend(0.0).to_array(),
+        };
+        ctx.queue
+            .write_buffer(&self.frame, 0, bytemuck::bytes_of(&uniform));
+
+        let t = &self.targets;
+        let draw = |pass: &mut wgpu::RenderPass<'_>| self.draw_splats(pass);
+        self.scene.record(encoder, profiler, t);
+        if absorbing {
+            self.splat_passes.record_back(encoder, profiler, t, &draw);
+        }
+        self.splat_passes
+            .record_visibility(encoder, profiler, t, &draw);
+        self.splat_passes
+            .record_attribute(encoder, profiler, t, &draw);
+        self.shade.record(encoder, profiler, t);
+        Ok(())
+    }
+
+    /// Renders the uploaded splats into the internal targets and submits.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidCamera`], [`RenderError::InvalidShading`].
+    pub fn render(&self, ctx: &GpuContext, camera: &Camera, shading: &Shading) -> Result<()> {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.encode(ctx, &mut encoder, camera, shading)?;
+        ctx.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Renders and copies the shaded image onto `target` (a window surface's
+    /// texture view of `format`), all on the GPU. The caller presents.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidCamera`], [`RenderError::InvalidShading`].
+    pub fn render_to_surface(
+        &mut self,
+        ctx: &GpuContext,
+        camera: &Camera,
+        shading: &Shading,
+        target: &wgpu::TextureView,
+        format: wgpu::TextureFormat,
+    ) -> Result<()> {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        self.encode(ctx, &mut encoder, camera, shading)?;
+        self.blit.record(&ctx.device, &mut encoder, target, format);
+        ctx.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Reads the shaded image (or debug view) of the last render back to the CPU.
+    ///
+    /// # Errors
+    /// [`RenderError::Readback`].
+    pub fn read_image(&self, ctx: &GpuContext) -> Result<RgbaImage> {
+        let t = &self.targets;
+        let bytes = read_texture(ctx, &t.output, wgpu::TextureAspect::All, 4)?;
+        RgbaImage::from_raw(t.width, t.height, bytes)
+            .ok_or_else(|| RenderError::Readback("image size mismatch".into()))
+    }
+
+    /// Reads the accumulation target (Σ wᵢ nᵢ, Σ wᵢ) of the last render.
+    ///
+    /// # Errors
+    /// [`RenderError::Readback`].
+    pub fn read_accumulation(&self, ctx: &GpuContext) -> Result<Accumulation> {
+        let t = &self.targets;
+        let texel = self.accum_format.block_copy_size(None).unwrap_or(16);
+        let bytes = read_texture(ctx, &t.accum, wgpu::TextureAspect::All, texel)?;
+        Accumulation::from_bytes(t.width, t.height, self.accum_format, &bytes)
+    }
+
+    /// Reads the visibility pass's depth buffer (0..1, 1 = nothing drawn),
+    /// row-major from the top-left pixel.
+    ///
+    /// # Errors
+    /// [`RenderError::Readback`].
+    pub fn read_depth(&self, ctx: &GpuContext) -> Result<Vec<f32>> {
+        let bytes = read_texture(ctx, &self.targets.depth, wgpu::TextureAspect::DepthOnly, 4)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+}
+
+/// Splats that live on the GPU, drawn without going through the CPU.
+#[derive(Debug)]
+struct GpuSource {
+    splats: wgpu::Buffer,
+    draw_args: wgpu::Buffer,
+}
+
+fn create_splat_buffer(device: &wgpu::Device, capacity: usize) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("splats"),
+        size: (capacity * size_of::<GpuSplat>()) as u64,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::FrameUniform;
+    use crate::splat::GpuSplat;
+
+    /// The Rust uniform and vertex structs match their WGSL declarations.
+    #[test]
+    fn uniforms_match_their_wgsl() {
+        crate::wgsl_layout!(
+            include_str!("../shaders/frame.wgsl"),
+            "Frame",
+            FrameUniform {
+                view,
+                proj,
+                inv_view,
+                viewport,
+                ray,
+                params,
+                fluid,
+                flags,
+                sun,
+                absorption
+            }
+        )
+        .unwrap();
+        let splat = concat!(
+            include_str!("../shaders/frame.wgsl"),
+            include_str!("../shaders/splat.wgsl")
+        );
+        crate::wgsl_layout!(
+            splat,
+            "Splat",
+            GpuSplat {
+                position_radius,
+                normal
+            }
+        )
+        .unwrap();
+    }
+}
