@@ -167,8 +167,7 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             pipeline.stats.render_ms = render_ms;
             let time = pipeline.stats.time;
             if let Some(w) = particles_out.as_mut() {
-                pipeline.sync_world()?;
-                w.write(&PointCloud::from_particles(&pipeline.world.particles), time)?;
+                w.write(&PointCloud::from_particles(pipeline.particles()?), time)?;
             }
             if let Some(w) = surfels_out.as_mut() {
                 write_surfels(w, &pipeline, time)?;

@@ -81,7 +81,7 @@ pub struct Pipeline {
     /// The scene as loaded (used by reset).
     pub scene: Scene,
     /// The simulation. While the SPH step runs on the GPU its particles lag
-    /// behind the GPU's: [`Pipeline::sync_world`] brings them up to date.
+    /// behind the GPU's: [`Pipeline::particles`] reads them.
     pub world: World,
     /// Extraction parameters.
     pub extract: ExtractParams,
@@ -306,12 +306,22 @@ impl Pipeline {
         Ok(())
     }
 
-    /// Reads the GPU solver's particles back into `world` if it has stepped
-    /// past them (a no-op on the CPU path, or when they are up to date).
+    /// The current particles on the CPU: the world's, or, while the GPU
+    /// solver runs (it owns them then), a copy read back from it when it has
+    /// stepped since the last copy. Everything on the CPU that needs the
+    /// particles (the CPU extraction, exports, the particles view, a world
+    /// rebuilt after a parameter change) takes them here.
     ///
     /// # Errors
     /// [`AppError::Gpu`] on a readback failure or a non-finite state.
-    pub fn sync_world(&mut self) -> Result<(), AppError> {
+    pub fn particles(&mut self) -> Result<&sph_core::Particles, AppError> {
+        self.sync_world()?;
+        Ok(&self.world.particles)
+    }
+
+    /// Reads the GPU solver's particles back into `world` if it has stepped
+    /// past them (a no-op on the CPU path, or when they are up to date).
+    fn sync_world(&mut self) -> Result<(), AppError> {
         if let (true, Some(gpu)) = (self.gpu_ahead, &self.gpu) {
             gpu.read_into(&mut self.world)?;
         }
@@ -406,9 +416,7 @@ impl Pipeline {
             self.extractor.clear();
         } else {
             self.sync_world()?;
-            let out = self
-                .extractor
-                .extract(&self.world.particles, &self.extract)?;
+            let out = (self.extractor).extract(&self.world.particles, &self.extract)?;
             self.stats.surfels = out.surfels.len();
             self.stats.evaluations = out.stats.evaluations + out.stats.particle_evaluations;
         }
@@ -458,13 +466,11 @@ impl Pipeline {
     /// read back from the GPU solver first if it runs.
     ///
     /// # Errors
-    /// As [`Pipeline::sync_world`].
+    /// As [`Pipeline::particles`].
     pub fn particle_splats(&mut self, eye: Vec3) -> Result<Vec<Splat>, AppError> {
-        self.sync_world()?;
         let r = 0.5 * self.scene.spacing;
         Ok(self
-            .world
-            .particles
+            .particles()?
             .positions()
             .iter()
             .map(|&x| Splat::new(x, (eye - x).try_normalize().unwrap_or(Vec3::Y), r))

@@ -346,8 +346,7 @@ impl App {
 
     /// Rebuilds the world around the current particles after a parameter change.
     fn apply_fluid_params(&mut self) -> Result<(), AppError> {
-        self.pipeline.sync_world()?;
-        let particles = self.pipeline.world.particles.clone();
+        let particles = self.pipeline.particles()?.clone();
         self.pipeline.world = self.pipeline.scene.world_with(particles)?;
         if let Some(gpu) = &self.pipeline.gpu {
             // The GPU solver holds the old parameters: start it again from here.
