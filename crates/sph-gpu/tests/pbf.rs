@@ -477,3 +477,47 @@ fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
         assert!(total > 0.0, "no GPU time at all");
     }
 }
+
+/// A scene too large for the device's storage bindings is an error naming
+/// the limit, before any work: a device whose bindings hold 1 MiB, where a
+/// particle's neighbour list alone takes 384 bytes.
+#[test]
+fn gpu_pbf_past_the_device_limits_is_an_error_naming_them() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut limits = ctx.adapter.limits();
+    limits.max_storage_buffer_binding_size = 1 << 20;
+    let (device, queue) = pollster::block_on(ctx.adapter.request_device(
+        &splat_render::wgpu::DeviceDescriptor {
+            label: Some("small bindings"),
+            required_limits: limits,
+            ..Default::default()
+        },
+    ))
+    .expect("a device with smaller limits");
+    let scene = Scene::dam_break(0.2, 0.06, 0.01).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    let n = world.particles.len();
+    assert!(
+        n * 4 * MAX_NEIGHBOURS as usize > 1 << 20,
+        "{n} particles fit"
+    );
+    let e = GpuPbf::new(
+        &device,
+        &queue,
+        &world.particles,
+        world.params(),
+        &scene.pbf_params(),
+        &scene.boundary(),
+    )
+    .err()
+    .expect("too many particles for 1 MiB bindings");
+    println!("{e}");
+    assert!(matches!(e, GpuError::DeviceLimit(_)), "{e}");
+    let e = e.to_string();
+    assert!(
+        e.contains("1048576-byte storage bindings") && e.contains(&n.to_string()),
+        "{e}"
+    );
+}
