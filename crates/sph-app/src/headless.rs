@@ -38,6 +38,9 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
             log::info!("rendering on {}", ctx.adapter_summary());
             Some(ctx)
         }
+        // An adapter the user chose (WGPU_BACKEND=gl) that cannot draw the
+        // splats: an error, not a run without the images asked for.
+        Err(err @ splat_render::RenderError::GlBackend { .. }) => return Err(err.into()),
         Err(err) => {
             eprintln!(
                 "{err}\nno images will be written; simulating, extracting and exporting only"
