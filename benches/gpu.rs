@@ -255,7 +255,6 @@ fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
         gpu.encode_frame_profiled(&ctx.device, &ctx.queue, &mut encoder, FRAME, profiler)
             .expect("frame");
         ctx.queue.submit([encoder.finish()]);
-        gpu.submitted();
     });
     let cpu_too = n <= 200_000;
     let mut group = c.benchmark_group("pbf_frame");
@@ -317,7 +316,6 @@ fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
                 .encode(ctx, &mut encoder, &camera, &shading)
                 .expect("render");
             ctx.queue.submit([encoder.finish()]);
-            gpu.submitted();
             wait(ctx);
         })
     });

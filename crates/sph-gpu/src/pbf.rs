@@ -23,7 +23,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use sph_core::solver::pbf::MAX_DENSITY_ERROR;
+use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
 use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
 use wgpu_profiler::GpuProfiler;
 
@@ -143,15 +143,17 @@ const MAPPED: u8 = 1;
 /// A slot's map: failed (a lost device).
 const FAILED: u8 = 2;
 
-/// A mappable copy of one frame's statistics on its way back.
+/// One frame in flight: its uniforms, copied into the passes' uniform
+/// buffer by the frame's own commands (so that frames recorded before one
+/// submission each run with their own substep), and a mappable copy of its
+/// statistics on their way back.
 struct Slot {
+    uniform: wgpu::Buffer,
     buffer: wgpu::Buffer,
     /// The frame whose statistics it holds, while it holds any.
     frame: Option<u64>,
     /// Set by the map callback: [`PENDING`], [`MAPPED`] or [`FAILED`].
     mapped: Arc<AtomicU8>,
-    /// Whether a map was requested and not yet read.
-    mapping: bool,
 }
 
 /// Position-based fluids on the GPU with the same equations, parameters and
@@ -171,9 +173,8 @@ pub struct GpuPbf {
     passes: Passes,
     group: wgpu::BindGroup,
     slots: Vec<Slot>,
-    /// The slot the last encoded frame copied its statistics to, still to
-    /// be mapped once that frame is submitted.
-    to_map: Option<usize>,
+    /// The first failure statistics showed: every later call returns it.
+    failure: Option<String>,
     frames: u64,
     substeps: u64,
 }
@@ -365,6 +366,12 @@ impl GpuPbf {
         };
         let slots = (0..3)
             .map(|_| Slot {
+                uniform: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("pbf frame params"),
+                    size: size_of::<Uniform>() as u64,
+                    usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
                 buffer: device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("pbf stats readback"),
                     size: size_of::<Stats>() as u64,
@@ -373,7 +380,6 @@ impl GpuPbf {
                 }),
                 frame: None,
                 mapped: Arc::new(AtomicU8::new(PENDING)),
-                mapping: false,
             })
             .collect();
         Ok(Self {
@@ -388,7 +394,7 @@ impl GpuPbf {
             passes,
             group,
             slots,
-            to_map: None,
+            failure: None,
             frames: 0,
             substeps: 0,
         })
@@ -409,21 +415,26 @@ impl GpuPbf {
         self.substeps
     }
 
-    /// Records one frame of `frame_dt` seconds into `encoder`: every substep
-    /// and iteration in one compute pass, then a copy of the frame's
-    /// statistics to a mappable buffer. Nothing is submitted or waited for;
-    /// submit `encoder` (with whatever else the frame records: extraction,
-    /// rendering), then call [`submitted`](Self::submitted). Also collects
-    /// the statistics of earlier frames that have come back, waiting only
-    /// when three frames' statistics are still on their way.
+    /// Records one frame of `frame_dt` seconds into `encoder`: the frame's
+    /// uniforms copied in, every substep and iteration in one compute pass,
+    /// then a copy of the frame's statistics to a buffer mapped when the
+    /// encoder is submitted. Nothing is submitted or waited for: submit
+    /// `encoder` with whatever else the frame records (extraction,
+    /// rendering). Frames may be recorded into one encoder or several before
+    /// a submission; each runs with its own substep. Also collects the
+    /// statistics of earlier frames that have come back, waiting only when
+    /// three frames' statistics are still on their way.
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and
-    /// positive; [`GpuError::Unstable`] when statistics that came back show a
-    /// frame whose state became non-finite, whose constraint solve diverged
-    /// (as `SolveDensity` judges it on the CPU), or one of whose particles had
-    /// more neighbours than its list holds ([`MAX_NEIGHBOURS`]);
-    /// [`GpuError::Readback`].
+    /// positive or that would take more than [`MAX_PBF_COUNT`] substeps;
+    /// [`GpuError::Unstable`] when statistics that came back show a frame
+    /// whose state became non-finite, whose constraint solve diverged (as
+    /// `SolveDensity` judges it on the CPU), or one of whose particles had
+    /// more neighbours than its list holds ([`MAX_NEIGHBOURS`]), and from
+    /// then on (the statistics of the frames before it are returned first);
+    /// [`GpuError::Readback`], also for statistics that never come back
+    /// (an encoder recorded and dropped unsubmitted).
     pub fn encode_frame(
         &mut self,
         device: &wgpu::Device,
@@ -466,7 +477,13 @@ impl GpuPbf {
         if !(frame_dt.is_finite() && frame_dt > 0.0) {
             return Err(GpuError::Invalid("frame_dt must be finite and > 0"));
         }
-        self.submitted();
+        let substeps = self.pbf.substeps_for(frame_dt);
+        if substeps > MAX_PBF_COUNT {
+            return Err(GpuError::Invalid(
+                "frame_dt over pbf.max_dt is more than 1000 substeps: shorten the frame",
+            ));
+        }
+        self.failed()?;
         let mut stats = self.collect(device, false)?;
         let slot = match self.slots.iter().position(|s| s.frame.is_none()) {
             Some(free) => free,
@@ -477,11 +494,23 @@ impl GpuPbf {
                     .ok_or_else(|| GpuError::Readback("no statistics came back".into()))?
             }
         };
-        let substeps = self.pbf.substeps_for(frame_dt);
+        if stats.is_empty() {
+            self.failed()?;
+        }
         let dt = frame_dt / substeps as f32;
         self.uniform.dt = dt;
         self.uniform.max_speed = self.pbf.max_displacement * self.uniform.h / dt;
-        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
+        // The frame's own uniforms, copied in by its commands: a later
+        // frame's write cannot overtake them before a shared submission.
+        let uniform = &self.slots[slot].uniform;
+        queue.write_buffer(uniform, 0, bytemuck::bytes_of(&self.uniform));
+        encoder.copy_buffer_to_buffer(
+            uniform,
+            0,
+            &self.uniform_buffer,
+            0,
+            Some(size_of::<Uniform>() as u64),
+        );
         encoder.clear_buffer(&self.stats, 0, None);
         match profiler {
             None => {
@@ -501,15 +530,19 @@ impl GpuPbf {
                 }
             }
         }
+        let slot = &mut self.slots[slot];
         encoder.copy_buffer_to_buffer(
             &self.stats,
             0,
-            &self.slots[slot].buffer,
+            &slot.buffer,
             0,
             Some(size_of::<Stats>() as u64),
         );
-        self.slots[slot].frame = Some(self.frames);
-        self.to_map = Some(slot);
+        let mapped = Arc::clone(&slot.mapped);
+        encoder.map_buffer_on_submit(&slot.buffer, wgpu::MapMode::Read, .., move |r| {
+            mapped.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
+        });
+        slot.frame = Some(self.frames);
         self.frames += 1;
         self.substeps += u64::from(substeps);
         Ok(PbfFrame {
@@ -519,17 +552,11 @@ impl GpuPbf {
         })
     }
 
-    /// Tells the solver that the encoder of the last
-    /// [`encode_frame`](Self::encode_frame) was submitted, so its statistics
-    /// can be mapped. (A later `encode_frame` does it too.)
-    pub fn submitted(&mut self) {
-        if let Some(k) = self.to_map.take() {
-            let slot = &mut self.slots[k];
-            let mapped = slot.mapped.clone();
-            slot.mapping = true;
-            slot.buffer.map_async(wgpu::MapMode::Read, .., move |r| {
-                mapped.store(if r.is_ok() { MAPPED } else { FAILED }, Ordering::Release);
-            });
+    /// The failure statistics showed, if any.
+    fn failed(&self) -> Result<(), GpuError> {
+        match &self.failure {
+            Some(message) => Err(GpuError::Unstable(message.clone())),
+            None => Ok(()),
         }
     }
 
@@ -547,7 +574,6 @@ impl GpuPbf {
         let mut encoder = device.create_command_encoder(&Default::default());
         let frame = self.encode_frame(device, queue, &mut encoder, frame_dt)?;
         queue.submit([encoder.finish()]);
-        self.submitted();
         Ok(frame)
     }
 
@@ -557,16 +583,21 @@ impl GpuPbf {
     /// # Errors
     /// As [`encode_frame`](Self::encode_frame).
     pub fn finish(&mut self, device: &wgpu::Device) -> Result<Vec<PbfFrameStats>, GpuError> {
-        self.submitted();
+        self.failed()?;
         let mut all = Vec::new();
-        while self.slots.iter().any(|s| s.frame.is_some()) {
+        while self.failure.is_none() && self.slots.iter().any(|s| s.frame.is_some()) {
             all.extend(self.collect(device, true)?);
+        }
+        if all.is_empty() {
+            self.failed()?;
         }
         Ok(all)
     }
 
     /// Reads the statistics that have come back, oldest first; with `wait`,
-    /// first waits for the oldest frame still on its way.
+    /// first waits for the oldest frame still on its way. A frame whose
+    /// statistics show a failure is kept in [`Self::failure`] and ends the
+    /// reading: the frames before it are returned.
     fn collect(
         &mut self,
         device: &wgpu::Device,
@@ -578,11 +609,14 @@ impl GpuPbf {
                 .map(|_| ())
                 .map_err(|e| GpuError::Readback(e.to_string()))
         };
-        let oldest = (0..self.slots.len())
-            .filter(|&k| self.slots[k].mapping)
-            .min_by_key(|&k| self.slots[k].frame);
-        match oldest {
-            Some(k) if wait => {
+        // In frame order: a later frame's map can come back before an
+        // earlier one's.
+        let mut waiting: Vec<usize> = (0..self.slots.len())
+            .filter(|&k| self.slots[k].frame.is_some())
+            .collect();
+        waiting.sort_by_key(|&k| self.slots[k].frame);
+        match waiting.first() {
+            Some(&k) if wait => {
                 // The map callback runs in whichever thread's poll finds it
                 // done: on a device shared by threads it may still be on its
                 // way when this thread's wait returns.
@@ -592,9 +626,10 @@ impl GpuPbf {
                     if self.slots[k].mapped.load(Ordering::Acquire) != PENDING {
                         break;
                     }
-                    if start.elapsed() > std::time::Duration::from_secs(30) {
+                    if start.elapsed() > std::time::Duration::from_secs(10) {
                         return Err(GpuError::Readback(
-                            "a frame's statistics did not map within 30 s of the device's idle"
+                            "a frame's statistics did not come back within 10 s of the device's \
+                             idle: was its encoder submitted?"
                                 .into(),
                         ));
                     }
@@ -603,27 +638,17 @@ impl GpuPbf {
             }
             _ => poll(wgpu::PollType::Poll)?,
         }
-        if self
-            .slots
-            .iter()
-            .any(|s| s.mapping && s.mapped.load(Ordering::Acquire) == FAILED)
-        {
+        if (waiting.iter()).any(|&k| self.slots[k].mapped.load(Ordering::Acquire) == FAILED) {
             return Err(GpuError::Readback(
                 "mapping a frame's statistics failed (is the device lost?)".into(),
             ));
         }
-        // In frame order, up to the first still on its way: a later frame's
-        // map can come back before an earlier one's.
-        let mut waiting: Vec<usize> = (0..self.slots.len())
-            .filter(|&k| self.slots[k].mapping)
-            .collect();
-        waiting.sort_by_key(|&k| self.slots[k].frame);
-        let ready: Vec<usize> = (waiting.into_iter())
-            .take_while(|&k| self.slots[k].mapped.load(Ordering::Acquire) == MAPPED)
-            .collect();
-        let mut out = Vec::with_capacity(ready.len());
-        for k in ready {
+        let mut out = Vec::new();
+        for k in waiting {
             let slot = &mut self.slots[k];
+            if slot.mapped.load(Ordering::Acquire) != MAPPED {
+                break;
+            }
             let stats: Stats = {
                 let view = slot
                     .buffer
@@ -632,17 +657,20 @@ impl GpuPbf {
                 bytemuck::pod_read_unaligned(&view[..size_of::<Stats>()])
             };
             slot.buffer.unmap();
-            slot.mapping = false;
             slot.mapped.store(PENDING, Ordering::Release);
             let frame = slot.frame.take().unwrap_or(0);
-            check(&stats, frame, &self.pbf)?;
+            if let Err(e) = check(&stats, frame, &self.pbf) {
+                self.failure = Some(e);
+                break;
+            }
             out.push(PbfFrameStats {
                 frame,
                 substeps: stats.substeps,
                 density_error_avg: stats.error_sum / stats.substeps.max(1) as f32,
                 density_error_max: f32::from_bits(stats.error_max),
                 clamped: u64::from(stats.clamped),
-                most_neighbours: stats.most_neighbours,
+                // The lists count the particle itself.
+                most_neighbours: stats.most_neighbours.saturating_sub(1),
             });
         }
         Ok(out)
@@ -742,8 +770,8 @@ impl GpuParticles for GpuPbf {
     }
 }
 
-/// The error a frame's statistics show, if any.
-fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), GpuError> {
+/// The failure a frame's statistics show, if any.
+fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), String> {
     let hint = || {
         format!(
             "raise solver.pbf.iterations (now {}) or solver.pbf.substeps (now {}), \
@@ -755,13 +783,13 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), GpuError> {
     match stats.unstable {
         0 => {}
         1 => {
-            return Err(GpuError::Unstable(format!(
+            return Err(format!(
                 "a position, velocity or density became non-finite ({at}); {}",
                 hint()
-            )));
+            ));
         }
         _ => {
-            return Err(GpuError::Unstable(format!(
+            return Err(format!(
                 "the density constraint solve diverged ({at}): a density error of {:.0} % \
                  after {} iterations, from {:.0} % at the first (above {:.0} %, no headway); {}",
                 stats.last_error * 100.0,
@@ -769,16 +797,19 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), GpuError> {
                 stats.first_error * 100.0,
                 MAX_DENSITY_ERROR * 100.0,
                 hint()
-            )));
+            ));
         }
     }
+    // The lists count the particle itself.
+    let neighbours = stats.most_neighbours.saturating_sub(1);
     if stats.most_neighbours > MAX_NEIGHBOURS {
-        return Err(GpuError::Unstable(format!(
-            "a particle had {} neighbours within h in frame {frame}, more than the {MAX_NEIGHBOURS} \
-             a GPU neighbour list holds: the fluid is compressed far past rest density; {}",
-            stats.most_neighbours,
+        return Err(format!(
+            "a particle had {neighbours} neighbours within h in frame {frame}, more than the {} \
+             a GPU neighbour list holds besides itself: the fluid is compressed far past rest \
+             density; {}",
+            MAX_NEIGHBOURS - 1,
             hint()
-        )));
+        ));
     }
     Ok(())
 }

@@ -419,7 +419,6 @@ fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
         .unwrap();
     profiler.resolve_queries(&mut encoder);
     queue.submit([encoder.finish()]);
-    timed.submitted();
     profiler.end_frame().unwrap();
     assert_eq!(a, b);
     let (sa, sb) = (
@@ -520,4 +519,54 @@ fn gpu_pbf_past_the_device_limits_is_an_error_naming_them() {
         e.contains("1048576-byte storage bindings") && e.contains(&n.to_string()),
         "{e}"
     );
+}
+
+/// Two frames recorded into one encoder before one submission each run
+/// with their own substep: the state is bitwise that of two frames
+/// submitted one by one, the second frame twice as long as the first.
+#[test]
+fn gpu_pbf_frames_recorded_before_one_submission_keep_their_own_step() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let new = || {
+        GpuPbf::new(
+            device,
+            queue,
+            &world.particles,
+            world.params(),
+            &scene.pbf_params(),
+            &scene.boundary(),
+        )
+        .unwrap()
+    };
+    let (short, long) = (1.0 / 120.0, 1.0 / 60.0);
+    let mut apart = new();
+    apart.advance(device, queue, short).unwrap();
+    apart.advance(device, queue, long).unwrap();
+    let mut together = new();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    let a = together
+        .encode_frame(device, queue, &mut encoder, short)
+        .unwrap();
+    let b = together
+        .encode_frame(device, queue, &mut encoder, long)
+        .unwrap();
+    queue.submit([encoder.finish()]);
+    assert!(a.substeps != b.substeps || short != long);
+    let (x, y) = (
+        apart.read_state(device, queue).unwrap(),
+        together.read_state(device, queue).unwrap(),
+    );
+    assert_eq!(x.positions, y.positions);
+    assert_eq!(x.velocities, y.velocities);
+    let (s, t) = (
+        apart.finish(device).unwrap(),
+        together.finish(device).unwrap(),
+    );
+    assert_eq!(t.len(), 2, "both frames' statistics");
+    assert_eq!(s.last(), t.last());
 }

@@ -54,8 +54,12 @@ fn resolve(x_in: vec3<f32>, v_in: vec3<f32>, restitution: f32) -> array<vec3<f32
                     n = d / len;
                 }
                 x = o.a.xyz + n * o.b.x;
-                for (var nudge = 0; nudge < 16 && inside(o, x); nudge++) {
-                    x += n * (o.b.x * 4.0 * 1.1920929e-7);
+                // Growing steps, as on the CPU: out even where a few ulps
+                // of the radius are below an ulp of the position.
+                var step = o.b.x * 4.0 * 1.1920929e-7;
+                for (var nudge = 0; nudge < 32 && inside(o, x); nudge++) {
+                    x += n * step;
+                    step *= 2.0;
                 }
             } else {
                 // The nearest face, ties to the lower axis and the min face.
