@@ -349,12 +349,23 @@ impl GpuGrid {
     /// Records the build's passes into an open compute pass (each dispatch
     /// sees the one before: wgpu orders a pass's dispatches over the buffers
     /// they share).
-    pub(crate) fn record_build(&self, pass: &mut wgpu::ComputePass<'_>) {
+    /// With `gate`, the workgroup counts are read from its first three
+    /// `[x, y, z]` triples, as [`encode_build_gated`](Self::encode_build_gated)
+    /// reads them.
+    pub(crate) fn record_build(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        gate: Option<&wgpu::Buffer>,
+    ) {
         let counts = self.build_groups();
         pass.set_bind_group(0, &self.bind_group, &[]);
         for (pipeline, kind) in self.pipelines.iter().zip(KINDS) {
             pass.set_pipeline(pipeline);
-            pass.dispatch_workgroups(counts[kind], 1, 1);
+            match gate {
+                None => Groups::Direct(counts[kind]),
+                Some(buffer) => Groups::Indirect(buffer, 12 * kind as u64),
+            }
+            .dispatch(pass);
         }
     }
 
@@ -363,10 +374,18 @@ impl GpuGrid {
     /// |x_i − x_j| ≤ h (i included) in the grid's deterministic order in
     /// [`lists_buffer`](Self::lists_buffer), and how many there were in all
     /// in [`list_len_buffer`](Self::list_len_buffer).
-    pub(crate) fn record_lists(&self, pass: &mut wgpu::ComputePass<'_>) {
+    /// With `groups` given, its workgroup count (one thread per particle,
+    /// 64 to a workgroup).
+    pub(crate) fn record_lists(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        groups: Option<Groups<'_>>,
+    ) {
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&self.query);
-        pass.dispatch_workgroups(self.n.div_ceil(64).max(1), 1, 1);
+        groups
+            .unwrap_or(Groups::Direct(self.n.div_ceil(64).max(1)))
+            .dispatch(pass);
     }
 
     /// The neighbour lists, `max_neighbours` slots of `u32` per particle.

@@ -25,12 +25,13 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
 use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
+use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
 use crate::GpuParticles;
 use crate::density::obstacles_buffer;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{bind_buffers, check_fits, read, shader, timed_pass};
+use crate::passes::{Groups, bind_buffers, check_fits, read, shader, timed_pass};
 use crate::solver::{GpuState, RESOLVE, WALLS};
 
 /// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32
@@ -129,6 +130,7 @@ struct Passes {
     confine: Pass,
     boundaries: Pass,
     reduce: Pass,
+    open_gate: Pass,
 }
 
 type Pass = wgpu::ComputePipeline;
@@ -172,6 +174,10 @@ pub struct GpuPbf {
     stats: wgpu::Buffer,
     passes: Passes,
     group: wgpu::BindGroup,
+    /// Workgroup counts the dispatches read (see `pbf.wgsl`'s gate).
+    gate: wgpu::Buffer,
+    /// The gate and the halted flag, for `open_gate` and `reduce`.
+    gate_group: wgpu::BindGroup,
     slots: Vec<Slot>,
     /// The first failure statistics showed: every later call returns it.
     failure: Option<String>,
@@ -336,15 +342,60 @@ impl GpuPbf {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
+        // The gate (see pbf.wgsl): the live triples, then the full ones,
+        // read by the gated dispatches and written only by `open_gate` and
+        // `reduce`, which bind it as group 1 and are dispatched directly.
+        let full: Vec<u32> = {
+            let [buckets, particles, one] = grid.build_groups();
+            let per_particle = capacity.div_ceil(64) as u32;
+            [buckets, particles, one, per_particle]
+                .iter()
+                .flat_map(|&x| [x, 1, 1])
+                .collect()
+        };
+        let gate = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("pbf gate"),
+            contents: bytemuck::cast_slice(&[&full[..], &full[..]].concat()),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+        });
+        let halted = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("pbf halted"),
+            contents: bytemuck::bytes_of(&0u32),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let gate_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pbf gate layout"),
+            entries: &[0, 1].map(|binding| wgpu::BindGroupLayoutEntry {
+                binding,
+                visibility: wgpu::ShaderStages::COMPUTE,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Storage { read_only: false },
+                    has_dynamic_offset: false,
+                    min_binding_size: None,
+                },
+                count: None,
+            }),
+        });
+        let gate_group = bind_buffers(device, "pbf gate", &gate_layout, &[&gate, &halted]);
+        let gated_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pbf gate pipeline layout"),
+            bind_group_layouts: &[Some(&layout), Some(&gate_layout)],
+            immediate_size: 0,
+        });
         let module = shader(
             device,
             "pbf.wgsl",
             format!("{}{WALLS}{RESOLVE}", include_str!("shaders/pbf.wgsl")),
         );
         let pass = |entry: &str, headway: u32| {
+            let writes_gate = matches!(entry, "open_gate" | "reduce");
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
-                layout: Some(&pipeline_layout),
+                layout: Some(if writes_gate {
+                    &gated_layout
+                } else {
+                    &pipeline_layout
+                }),
                 module: &module,
                 entry_point: Some(entry),
                 compilation_options: wgpu::PipelineCompilationOptions {
@@ -363,6 +414,7 @@ impl GpuPbf {
             confine: pass("confine", 0),
             boundaries: pass("boundaries", 0),
             reduce: pass("reduce", 0),
+            open_gate: pass("open_gate", 0),
         };
         let slots = (0..3)
             .map(|_| Slot {
@@ -393,6 +445,8 @@ impl GpuPbf {
             stats,
             passes,
             group,
+            gate,
+            gate_group,
             slots,
             failure: None,
             frames: 0,
@@ -512,17 +566,25 @@ impl GpuPbf {
             Some(size_of::<Uniform>() as u64),
         );
         encoder.clear_buffer(&self.stats, 0, None);
+        let open = |pass: &mut wgpu::ComputePass<'_>| {
+            pass.set_pipeline(&self.passes.open_gate);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.set_bind_group(1, &self.gate_group, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        };
         match profiler {
             None => {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("pbf frame"),
                     timestamp_writes: None,
                 });
+                open(&mut pass);
                 for _ in 0..substeps {
                     self.record_substep(&mut |_, record| record(&mut pass));
                 }
             }
             Some(profiler) => {
+                timed_pass(encoder, Some(profiler), "pbf: open gate", open);
                 for _ in 0..substeps {
                     self.record_substep(&mut |label, record| {
                         timed_pass(encoder, Some(profiler), label, record);
@@ -676,38 +738,51 @@ impl GpuPbf {
         Ok(out)
     }
 
-    /// A dispatch of `groups` workgroups of `pipeline` over the passes' group.
+    /// A dispatch of `pipeline` over the passes' group, its workgroups read
+    /// from the gate's `kind`th triple (one thread per particle: 3).
     fn dispatch<'a>(
         &'a self,
         pipeline: &'a Pass,
-        groups: u32,
+        kind: u64,
     ) -> impl Fn(&mut wgpu::ComputePass<'_>) + 'a {
         move |pass| {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.group, &[]);
-            pass.dispatch_workgroups(groups, 1, 1);
+            pass.dispatch_workgroups_indirect(&self.gate, 12 * kind);
         }
     }
 
     /// Records one substep, each stage handed to `stage` with its label.
+    /// Every dispatch but `reduce` (one workgroup, which writes the gate)
+    /// reads its workgroups from the gate.
     fn record_substep(&self, stage: &mut dyn FnMut(&str, Record<'_>)) {
-        let groups = self.uniform.n.div_ceil(64).max(1);
-        let run = |pipeline, groups| self.dispatch(pipeline, groups);
+        const PER_PARTICLE: u64 = 3;
+        let run = |pipeline| self.dispatch(pipeline, PER_PARTICLE);
         let p = &self.passes;
-        stage("pbf: predict", &run(&p.predict, groups));
-        stage("pbf: grid", &|pass| self.grid.record_build(pass));
-        stage("pbf: lists", &|pass| self.grid.record_lists(pass));
+        stage("pbf: predict", &run(&p.predict));
+        stage("pbf: grid", &|pass| {
+            self.grid.record_build(pass, Some(&self.gate))
+        });
+        stage("pbf: lists", &|pass| {
+            let groups = Groups::Indirect(&self.gate, 12 * PER_PARTICLE);
+            self.grid.record_lists(pass, Some(groups));
+        });
         let iterations = self.pbf.iterations;
         for k in 0..iterations {
             let headway = usize::from(k == 0) | (usize::from(k + 1 == iterations) << 1);
-            stage("pbf: lambda", &run(&p.lambda[headway], groups));
-            stage("pbf: correct", &run(&p.correct, groups));
-            stage("pbf: apply", &run(&p.apply, groups));
+            stage("pbf: lambda", &run(&p.lambda[headway]));
+            stage("pbf: correct", &run(&p.correct));
+            stage("pbf: apply", &run(&p.apply));
         }
-        stage("pbf: curl", &run(&p.curl, groups));
-        stage("pbf: confine", &run(&p.confine, groups));
-        stage("pbf: boundaries", &run(&p.boundaries, groups));
-        stage("pbf: reduce", &run(&p.reduce, 1));
+        stage("pbf: curl", &run(&p.curl));
+        stage("pbf: confine", &run(&p.confine));
+        stage("pbf: boundaries", &run(&p.boundaries));
+        stage("pbf: reduce", &|pass| {
+            pass.set_pipeline(&p.reduce);
+            pass.set_bind_group(0, &self.group, &[]);
+            pass.set_bind_group(1, &self.gate_group, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        });
     }
 
     /// Reads positions, velocities, densities and pressures back (waits for
@@ -780,8 +855,19 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), String> {
         )
     };
     let at = format!("frame {frame}, substep {}", stats.unstable_substep);
+    // The lists count the particle itself.
+    let neighbours = stats.most_neighbours.saturating_sub(1);
     match stats.unstable {
         0 => {}
+        3 => {
+            return Err(format!(
+                "a particle had {neighbours} neighbours within h ({at}), more than the {} a GPU \
+                 neighbour list holds besides itself: the fluid is compressed far past rest \
+                 density; {}",
+                MAX_NEIGHBOURS - 1,
+                hint()
+            ));
+        }
         1 => {
             return Err(format!(
                 "a position, velocity or density became non-finite ({at}); {}",
@@ -799,17 +885,6 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), String> {
                 hint()
             ));
         }
-    }
-    // The lists count the particle itself.
-    let neighbours = stats.most_neighbours.saturating_sub(1);
-    if stats.most_neighbours > MAX_NEIGHBOURS {
-        return Err(format!(
-            "a particle had {neighbours} neighbours within h in frame {frame}, more than the {} \
-             a GPU neighbour list holds besides itself: the fluid is compressed far past rest \
-             density; {}",
-            MAX_NEIGHBOURS - 1,
-            hint()
-        ));
     }
     Ok(())
 }

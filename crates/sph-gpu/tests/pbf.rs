@@ -444,6 +444,8 @@ fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
         "pbf: reduce",
     ]);
     let labels: Vec<&str> = results.iter().map(|r| r.label.as_str()).collect();
+    assert_eq!(labels[0], "pbf: open gate");
+    let labels = &labels[1..];
     assert_eq!(
         labels.len(),
         b.substeps as usize * substep.len(),
@@ -569,4 +571,54 @@ fn gpu_pbf_frames_recorded_before_one_submission_keep_their_own_step() {
     );
     assert_eq!(t.len(), 2, "both frames' statistics");
     assert_eq!(s.last(), t.last());
+}
+
+/// A substep whose solve fails closes the gate: the rest of the frame
+/// dispatches nothing, so the state is the failed substep's, bitwise that
+/// of a solver that took only that substep.
+#[test]
+fn gpu_pbf_stops_at_the_substep_that_failed() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    // A heap on one point: the first substep's solve makes no headway.
+    let mut heap = Particles::new();
+    for _ in 0..200 {
+        heap.push(Vec3::splat(0.1), Vec3::ZERO, world.particles.masses()[0]);
+    }
+    let dt = 1.0 / 180.0;
+    let run = |substeps: u32| {
+        let pbf = PbfParams {
+            substeps,
+            max_dt: dt,
+            ..scene.pbf_params()
+        };
+        let mut gpu = GpuPbf::new(
+            &ctx.device,
+            &ctx.queue,
+            &heap,
+            world.params(),
+            &pbf,
+            &scene.boundary(),
+        )
+        .unwrap();
+        gpu.advance(&ctx.device, &ctx.queue, substeps as f32 * dt)
+            .unwrap();
+        let failure = gpu.finish(&ctx.device).expect_err("the heap's solve fails");
+        let state = gpu.read_state(&ctx.device, &ctx.queue).unwrap();
+        (failure.to_string(), state.positions)
+    };
+    let (one, after_one) = run(1);
+    let (three, after_three) = run(3);
+    println!("{three}");
+    assert!(
+        one.contains("substep 0") && three.contains("substep 0"),
+        "{three}"
+    );
+    assert!(
+        after_one == after_three,
+        "the two substeps after the failed one moved the particles"
+    );
 }

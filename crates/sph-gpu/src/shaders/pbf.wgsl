@@ -48,7 +48,7 @@ struct Constraint {
 struct Stats {
     error_sum: f32,             // Σ over substeps of the average max(ρ/ρ0 − 1, 0)
     substeps: u32,
-    unstable: u32,              // 0; 1: a non-finite state; 2: a solve without headway
+    unstable: u32,              // 0; 1: a non-finite state; 2: a solve without headway; 3: a cut list
     unstable_substep: u32,      // the substep (of the frame) it happened in
     first_error: f32,           // the failed solve's largest error, first iteration
     last_error: f32,            // and last
@@ -74,6 +74,25 @@ struct Stats {
 @group(0) @binding(11) var<storage, read_write> stats: Stats;
 @group(0) @binding(12) var<storage, read> obstacles: array<Obstacle>;
 @group(0) @binding(13) var<storage, read_write> partials: array<f32>;
+
+// The gate: the workgroup counts of the frame's dispatches, as [x, y, z]
+// triples of four kinds (the grid's hash buckets, particles in 256s, one
+// workgroup, particles in 64s): the live ones, which every dispatch but
+// `open_gate` and `reduce` reads indirectly, then the full ones. A failed
+// substep zeroes the live ones, so the rest of the frame dispatches nothing
+// (a blown-up state is not carried through more grid builds); `halted`
+// keeps them zero for the solver's life.
+@group(1) @binding(0) var<storage, read_write> gate: array<u32, 24>;
+@group(1) @binding(1) var<storage, read_write> halted: u32;
+
+// One thread, at a frame's start: the live counts from the full ones, or
+// zeros once halted.
+@compute @workgroup_size(1)
+fn open_gate() {
+    for (var k = 0u; k < 12u; k++) {
+        gate[k] = select(gate[12u + k], 0u, halted != 0u);
+    }
+}
 
 // Which iteration a `lambda` pipeline is: bit 0 the first, bit 1 the last
 // (the solve's headway is their largest densities).
@@ -388,7 +407,8 @@ var<workgroup> reduce_sums: array<f32, 256>;
 // The substep's end, one workgroup: its average error (the partials summed in
 // a fixed order) added to the frame's, the solve's headway checked as
 // `SolveDensity` does (a largest error above max_error at the last iteration
-// and no smaller than at the first is a failed solve), its maxima reset.
+// and no smaller than at the first is a failed solve), its maxima reset; a
+// failed substep closes the gate.
 @compute @workgroup_size(256)
 fn reduce(@builtin(local_invocation_index) t: u32) {
     let groups = (f.n + GROUP - 1u) / GROUP;
@@ -404,7 +424,7 @@ fn reduce(@builtin(local_invocation_index) t: u32) {
         }
     }
     workgroupBarrier();
-    if t != 0u {
+    if t != 0u || halted != 0u {
         return;
     }
     stats.error_sum += reduce_sums[0] / f32(max(f.n, 1u));
@@ -419,7 +439,18 @@ fn reduce(@builtin(local_invocation_index) t: u32) {
             stats.unstable_substep = stats.substeps;
             stats.first_error = first;
             stats.last_error = last;
+        } else if atomicLoad(&stats.most_neighbours) > f.max_neighbours {
+            // A list was cut: the sums missed neighbours.
+            stats.unstable = 3u;
+            stats.unstable_substep = stats.substeps;
         }
     }
     stats.substeps += 1u;
+    if stats.unstable != 0u {
+        // The rest of the frame, and every later one, dispatches nothing.
+        halted = 1u;
+        for (var k = 0u; k < 12u; k++) {
+            gate[k] = 0u;
+        }
+    }
 }
