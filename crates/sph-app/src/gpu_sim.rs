@@ -164,6 +164,18 @@ impl GpuSim {
         Ok(step)
     }
 
+    /// The push PBF applies from its next frame (the demo's Ctrl+drag);
+    /// WCSPH on the GPU takes none.
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] for a push that is not finite.
+    pub fn set_push(&mut self, push: Option<sph_gpu::RayPush>) -> Result<(), AppError> {
+        match &mut self.stepper {
+            Stepper::Pbf(pbf) => Ok(pbf.set_push(push)?),
+            Stepper::Wcsph { .. } => Ok(()),
+        }
+    }
+
     /// Waits for the GPU and returns the PBF statistics still on their way,
     /// oldest first (none for WCSPH).
     ///

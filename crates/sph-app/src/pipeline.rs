@@ -229,6 +229,18 @@ impl Pipeline {
         Ok(())
     }
 
+    /// The push a GPU solver applies from its next frame (`None`: none);
+    /// a no-op on the CPU path, whose push is a processor of the world.
+    ///
+    /// # Errors
+    /// [`AppError::Gpu`] for a push that is not finite.
+    pub fn set_gpu_push(&mut self, push: Option<sph_gpu::RayPush>) -> Result<(), AppError> {
+        match self.gpu.as_mut() {
+            Some(gpu) => gpu.set_push(push),
+            None => Ok(()),
+        }
+    }
+
     /// Waits for the GPU solver and collects the statistics still on their
     /// way ([`take_late`](Self::take_late) returns them).
     ///

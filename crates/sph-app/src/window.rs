@@ -45,29 +45,17 @@ pub fn run(args: &Args, pipeline: Pipeline) -> Result<(), AppError> {
     app.error.map_or(Ok(()), Err)
 }
 
-/// A push of the fluid near the cursor ray (Ctrl+drag).
-#[derive(Clone, Copy, Debug)]
-struct Push {
-    origin: Vec3,
-    dir: Vec3,
-    acceleration: Vec3,
-    radius: f32,
-}
+/// A push of the fluid near the cursor ray (Ctrl+drag): the same field on
+/// the CPU (the processor below) and on the GPU's PBF (`GpuPbf::set_push`).
+type Push = sph_gpu::RayPush;
 
 /// The processor applying [`Push`]: acceleration falling off smoothly with the
 /// distance from the cursor ray.
 fn push_processor(push: Arc<RwLock<Option<Push>>>) -> impl sph_core::processor::Processor {
     ExternalAcceleration::new("push", move |x: Vec3, _t: f64| {
-        let Some(p) = *push.read().unwrap_or_else(|e| e.into_inner()) else {
-            return Vec3::ZERO;
-        };
-        let d = x - p.origin;
-        let off = d - d.dot(p.dir) * p.dir;
-        let q = off.length_squared() / (p.radius * p.radius);
-        if q >= 1.0 {
-            Vec3::ZERO
-        } else {
-            p.acceleration * (1.0 - q).powi(2)
+        match *push.read().unwrap_or_else(|e| e.into_inner()) {
+            Some(p) => p.acceleration_at(x),
+            None => Vec3::ZERO,
         }
     })
 }
@@ -394,6 +382,10 @@ impl App {
         self.last = now;
         self.fps = 0.9 * self.fps + 0.1 / real.max(1e-6);
         let frame_dt = f64::from(self.pipeline.scene.time_step.frame_dt);
+        // The push reaches a GPU solver through its uniforms (the CPU
+        // world's through its processor).
+        let push = *self.push.read().unwrap_or_else(|e| e.into_inner());
+        self.pipeline.set_gpu_push(push)?;
         let mut advanced = false;
         if self.settings.paused {
             self.sim_debt = 0.0;
@@ -577,7 +569,7 @@ impl App {
                 ));
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
-                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag push acts on the CPU path only");
+                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag push acts on the CPU path and on PBF on the GPU");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");

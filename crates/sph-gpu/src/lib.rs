@@ -36,7 +36,7 @@ mod solver;
 pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
-pub use pbf::{GpuPbf, MAX_NEIGHBOURS, PbfFrame, PbfFrameStats};
+pub use pbf::{GpuPbf, MAX_NEIGHBOURS, PbfFrame, PbfFrameStats, RayPush};
 pub use solver::{GpuFrame, GpuSolver, GpuState};
 
 /// A GPU solver's particle buffers, which an extractor or renderer reads in

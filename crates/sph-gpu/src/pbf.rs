@@ -67,6 +67,43 @@ struct Uniform {
     spiky: f32,
     w0: f32,
     max_error: f32,
+    /// The push's ray origin (xyz) and radius (w; 0: no push).
+    push_origin: [f32; 4],
+    /// The push's ray direction (unit).
+    push_dir: [f32; 4],
+    /// The push's acceleration on the ray (m/s²).
+    push_accel: [f32; 4],
+}
+
+/// A push of the fluid near a ray (the demo's Ctrl+drag): each particle
+/// within `radius` of the ray through `origin` along the unit `dir` is
+/// accelerated by `acceleration` × (1 − q)², q = (its distance from the ray
+/// / `radius`)²; the same field on the CPU
+/// ([`RayPush::acceleration_at`]) and on the GPU.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RayPush {
+    /// A point on the ray (m).
+    pub origin: Vec3,
+    /// The ray's direction (unit).
+    pub dir: Vec3,
+    /// The acceleration on the ray (m/s²).
+    pub acceleration: Vec3,
+    /// How far from the ray it reaches (m).
+    pub radius: f32,
+}
+
+impl RayPush {
+    /// The push's acceleration at `x`.
+    pub fn acceleration_at(&self, x: Vec3) -> Vec3 {
+        let d = x - self.origin;
+        let off = d - d.dot(self.dir) * self.dir;
+        let q = off.length_squared() / (self.radius * self.radius);
+        if q >= 1.0 {
+            Vec3::ZERO
+        } else {
+            self.acceleration * ((1.0 - q) * (1.0 - q))
+        }
+    }
 }
 
 /// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
@@ -249,6 +286,9 @@ impl GpuPbf {
                 .coefficient(),
             w0: poly6.value_r2(0.0),
             max_error: MAX_DENSITY_ERROR,
+            push_origin: [0.0; 4],
+            push_dir: [0.0; 4],
+            push_accel: [0.0; 4],
         };
         let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pbf params"),
@@ -452,6 +492,34 @@ impl GpuPbf {
             frames: 0,
             substeps: 0,
         })
+    }
+
+    /// Pushes the fluid from the next frame recorded on (`None` stops).
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a push that is not finite, a direction
+    /// that is not unit length or a radius that is not positive.
+    pub fn set_push(&mut self, push: Option<RayPush>) -> Result<(), GpuError> {
+        let u = &mut self.uniform;
+        match push {
+            None => u.push_origin = [0.0; 4],
+            Some(p) => {
+                let finite =
+                    p.origin.is_finite() && p.dir.is_finite() && p.acceleration.is_finite();
+                if !finite || (p.dir.length() - 1.0).abs() > 1e-3 {
+                    return Err(GpuError::Invalid(
+                        "a push needs a finite origin and acceleration and a unit direction",
+                    ));
+                }
+                if !(p.radius.is_finite() && p.radius > 0.0) {
+                    return Err(GpuError::Invalid("a push's radius must be finite and > 0"));
+                }
+                u.push_origin = p.origin.extend(p.radius).to_array();
+                u.push_dir = p.dir.extend(0.0).to_array();
+                u.push_accel = p.acceleration.extend(0.0).to_array();
+            }
+        }
+        Ok(())
     }
 
     /// The parameters it runs.
@@ -922,7 +990,10 @@ mod tests {
                 poly6,
                 spiky,
                 w0,
-                max_error
+                max_error,
+                push_origin,
+                push_dir,
+                push_accel
             }
         )
         .unwrap();

@@ -622,3 +622,81 @@ fn gpu_pbf_stops_at_the_substep_that_failed() {
         "the two substeps after the failed one moved the particles"
     );
 }
+
+/// A push (the demo's Ctrl+drag) acts on the GPU as on the CPU: a frame of
+/// the dam break pushed sideways through its column matches the CPU
+/// stations with the same `RayPush` field after the body forces, and moves
+/// the fluid away from where it goes unpushed.
+#[test]
+fn gpu_pbf_push_matches_the_cpu_push() {
+    use sph_core::solver::ExternalAcceleration;
+    use sph_gpu::RayPush;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    let h = world.params().h;
+    let pbf = scene.pbf_params();
+    let push = RayPush {
+        origin: Vec3::new(0.1, 0.2, 0.0),
+        dir: Vec3::Z,
+        acceleration: Vec3::new(30.0, 5.0, 0.0),
+        radius: 4.0 * h,
+    };
+    let gpu_frame = |push: Option<RayPush>| {
+        let mut gpu = GpuPbf::new(
+            &ctx.device,
+            &ctx.queue,
+            &world.particles,
+            world.params(),
+            &pbf,
+            &scene.boundary(),
+        )
+        .unwrap();
+        gpu.set_push(push).unwrap();
+        gpu.advance(&ctx.device, &ctx.queue, 1.0 / 60.0).unwrap();
+        gpu.read_state(&ctx.device, &ctx.queue).unwrap().positions
+    };
+    let (pushed, unpushed) = (gpu_frame(Some(push)), gpu_frame(None));
+    let mut cpu = world.particles.clone();
+    let mut program = cpu_program(&scene, pbf);
+    program.insert(
+        1,
+        Box::new(ExternalAcceleration::new("push", move |x, _| {
+            push.acceleration_at(x)
+        })),
+    );
+    cpu_frames(&mut program, &mut cpu, &pbf, 1, 1.0 / 60.0);
+    let dx = max_offset(&pushed, &cpu, h);
+    let moved = max_offset(&unpushed, &cpu, h);
+    println!("pushed frame: GPU vs CPU {dx:.2e} h; against the unpushed frame {moved:.3} h");
+    assert!(dx < 1e-3, "positions differ by {dx} h");
+    assert!(moved > 0.05, "the push hardly moved the fluid: {moved} h");
+    // Bad pushes are errors.
+    let mut gpu = GpuPbf::new(
+        &ctx.device,
+        &ctx.queue,
+        &world.particles,
+        world.params(),
+        &pbf,
+        &scene.boundary(),
+    )
+    .unwrap();
+    for bad in [
+        RayPush {
+            radius: 0.0,
+            ..push
+        },
+        RayPush {
+            dir: Vec3::new(1.0, 1.0, 0.0),
+            ..push
+        },
+        RayPush {
+            origin: Vec3::NAN,
+            ..push
+        },
+    ] {
+        assert!(matches!(gpu.set_push(Some(bad)), Err(GpuError::Invalid(_))));
+    }
+}

@@ -31,6 +31,9 @@ struct Pbf {
     spiky: f32,             // 45 / (π h⁶)
     w0: f32,                // W_poly6(0)
     max_error: f32,         // pbf::MAX_DENSITY_ERROR
+    push_origin: vec4<f32>, // RayPush: a point on the ray, radius in w (0: none)
+    push_dir: vec4<f32>,    // its unit direction
+    push_accel: vec4<f32>,  // the acceleration on the ray (m/s²)
 };
 
 // One particle's density constraint (pbf.rs `Constraint`): λ, D = 1/(Σ|∇C|² + ε),
@@ -174,7 +177,7 @@ fn walls_at(x: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(grad, 1.0 - outside + extra.w);
 }
 
-// Lines 1–4: v ← v + Δt g, limited to the guard's speed, x* ← x + Δt v,
+// Lines 1–4: v ← v + Δt (g + a push), limited to the guard's speed, x* ← x + Δt v,
 // projected out of walls with v following the push (pbf.rs `Predict`). The
 // pressure the solve will sum starts at 0.
 @compute @workgroup_size(64)
@@ -185,7 +188,18 @@ fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let dt = f.dt;
     let p = positions[i];
-    var v = velocities[i].xyz + f.gravity.xyz * dt;
+    var a = f.gravity.xyz;
+    let reach = f.push_origin.w;
+    if reach > 0.0 {
+        // RayPush::acceleration_at.
+        let d = p.xyz - f.push_origin.xyz;
+        let off = d - dot(d, f.push_dir.xyz) * f.push_dir.xyz;
+        let q = dot(off, off) / (reach * reach);
+        if q < 1.0 {
+            a += f.push_accel.xyz * ((1.0 - q) * (1.0 - q));
+        }
+    }
+    var v = velocities[i].xyz + a * dt;
     let speed = length(v);
     if speed > f.max_speed {
         v *= f.max_speed / speed;
