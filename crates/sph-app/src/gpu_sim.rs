@@ -164,15 +164,15 @@ impl GpuSim {
         Ok(step)
     }
 
-    /// The push PBF applies from its next frame (the demo's Ctrl+drag);
-    /// WCSPH on the GPU takes none.
+    /// The push the solver applies from its next frame (the demo's
+    /// Ctrl+drag).
     ///
     /// # Errors
     /// [`AppError::Gpu`] for a push that is not finite.
     pub fn set_push(&mut self, push: Option<sph_gpu::RayPush>) -> Result<(), AppError> {
         match &mut self.stepper {
             Stepper::Pbf(pbf) => Ok(pbf.set_push(push)?),
-            Stepper::Wcsph { .. } => Ok(()),
+            Stepper::Wcsph { solver, .. } => Ok(solver.set_push(push)?),
         }
     }
 

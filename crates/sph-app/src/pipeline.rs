@@ -229,7 +229,7 @@ impl Pipeline {
         Ok(())
     }
 
-    /// The push a GPU solver applies from its next frame (`None`: none);
+    /// The push the GPU solver applies from its next frame (`None`: none);
     /// a no-op on the CPU path, whose push is a processor of the world.
     ///
     /// # Errors

@@ -46,7 +46,8 @@ pub fn run(args: &Args, pipeline: Pipeline) -> Result<(), AppError> {
 }
 
 /// A push of the fluid near the cursor ray (Ctrl+drag): the same field on
-/// the CPU (the processor below) and on the GPU's PBF (`GpuPbf::set_push`).
+/// the CPU (the processor below) and on the GPU (`set_push` of either GPU
+/// solver).
 type Push = sph_gpu::RayPush;
 
 /// The processor applying [`Push`]: acceleration falling off smoothly with the
@@ -569,7 +570,7 @@ impl App {
                 ));
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
-                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag push acts on the CPU path and on PBF on the GPU");
+                settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag pushes on either path");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");

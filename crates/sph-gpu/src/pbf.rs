@@ -106,6 +106,32 @@ impl RayPush {
     }
 }
 
+/// A push as the shaders take it: (origin, radius), (direction, 0),
+/// (acceleration, 0); zeros without one.
+///
+/// # Errors
+/// [`GpuError::Invalid`] for a push that is not finite, a direction that is
+/// not unit length or a radius that is not positive.
+pub(crate) fn push_uniforms(push: Option<RayPush>) -> Result<[[f32; 4]; 3], GpuError> {
+    let Some(p) = push else {
+        return Ok([[0.0; 4]; 3]);
+    };
+    let finite = p.origin.is_finite() && p.dir.is_finite() && p.acceleration.is_finite();
+    if !finite || (p.dir.length() - 1.0).abs() > 1e-3 {
+        return Err(GpuError::Invalid(
+            "a push needs a finite origin and acceleration and a unit direction",
+        ));
+    }
+    if !(p.radius.is_finite() && p.radius > 0.0) {
+        return Err(GpuError::Invalid("a push's radius must be finite and > 0"));
+    }
+    Ok([
+        p.origin.extend(p.radius).to_array(),
+        p.dir.extend(0.0).to_array(),
+        p.acceleration.extend(0.0).to_array(),
+    ])
+}
+
 /// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
@@ -500,25 +526,11 @@ impl GpuPbf {
     /// [`GpuError::Invalid`] for a push that is not finite, a direction
     /// that is not unit length or a radius that is not positive.
     pub fn set_push(&mut self, push: Option<RayPush>) -> Result<(), GpuError> {
+        let [origin, dir, accel] = push_uniforms(push)?;
         let u = &mut self.uniform;
-        match push {
-            None => u.push_origin = [0.0; 4],
-            Some(p) => {
-                let finite =
-                    p.origin.is_finite() && p.dir.is_finite() && p.acceleration.is_finite();
-                if !finite || (p.dir.length() - 1.0).abs() > 1e-3 {
-                    return Err(GpuError::Invalid(
-                        "a push needs a finite origin and acceleration and a unit direction",
-                    ));
-                }
-                if !(p.radius.is_finite() && p.radius > 0.0) {
-                    return Err(GpuError::Invalid("a push's radius must be finite and > 0"));
-                }
-                u.push_origin = p.origin.extend(p.radius).to_array();
-                u.push_dir = p.dir.extend(0.0).to_array();
-                u.push_accel = p.acceleration.extend(0.0).to_array();
-            }
-        }
+        u.push_origin = origin;
+        u.push_dir = dir;
+        u.push_accel = accel;
         Ok(())
     }
 

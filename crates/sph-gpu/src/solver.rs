@@ -12,6 +12,7 @@ use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{
     Groups, PassStage, Staging, compute_pass, compute_pass_with, read, staged_pass, timed_pass,
 };
+use crate::pbf::{RayPush, push_uniforms};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
@@ -49,6 +50,9 @@ struct Params {
     min_dt: f32,
     sound_speed: f32,
     frame_dt: f32,
+    push_origin: [f32; 4],
+    push_dir: [f32; 4],
+    push_accel: [f32; 4],
 }
 
 /// Mirrors `struct StepState` in `shaders/timestep.wgsl`.
@@ -185,6 +189,9 @@ impl GpuSolver {
             min_dt: 0.0,
             sound_speed: params.sound_speed(),
             frame_dt: 0.0,
+            push_origin: [0.0; 4],
+            push_dir: [0.0; 4],
+            push_accel: [0.0; 4],
         };
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("solver params"),
@@ -304,6 +311,19 @@ impl GpuSolver {
         // `World::stable_dt` takes it.
         self.params.max_dt = stepping.max_dt.min(self.viscous_dt);
         self.params.min_dt = stepping.min_dt;
+        Ok(())
+    }
+
+    /// Pushes the fluid from the next step on (`None` stops): the field of
+    /// [`RayPush::acceleration_at`] added after the forces.
+    ///
+    /// # Errors
+    /// As [`crate::GpuPbf::set_push`].
+    pub fn set_push(&mut self, push: Option<RayPush>) -> Result<(), GpuError> {
+        let [origin, dir, accel] = push_uniforms(push)?;
+        self.params.push_origin = origin;
+        self.params.push_dir = dir;
+        self.params.push_accel = accel;
         Ok(())
     }
 
@@ -628,7 +648,10 @@ mod tests {
                 max_dt,
                 min_dt,
                 sound_speed,
-                frame_dt
+                frame_dt,
+                push_origin,
+                push_dir,
+                push_accel
             }
         )
         .unwrap();

@@ -24,6 +24,9 @@ struct Params {
     min_dt: f32,
     sound_speed: f32,     // sqrt(k)
     frame_dt: f32,        // > 0: adaptive steps land on this much time
+    push_origin: vec4<f32>, // RayPush: a point on the ray, radius in w (0: none)
+    push_dir: vec4<f32>,    // its unit direction
+    push_accel: vec4<f32>,  // the acceleration on the ray (m/s²)
 };
 
 @group(0) @binding(0) var<uniform> f: Params;
