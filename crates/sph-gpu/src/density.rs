@@ -7,7 +7,7 @@ use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, check_fits, compute_pass, read, timed_pass};
+use crate::passes::{Groups, check_fits, compute_pass, read_floats, timed_pass};
 
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -185,13 +185,10 @@ impl GpuDensity {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
     ) -> Result<(Vec<f32>, Vec<f32>), GpuError> {
-        let bytes = 4 * u64::from(self.fluid.n);
-        let enc = || device.create_command_encoder(&Default::default());
-        let rho = read(device, queue, enc(), &self.densities, bytes)?;
-        let p = read(device, queue, enc(), &self.pressures, bytes)?;
+        let n = u64::from(self.fluid.n);
         Ok((
-            bytemuck::pod_collect_to_vec(&rho),
-            bytemuck::pod_collect_to_vec(&p),
+            read_floats(device, queue, &self.densities, n)?,
+            read_floats(device, queue, &self.pressures, n)?,
         ))
     }
 }

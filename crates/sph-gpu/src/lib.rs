@@ -31,12 +31,14 @@ mod extract;
 mod grid;
 mod passes;
 mod pbf;
+mod push;
 mod solver;
 
 pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
-pub use pbf::{GpuPbf, MAX_NEIGHBOURS, PbfFrame, PbfFrameStats, RayPush};
+pub use pbf::{GpuPbf, MAX_NEIGHBOURS, PbfFrame, PbfFrameStats};
+pub use push::RayPush;
 pub use solver::{GpuFrame, GpuSolver, GpuState};
 
 /// A GPU solver's particle buffers, which an extractor or renderer reads in

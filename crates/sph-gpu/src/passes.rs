@@ -221,6 +221,38 @@ pub(crate) fn read(
     Staging::new(device, bytes).read(device, queue, encoder, buffer, bytes)
 }
 
+/// The first `n` `vec4<f32>` of `buffer`, read back as `Vec3` (w dropped).
+pub(crate) fn read_vec3s(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    n: u64,
+) -> Result<Vec<glam::Vec3>, GpuError> {
+    let encoder = device.create_command_encoder(&Default::default());
+    let bytes = read(device, queue, encoder, buffer, 16 * n)?;
+    Ok(bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
+        .into_iter()
+        .map(|v| glam::Vec3::new(v[0], v[1], v[2]))
+        .collect())
+}
+
+/// The first `n` `f32` of `buffer`, read back.
+pub(crate) fn read_floats(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    buffer: &wgpu::Buffer,
+    n: u64,
+) -> Result<Vec<f32>, GpuError> {
+    let encoder = device.create_command_encoder(&Default::default());
+    Ok(bytemuck::pod_collect_to_vec(&read(
+        device,
+        queue,
+        encoder,
+        buffer,
+        4 * n,
+    )?))
+}
+
 /// A mappable buffer for reading back at most its size, kept and reused, so a
 /// readback every frame (a step state, the extractor's counters) allocates no
 /// GPU buffer.

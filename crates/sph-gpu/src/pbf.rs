@@ -22,7 +22,6 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use bytemuck::{Pod, Zeroable};
-use glam::Vec3;
 use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
 use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
 use wgpu::util::DeviceExt;
@@ -31,8 +30,11 @@ use wgpu_profiler::GpuProfiler;
 use crate::GpuParticles;
 use crate::density::obstacles_buffer;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, bind_buffers, check_fits, read, shader, timed_pass};
-use crate::solver::{GpuState, RESOLVE, WALLS};
+use crate::passes::{
+    Groups, bind_buffers, check_fits, read_floats, read_vec3s, shader, timed_pass,
+};
+use crate::push::{RayPush, push_uniforms};
+use crate::solver::{GpuState, PUSH, RESOLVE, WALLS};
 
 /// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32
 /// within h = 2 spacings; a particle with more than this many is compressed
@@ -73,63 +75,6 @@ struct Uniform {
     push_dir: [f32; 4],
     /// The push's acceleration on the ray (m/s²).
     push_accel: [f32; 4],
-}
-
-/// A push of the fluid near a ray (the demo's Ctrl+drag): each particle
-/// within `radius` of the ray through `origin` along the unit `dir` is
-/// accelerated by `acceleration` × (1 − q)², q = (its distance from the ray
-/// / `radius`)²; the same field on the CPU
-/// ([`RayPush::acceleration_at`]) and on the GPU.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RayPush {
-    /// A point on the ray (m).
-    pub origin: Vec3,
-    /// The ray's direction (unit).
-    pub dir: Vec3,
-    /// The acceleration on the ray (m/s²).
-    pub acceleration: Vec3,
-    /// How far from the ray it reaches (m).
-    pub radius: f32,
-}
-
-impl RayPush {
-    /// The push's acceleration at `x`.
-    pub fn acceleration_at(&self, x: Vec3) -> Vec3 {
-        let d = x - self.origin;
-        let off = d - d.dot(self.dir) * self.dir;
-        let q = off.length_squared() / (self.radius * self.radius);
-        if q >= 1.0 {
-            Vec3::ZERO
-        } else {
-            self.acceleration * ((1.0 - q) * (1.0 - q))
-        }
-    }
-}
-
-/// A push as the shaders take it: (origin, radius), (direction, 0),
-/// (acceleration, 0); zeros without one.
-///
-/// # Errors
-/// [`GpuError::Invalid`] for a push that is not finite, a direction that is
-/// not unit length or a radius that is not positive.
-pub(crate) fn push_uniforms(push: Option<RayPush>) -> Result<[[f32; 4]; 3], GpuError> {
-    let Some(p) = push else {
-        return Ok([[0.0; 4]; 3]);
-    };
-    let finite = p.origin.is_finite() && p.dir.is_finite() && p.acceleration.is_finite();
-    if !finite || (p.dir.length() - 1.0).abs() > 1e-3 {
-        return Err(GpuError::Invalid(
-            "a push needs a finite origin and acceleration and a unit direction",
-        ));
-    }
-    if !(p.radius.is_finite() && p.radius > 0.0) {
-        return Err(GpuError::Invalid("a push's radius must be finite and > 0"));
-    }
-    Ok([
-        p.origin.extend(p.radius).to_array(),
-        p.dir.extend(0.0).to_array(),
-        p.acceleration.extend(0.0).to_array(),
-    ])
 }
 
 /// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
@@ -451,7 +396,7 @@ impl GpuPbf {
         let module = shader(
             device,
             "pbf.wgsl",
-            format!("{}{WALLS}{RESOLVE}", include_str!("shaders/pbf.wgsl")),
+            format!("{}{WALLS}{RESOLVE}{PUSH}", include_str!("shaders/pbf.wgsl")),
         );
         let pass = |entry: &str, headway: u32| {
             let writes_gate = matches!(entry, "open_gate" | "reduce");
@@ -876,33 +821,11 @@ impl GpuPbf {
         queue: &wgpu::Queue,
     ) -> Result<GpuState, GpuError> {
         let n = u64::from(self.uniform.n);
-        let enc = || device.create_command_encoder(&Default::default());
-        let vec3s = |bytes: Vec<u8>| -> Vec<Vec3> {
-            bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
-                .into_iter()
-                .map(|v| Vec3::new(v[0], v[1], v[2]))
-                .collect()
-        };
-        let floats = |buffer| -> Result<Vec<f32>, GpuError> {
-            Ok(bytemuck::pod_collect_to_vec(&read(
-                device,
-                queue,
-                enc(),
-                buffer,
-                4 * n,
-            )?))
-        };
         Ok(GpuState {
-            positions: vec3s(read(
-                device,
-                queue,
-                enc(),
-                self.grid.positions_buffer(),
-                16 * n,
-            )?),
-            velocities: vec3s(read(device, queue, enc(), &self.velocities, 16 * n)?),
-            densities: floats(&self.densities)?,
-            pressures: floats(&self.pressures)?,
+            positions: read_vec3s(device, queue, self.grid.positions_buffer(), n)?,
+            velocities: read_vec3s(device, queue, &self.velocities, n)?,
+            densities: read_floats(device, queue, &self.densities, n)?,
+            pressures: read_floats(device, queue, &self.pressures, n)?,
         })
     }
 }
@@ -971,11 +894,11 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), String> {
 
 #[cfg(test)]
 mod tests {
-    use super::{RESOLVE, Stats, Uniform, WALLS};
+    use super::{PUSH, RESOLVE, Stats, Uniform, WALLS};
 
     #[test]
     fn layouts_match_their_wgsl() {
-        let source = format!("{}{WALLS}{RESOLVE}", include_str!("shaders/pbf.wgsl"));
+        let source = format!("{}{WALLS}{RESOLVE}{PUSH}", include_str!("shaders/pbf.wgsl"));
         splat_render::wgsl_layout!(
             &source,
             "Pbf",

@@ -10,15 +10,19 @@ use wgpu_profiler::GpuProfiler;
 use crate::density::GpuDensity;
 use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{
-    Groups, PassStage, Staging, compute_pass, compute_pass_with, read, staged_pass, timed_pass,
+    Groups, PassStage, Staging, compute_pass, compute_pass_with, read_vec3s, staged_pass,
+    timed_pass,
 };
-use crate::pbf::{RayPush, push_uniforms};
+use crate::push::{RayPush, push_uniforms};
 
 /// WGSL of [`Params`], prepended to the forces and integrate shaders.
 const PARAMS: &str = include_str!("shaders/solver_params.wgsl");
 
 /// WGSL of the boundary's walls and obstacles, prepended after [`PARAMS`].
 pub(crate) const WALLS: &str = include_str!("shaders/walls.wgsl");
+
+/// WGSL of `RayPush::acceleration_at`, after a uniform `f` with the push.
+pub(crate) const PUSH: &str = include_str!("shaders/push.wgsl");
 
 /// WGSL of the boundary's projection (`Boundary::resolve`), after [`WALLS`].
 pub(crate) const RESOLVE: &str = include_str!("shaders/resolve.wgsl");
@@ -204,7 +208,7 @@ impl GpuSolver {
             device,
             "forces",
             format!(
-                "{hash}{PARAMS}{WALLS}{}",
+                "{hash}{PARAMS}{WALLS}{PUSH}{}",
                 include_str!("shaders/forces.wgsl")
             ),
             &[
@@ -572,21 +576,8 @@ impl GpuSolver {
         queue: &wgpu::Queue,
     ) -> Result<GpuState, GpuError> {
         let n = u64::from(self.params.n);
-        let enc = || device.create_command_encoder(&Default::default());
-        let vec3s = |bytes: Vec<u8>| -> Vec<Vec3> {
-            bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(&bytes)
-                .into_iter()
-                .map(|v| Vec3::new(v[0], v[1], v[2]))
-                .collect()
-        };
-        let positions = vec3s(read(
-            device,
-            queue,
-            enc(),
-            self.grid.positions_buffer(),
-            16 * n,
-        )?);
-        let velocities = vec3s(read(device, queue, enc(), &self.velocities, 16 * n)?);
+        let positions = read_vec3s(device, queue, self.grid.positions_buffer(), n)?;
+        let velocities = read_vec3s(device, queue, &self.velocities, n)?;
         let (densities, pressures) = self.density.read(device, queue)?;
         Ok(GpuState {
             positions,

@@ -73,6 +73,19 @@ fn start_positions(world: &sph_core::World) -> Vec<Vec3> {
     world.particles.positions().to_vec()
 }
 
+/// A GPU solver of `particles` in `scene` (its fluid and walls) with `pbf`.
+fn gpu_pbf(ctx: &GpuContext, scene: &Scene, particles: &Particles, pbf: &PbfParams) -> GpuPbf {
+    GpuPbf::new(
+        &ctx.device,
+        &ctx.queue,
+        particles,
+        &scene.fluid_params(),
+        pbf,
+        &scene.boundary(),
+    )
+    .unwrap()
+}
+
 /// The largest distance between the two paths' particles, over h.
 fn max_offset(gpu: &[Vec3], cpu: &Particles, h: f32) -> f32 {
     gpu.iter()
@@ -126,15 +139,7 @@ fn gpu_pbf_frames_match_the_cpu_stations() {
         .map(|v| v.length())
         .fold(0.0, f32::max);
     let mut program = cpu_program(&scene, pbf);
-    let mut gpu = GpuPbf::new(
-        &ctx.device,
-        &ctx.queue,
-        &cpu,
-        world.params(),
-        &pbf,
-        &scene.boundary(),
-    )
-    .unwrap();
+    let mut gpu = gpu_pbf(ctx, &scene, &cpu, &pbf);
     let frame_dt = 1.0 / 60.0;
     let mut clamped = 0;
     for _ in 0..FRAMES {
@@ -186,15 +191,7 @@ fn gpu_pbf_statistics_come_back_a_frame_late_and_match_the_cpu_report() {
     let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
     let mut world = scene.build_world().unwrap();
     let pbf = scene.pbf_params();
-    let mut gpu = GpuPbf::new(
-        &ctx.device,
-        &ctx.queue,
-        &world.particles,
-        world.params(),
-        &pbf,
-        &scene.boundary(),
-    )
-    .unwrap();
+    let mut gpu = gpu_pbf(ctx, &scene, &world.particles, &pbf);
     let frame_dt = 1.0 / 60.0;
     let mut reports = Vec::new();
     let mut stats = Vec::new();
@@ -268,15 +265,7 @@ fn gpu_pbf_is_deterministic() {
     let scene = with_obstacles(0.0);
     let world = scene.build_world().unwrap();
     let run = || {
-        let mut gpu = GpuPbf::new(
-            &ctx.device,
-            &ctx.queue,
-            &world.particles,
-            world.params(),
-            &scene.pbf_params(),
-            &scene.boundary(),
-        )
-        .unwrap();
+        let mut gpu = gpu_pbf(ctx, &scene, &world.particles, &scene.pbf_params());
         for _ in 0..3 {
             gpu.advance(&ctx.device, &ctx.queue, 1.0 / 60.0).unwrap();
         }
@@ -398,17 +387,7 @@ fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
     let world = scene.build_world().unwrap();
     let pbf = scene.pbf_params();
     let (device, queue) = (&ctx.device, &ctx.queue);
-    let new = || {
-        GpuPbf::new(
-            device,
-            queue,
-            &world.particles,
-            world.params(),
-            &pbf,
-            &scene.boundary(),
-        )
-        .unwrap()
-    };
+    let new = || gpu_pbf(ctx, &scene, &world.particles, &pbf);
     let (mut plain, mut timed) = (new(), new());
     let mut profiler = GpuProfiler::new(device, GpuProfilerSettings::default()).unwrap();
     let frame_dt = 1.0 / 60.0;
@@ -534,17 +513,7 @@ fn gpu_pbf_frames_recorded_before_one_submission_keep_their_own_step() {
     let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
     let world = scene.build_world().unwrap();
     let (device, queue) = (&ctx.device, &ctx.queue);
-    let new = || {
-        GpuPbf::new(
-            device,
-            queue,
-            &world.particles,
-            world.params(),
-            &scene.pbf_params(),
-            &scene.boundary(),
-        )
-        .unwrap()
-    };
+    let new = || gpu_pbf(ctx, &scene, &world.particles, &scene.pbf_params());
     let (short, long) = (1.0 / 120.0, 1.0 / 60.0);
     let mut apart = new();
     apart.advance(device, queue, short).unwrap();
@@ -595,15 +564,7 @@ fn gpu_pbf_stops_at_the_substep_that_failed() {
             max_dt: dt,
             ..scene.pbf_params()
         };
-        let mut gpu = GpuPbf::new(
-            &ctx.device,
-            &ctx.queue,
-            &heap,
-            world.params(),
-            &pbf,
-            &scene.boundary(),
-        )
-        .unwrap();
+        let mut gpu = gpu_pbf(ctx, &scene, &heap, &pbf);
         gpu.advance(&ctx.device, &ctx.queue, substeps as f32 * dt)
             .unwrap();
         let failure = gpu.finish(&ctx.device).expect_err("the heap's solve fails");
@@ -645,15 +606,7 @@ fn gpu_pbf_push_matches_the_cpu_push() {
         radius: 4.0 * h,
     };
     let gpu_frame = |push: Option<RayPush>| {
-        let mut gpu = GpuPbf::new(
-            &ctx.device,
-            &ctx.queue,
-            &world.particles,
-            world.params(),
-            &pbf,
-            &scene.boundary(),
-        )
-        .unwrap();
+        let mut gpu = gpu_pbf(ctx, &scene, &world.particles, &pbf);
         gpu.set_push(push).unwrap();
         gpu.advance(&ctx.device, &ctx.queue, 1.0 / 60.0).unwrap();
         gpu.read_state(&ctx.device, &ctx.queue).unwrap().positions
@@ -674,15 +627,7 @@ fn gpu_pbf_push_matches_the_cpu_push() {
     assert!(dx < 1e-3, "positions differ by {dx} h");
     assert!(moved > 0.05, "the push hardly moved the fluid: {moved} h");
     // Bad pushes are errors.
-    let mut gpu = GpuPbf::new(
-        &ctx.device,
-        &ctx.queue,
-        &world.particles,
-        world.params(),
-        &pbf,
-        &scene.boundary(),
-    )
-    .unwrap();
+    let mut gpu = gpu_pbf(ctx, &scene, &world.particles, &pbf);
     for bad in [
         RayPush {
             radius: 0.0,

@@ -132,6 +132,13 @@ impl std::str::FromStr for Format {
     }
 }
 
+/// `path`'s extension in lower case, when it is one of `known`.
+fn known_extension(path: &std::path::Path, known: &[&str]) -> Option<String> {
+    (path.extension().and_then(|e| e.to_str()))
+        .map(str::to_ascii_lowercase)
+        .filter(|e| known.contains(&e.as_str()))
+}
+
 fn io_err(path: &str, e: std::io::Error) -> Error {
     Error::Io {
         path: path.to_string(),

@@ -10,7 +10,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::{LoadedCloud, read_ply, read_vtk};
+use super::{LoadedCloud, known_extension, read_ply, read_vtk};
 use crate::error::{Error, Result};
 
 /// The particles of one file.
@@ -39,15 +39,12 @@ pub fn read_particles(path: impl AsRef<Path>) -> Result<ParticleFile> {
         path: name.clone(),
         reason,
     };
-    let extension = (path.extension().and_then(|e| e.to_str()))
-        .map(str::to_ascii_lowercase)
-        .filter(|e| PARTICLE_EXTENSIONS.contains(&e.as_str()))
-        .ok_or_else(|| {
-            fail(format!(
-                "not a particle file: the name must end in .{}",
-                PARTICLE_EXTENSIONS.join(", .")
-            ))
-        })?;
+    let extension = known_extension(path, &PARTICLE_EXTENSIONS).ok_or_else(|| {
+        fail(format!(
+            "not a particle file: the name must end in .{}",
+            PARTICLE_EXTENSIONS.join(", .")
+        ))
+    })?;
     // This project's own frames first (they carry the time), then anyone's.
     let own: Option<fn(std::io::BufReader<std::fs::File>) -> Result<LoadedCloud>> =
         match extension.as_str() {

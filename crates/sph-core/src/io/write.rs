@@ -11,7 +11,7 @@
 use std::io::Write;
 use std::path::Path;
 
-use super::{PointCloud, write_ply, write_vtk};
+use super::{PointCloud, known_extension, write_ply, write_vtk};
 use crate::error::{Error, Result};
 
 /// The extensions [`write_particles`] takes (lower case, without the dot).
@@ -34,10 +34,8 @@ pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) ->
         path: name.clone(),
         reason,
     };
-    let extension = (path.extension().and_then(|e| e.to_str()))
-        .map(str::to_ascii_lowercase)
-        .filter(|e| WRITE_EXTENSIONS.contains(&e.as_str()))
-        .ok_or_else(|| Error::InvalidParameter {
+    let extension =
+        known_extension(path, &WRITE_EXTENSIONS).ok_or_else(|| Error::InvalidParameter {
             name: "format",
             value: name.clone(),
             reason: "the file name must end in .ply, .vtk, .xyz, .vtu or .bgeo",

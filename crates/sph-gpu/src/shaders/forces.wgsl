@@ -2,7 +2,8 @@
 // viscosity (eq. 17), surface tension from the colour field (eq. 18-20, where
 // |n| > threshold), gravity, and the walls' pressure push — the equations of
 // sph-core's Forces processor — and the demo's push near a ray, if any.
-// Expects solver_params.wgsl (struct Params, binding 0 `f`) and walls.wgsl prepended.
+// Expects solver_params.wgsl (struct Params, binding 0 `f`), walls.wgsl and
+// push.wgsl prepended.
 
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> counts: array<u32>;
@@ -82,16 +83,7 @@ fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
     if f.surface_tension > 0.0 && n_len > f.surface_threshold {
         a -= f.surface_tension * lap_c * n / (n_len * rho_i);
     }
-    let reach = f.push_origin.w;
-    if reach > 0.0 {
-        // RayPush::acceleration_at, added after the forces as the demo's
-        // push processor is.
-        let d = x - f.push_origin.xyz;
-        let off = d - dot(d, f.push_dir.xyz) * f.push_dir.xyz;
-        let q = dot(off, off) / (reach * reach);
-        if q < 1.0 {
-            a += f.push_accel.xyz * ((1.0 - q) * (1.0 - q));
-        }
-    }
+    // After the forces, as the demo's push processor is.
+    a += push_acceleration(x);
     accelerations[i] = vec4<f32>(a, 0.0);
 }

@@ -5,7 +5,8 @@
 //   predict → grid build → lists → iterations × (lambda → correct → apply)
 //   → curl → confine → boundaries → reduce,
 // and a frame is its substeps recorded back to back, nothing read back.
-// Expects walls.wgsl and resolve.wgsl appended (they read `f` and `obstacles`).
+// Expects walls.wgsl, resolve.wgsl and push.wgsl appended (they read `f`
+// and `obstacles`).
 
 struct Pbf {
     h: f32,
@@ -188,17 +189,7 @@ fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let dt = f.dt;
     let p = positions[i];
-    var a = f.gravity.xyz;
-    let reach = f.push_origin.w;
-    if reach > 0.0 {
-        // RayPush::acceleration_at.
-        let d = p.xyz - f.push_origin.xyz;
-        let off = d - dot(d, f.push_dir.xyz) * f.push_dir.xyz;
-        let q = dot(off, off) / (reach * reach);
-        if q < 1.0 {
-            a += f.push_accel.xyz * ((1.0 - q) * (1.0 - q));
-        }
-    }
+    let a = f.gravity.xyz + push_acceleration(p.xyz);
     var v = velocities[i].xyz + a * dt;
     let speed = length(v);
     if speed > f.max_speed {
