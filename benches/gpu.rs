@@ -256,6 +256,28 @@ fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
             .expect("frame");
         ctx.queue.submit([encoder.finish()]);
     });
+    // The CPU's share of a frame: recording its passes (wgpu's checks and
+    // the driver's command buffer) and submitting them, without the GPU's run.
+    let (mut records, mut submits) = (Vec::new(), Vec::new());
+    for _ in 0..5 {
+        wait(ctx);
+        let start = std::time::Instant::now();
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        gpu.encode_frame(&ctx.device, &ctx.queue, &mut encoder, FRAME)
+            .expect("frame");
+        let commands = encoder.finish();
+        records.push(start.elapsed().as_secs_f64() * 1e3);
+        let start = std::time::Instant::now();
+        ctx.queue.submit([commands]);
+        submits.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    wait(ctx);
+    records.sort_by(f64::total_cmp);
+    submits.sort_by(f64::total_cmp);
+    println!(
+        "  {label} PBF frame on the CPU: recording {:.3} ms, submitting {:.3} ms (medians of 5)",
+        records[2], submits[2]
+    );
     let cpu_too = n <= 200_000;
     let mut group = c.benchmark_group("pbf_frame");
     group.sample_size(10);

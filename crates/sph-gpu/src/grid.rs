@@ -369,25 +369,6 @@ impl GpuGrid {
         }
     }
 
-    /// Records the neighbour-list pass over the last build into an open
-    /// compute pass: per particle, up to `max_neighbours` indices j with
-    /// |x_i − x_j| ≤ h (i included) in the grid's deterministic order in
-    /// [`lists_buffer`](Self::lists_buffer), and how many there were in all
-    /// in [`list_len_buffer`](Self::list_len_buffer).
-    /// With `groups` given, its workgroup count (one thread per particle,
-    /// 64 to a workgroup).
-    pub(crate) fn record_lists(
-        &self,
-        pass: &mut wgpu::ComputePass<'_>,
-        groups: Option<Groups<'_>>,
-    ) {
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.set_pipeline(&self.query);
-        groups
-            .unwrap_or(Groups::Direct(self.n.div_ceil(64).max(1)))
-            .dispatch(pass);
-    }
-
     /// The neighbour lists, `max_neighbours` slots of `u32` per particle.
     pub(crate) fn lists_buffer(&self) -> &wgpu::Buffer {
         &self.lists

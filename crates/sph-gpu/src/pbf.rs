@@ -30,11 +30,9 @@ use wgpu_profiler::GpuProfiler;
 use crate::GpuParticles;
 use crate::density::obstacles_buffer;
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{
-    Groups, bind_buffers, check_fits, read_floats, read_vec3s, shader, timed_pass,
-};
+use crate::passes::{bind_buffers, check_fits, read_floats, read_vec3s, shader, timed_pass};
 use crate::push::{RayPush, push_uniforms};
-use crate::solver::{GpuState, PUSH, RESOLVE, WALLS};
+use crate::solver::{GpuState, HASH, PUSH, RESOLVE, WALLS};
 
 /// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32
 /// within h = 2 spacings; a particle with more than this many is compressed
@@ -75,6 +73,11 @@ struct Uniform {
     push_dir: [f32; 4],
     /// The push's acceleration on the ray (m/s²).
     push_accel: [f32; 4],
+    /// The grid's hash buckets.
+    table: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 /// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
@@ -127,9 +130,13 @@ pub struct PbfFrame {
     pub stats: Vec<PbfFrameStats>,
 }
 
-/// The pipelines of one substep's passes (all bind the same group).
+/// The pipelines of one substep's passes (all bind the working buffers as
+/// group 0; predict, gather, lists and scatter the home buffers as group 2).
 struct Passes {
     predict: Pass,
+    gather: Pass,
+    lists: Pass,
+    scatter: Pass,
     /// λ by headway: plain, first iteration, last, both (one iteration).
     lambda: [Pass; 4],
     correct: Pass,
@@ -168,9 +175,10 @@ struct Slot {
 
 /// Position-based fluids on the GPU with the same equations, parameters and
 /// walls as `sph_core::solver::pbf` (domain walls, boxes and spheres, the
-/// clearance, s_corr, vorticity confinement, XSPH). Index i of its state is
-/// particle i of the `Particles` it was built from: the GPU never reorders
-/// them.
+/// clearance, s_corr, vorticity confinement, XSPH). Index i of the state it
+/// shows ([`GpuParticles`], [`read_state`](Self::read_state)) is particle i of
+/// the `Particles` it was built from; inside a substep it works on a copy
+/// sorted by cell.
 pub struct GpuPbf {
     uniform: Uniform,
     pbf: PbfParams,
@@ -181,7 +189,10 @@ pub struct GpuPbf {
     densities: wgpu::Buffer,
     stats: wgpu::Buffer,
     passes: Passes,
+    /// The working buffers (cell order) and the rest of the solve's state.
     group: wgpu::BindGroup,
+    /// The home buffers (particle order) and the grid's sort.
+    home_group: wgpu::BindGroup,
     /// Workgroup counts the dispatches read (see `pbf.wgsl`'s gate).
     gate: wgpu::Buffer,
     /// The gate and the halted flag, for `open_gate` and `reduce`.
@@ -260,6 +271,10 @@ impl GpuPbf {
             push_origin: [0.0; 4],
             push_dir: [0.0; 4],
             push_accel: [0.0; 4],
+            table: grid.table_size(),
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         };
         let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pbf params"),
@@ -284,7 +299,11 @@ impl GpuPbf {
         if !v.is_empty() {
             queue.write_buffer(&velocities, 0, bytemuck::cast_slice(&v));
         }
-        let constraints = storage("pbf constraints", 32);
+        let work_positions = storage("pbf working positions", 16);
+        let work_velocities = storage("pbf working velocities", 16);
+        let work_pressures = storage("pbf working pressures", 4);
+        let work_densities = storage("pbf working densities", 4);
+        let lambdas = storage("pbf lambdas", 8);
         let corrections = storage("pbf corrections", 16);
         let pressures = storage("pbf pressures", 4);
         let densities = storage("pbf densities", 4);
@@ -302,55 +321,77 @@ impl GpuPbf {
         let obstacles = obstacles_buffer(device, boundary)?;
         let buffers: [&wgpu::Buffer; 14] = [
             &uniform_buffer,
-            grid.positions_buffer(),
-            &velocities,
+            &work_positions,
+            &work_velocities,
             grid.lists_buffer(),
             grid.list_len_buffer(),
-            &constraints,
+            &lambdas,
             &corrections,
-            &pressures,
-            &densities,
+            &work_pressures,
+            &work_densities,
             &curls,
             &means,
             &stats,
             &obstacles,
             &partials,
         ];
-        let storage_buffers = buffers.len() as u32 - 1;
+        let home_buffers: [&wgpu::Buffer; 7] = [
+            grid.positions_buffer(),
+            &velocities,
+            &densities,
+            &pressures,
+            grid.sorted_buffer(),
+            grid.starts_buffer(),
+            grid.counts_buffer(),
+        ];
+        let storage_buffers = (buffers.len() + home_buffers.len()) as u32 - 1;
         if device.limits().max_storage_buffers_per_shader_stage < storage_buffers {
             return Err(GpuError::DeviceLimit(format!(
                 "GPU PBF binds {storage_buffers} storage buffers per pass; this device allows {}",
                 device.limits().max_storage_buffers_per_shader_stage
             )));
         }
-        // One layout for every pass: the uniform, then storage buffers, the
-        // lists, their lengths and the obstacles read-only.
-        let entries: Vec<_> = (0..buffers.len() as u32)
-            .map(|binding| wgpu::BindGroupLayoutEntry {
-                binding,
-                visibility: wgpu::ShaderStages::COMPUTE,
-                ty: wgpu::BindingType::Buffer {
-                    ty: if binding == 0 {
-                        wgpu::BufferBindingType::Uniform
-                    } else {
-                        wgpu::BufferBindingType::Storage {
-                            read_only: matches!(binding, 3 | 4 | 12),
-                        }
+        // Group 0, for every pass: the uniform, then storage buffers, the
+        // obstacles read-only. Group 2: the home buffers, then the grid's
+        // sort read-only.
+        let entries = |count: usize, uniform: Option<u32>, read_only: &[u32]| -> Vec<_> {
+            (0..count as u32)
+                .map(|binding| wgpu::BindGroupLayoutEntry {
+                    binding,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: if uniform == Some(binding) {
+                            wgpu::BufferBindingType::Uniform
+                        } else {
+                            wgpu::BufferBindingType::Storage {
+                                read_only: read_only.contains(&binding),
+                            }
+                        },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
                     },
-                    has_dynamic_offset: false,
-                    min_binding_size: None,
-                },
-                count: None,
-            })
-            .collect();
+                    count: None,
+                })
+                .collect()
+        };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("pbf layout"),
-            entries: &entries,
+            entries: &entries(buffers.len(), Some(0), &[12]),
         });
         let group = bind_buffers(device, "pbf", &layout, &buffers);
+        let home_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pbf home layout"),
+            entries: &entries(home_buffers.len(), None, &[4, 5, 6]),
+        });
+        let home_group = bind_buffers(device, "pbf home", &home_layout, &home_buffers);
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("pbf pipeline layout"),
             bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let home_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pbf home pipeline layout"),
+            bind_group_layouts: &[Some(&layout), None, Some(&home_layout)],
             immediate_size: 0,
         });
         // The gate (see pbf.wgsl): the live triples, then the full ones,
@@ -396,16 +437,18 @@ impl GpuPbf {
         let module = shader(
             device,
             "pbf.wgsl",
-            format!("{}{WALLS}{RESOLVE}{PUSH}", include_str!("shaders/pbf.wgsl")),
+            format!(
+                "{}{HASH}{WALLS}{RESOLVE}{PUSH}",
+                include_str!("shaders/pbf.wgsl")
+            ),
         );
         let pass = |entry: &str, headway: u32| {
-            let writes_gate = matches!(entry, "open_gate" | "reduce");
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
-                layout: Some(if writes_gate {
-                    &gated_layout
-                } else {
-                    &pipeline_layout
+                layout: Some(match entry {
+                    "open_gate" | "reduce" => &gated_layout,
+                    "predict" | "gather" | "neighbour_lists" | "scatter" => &home_pipeline_layout,
+                    _ => &pipeline_layout,
                 }),
                 module: &module,
                 entry_point: Some(entry),
@@ -418,6 +461,9 @@ impl GpuPbf {
         };
         let passes = Passes {
             predict: pass("predict", 0),
+            gather: pass("gather", 0),
+            lists: pass("neighbour_lists", 0),
+            scatter: pass("scatter", 0),
             lambda: std::array::from_fn(|k| pass("lambda", k as u32)),
             correct: pass("correct", 0),
             apply: pass("apply", 0),
@@ -456,6 +502,7 @@ impl GpuPbf {
             stats,
             passes,
             group,
+            home_group,
             gate,
             gate_group,
             slots,
@@ -526,9 +573,9 @@ impl GpuPbf {
 
     /// [`encode_frame`](Self::encode_frame) with each kind of pass in its
     /// own compute pass, timed by `profiler`: "pbf: predict", "pbf: grid",
-    /// "pbf: lists", "pbf: lambda", "pbf: correct", "pbf: apply", "pbf:
-    /// curl", "pbf: confine", "pbf: boundaries", "pbf: reduce", once per
-    /// substep (and iteration). The caller resolves the profiler's queries
+    /// "pbf: gather", "pbf: lists", "pbf: lambda", "pbf: correct", "pbf:
+    /// apply", "pbf: curl", "pbf: confine", "pbf: boundaries", "pbf:
+    /// scatter", "pbf: reduce", once per substep (and iteration). The caller resolves the profiler's queries
     /// and ends its frame. The split costs pass boundaries the plain path
     /// does not have.
     ///
@@ -763,17 +810,23 @@ impl GpuPbf {
         Ok(out)
     }
 
-    /// A dispatch of `pipeline` over the passes' group, its workgroups read
-    /// from the gate's `kind`th triple (one thread per particle: 3).
+    /// A dispatch of `pipeline` over the working buffers' group (and the
+    /// home group, with `home`), one thread per particle, its workgroups
+    /// read from the gate.
     fn dispatch<'a>(
         &'a self,
         pipeline: &'a Pass,
-        kind: u64,
+        home: bool,
     ) -> impl Fn(&mut wgpu::ComputePass<'_>) + 'a {
+        /// The gate's triple of particles in 64s.
+        const PER_PARTICLE: u64 = 3;
         move |pass| {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &self.group, &[]);
-            pass.dispatch_workgroups_indirect(&self.gate, 12 * kind);
+            if home {
+                pass.set_bind_group(2, &self.home_group, &[]);
+            }
+            pass.dispatch_workgroups_indirect(&self.gate, 12 * PER_PARTICLE);
         }
     }
 
@@ -781,17 +834,15 @@ impl GpuPbf {
     /// Every dispatch but `reduce` (one workgroup, which writes the gate)
     /// reads its workgroups from the gate.
     fn record_substep(&self, stage: &mut dyn FnMut(&str, Record<'_>)) {
-        const PER_PARTICLE: u64 = 3;
-        let run = |pipeline| self.dispatch(pipeline, PER_PARTICLE);
+        let run = |pipeline| self.dispatch(pipeline, false);
+        let home = |pipeline| self.dispatch(pipeline, true);
         let p = &self.passes;
-        stage("pbf: predict", &run(&p.predict));
+        stage("pbf: predict", &home(&p.predict));
         stage("pbf: grid", &|pass| {
             self.grid.record_build(pass, Some(&self.gate))
         });
-        stage("pbf: lists", &|pass| {
-            let groups = Groups::Indirect(&self.gate, 12 * PER_PARTICLE);
-            self.grid.record_lists(pass, Some(groups));
-        });
+        stage("pbf: gather", &home(&p.gather));
+        stage("pbf: lists", &home(&p.lists));
         let iterations = self.pbf.iterations;
         for k in 0..iterations {
             let headway = usize::from(k == 0) | (usize::from(k + 1 == iterations) << 1);
@@ -802,6 +853,7 @@ impl GpuPbf {
         stage("pbf: curl", &run(&p.curl));
         stage("pbf: confine", &run(&p.confine));
         stage("pbf: boundaries", &run(&p.boundaries));
+        stage("pbf: scatter", &home(&p.scatter));
         stage("pbf: reduce", &|pass| {
             pass.set_pipeline(&p.reduce);
             pass.set_bind_group(0, &self.group, &[]);
@@ -894,11 +946,14 @@ fn check(stats: &Stats, frame: u64, pbf: &PbfParams) -> Result<(), String> {
 
 #[cfg(test)]
 mod tests {
-    use super::{PUSH, RESOLVE, Stats, Uniform, WALLS};
+    use super::{HASH, PUSH, RESOLVE, Stats, Uniform, WALLS};
 
     #[test]
     fn layouts_match_their_wgsl() {
-        let source = format!("{}{WALLS}{RESOLVE}{PUSH}", include_str!("shaders/pbf.wgsl"));
+        let source = format!(
+            "{}{HASH}{WALLS}{RESOLVE}{PUSH}",
+            include_str!("shaders/pbf.wgsl")
+        );
         splat_render::wgsl_layout!(
             &source,
             "Pbf",
@@ -928,7 +983,11 @@ mod tests {
                 max_error,
                 push_origin,
                 push_dir,
-                push_accel
+                push_accel,
+                table,
+                pad0,
+                pad1,
+                pad2
             }
         )
         .unwrap();

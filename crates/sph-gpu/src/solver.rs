@@ -27,6 +27,9 @@ pub(crate) const PUSH: &str = include_str!("shaders/push.wgsl");
 /// WGSL of the boundary's projection (`Boundary::resolve`), after [`WALLS`].
 pub(crate) const RESOLVE: &str = include_str!("shaders/resolve.wgsl");
 
+/// The grid's cell hash (`shaders/hash.wgsl`), for passes that walk cells.
+pub(crate) const HASH: &str = include_str!("shaders/hash.wgsl");
+
 /// Mirrors `struct Params` in `shaders/solver_params.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -203,7 +206,7 @@ impl GpuSolver {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let hash = include_str!("shaders/hash.wgsl");
+        let hash = HASH;
         let forces = compute_pass(
             device,
             "forces",

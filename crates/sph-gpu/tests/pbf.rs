@@ -412,7 +412,7 @@ fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
     let results = profiler
         .process_finished_frame(queue.get_timestamp_period())
         .expect("the frame's queries are resolved");
-    let mut substep = vec!["pbf: predict", "pbf: grid", "pbf: lists"];
+    let mut substep = vec!["pbf: predict", "pbf: grid", "pbf: gather", "pbf: lists"];
     for _ in 0..pbf.iterations {
         substep.extend(["pbf: lambda", "pbf: correct", "pbf: apply"]);
     }
@@ -420,6 +420,7 @@ fn gpu_pbf_profiled_frames_time_every_pass_and_change_nothing() {
         "pbf: curl",
         "pbf: confine",
         "pbf: boundaries",
+        "pbf: scatter",
         "pbf: reduce",
     ]);
     let labels: Vec<&str> = results.iter().map(|r| r.label.as_str()).collect();

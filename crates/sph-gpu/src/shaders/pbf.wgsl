@@ -1,12 +1,23 @@
 // Position-based fluids (Macklin & Müller 2013) on the GPU: sph-core's
-// `solver::pbf` station by station, one thread per particle, over the
-// neighbour lists the grid found on the predicted positions (grid.wgsl). Each
-// entry point is one dispatch; a substep is
-//   predict → grid build → lists → iterations × (lambda → correct → apply)
-//   → curl → confine → boundaries → reduce,
+// `solver::pbf` station by station, one thread per particle. Each entry point
+// is one dispatch; a substep is
+//   predict → grid build (grid.wgsl) → gather → lists
+//   → iterations × (lambda → correct → apply) → curl → confine → boundaries
+//   → scatter → reduce,
 // and a frame is its substeps recorded back to back, nothing read back.
-// Expects walls.wgsl, resolve.wgsl and push.wgsl appended (they read `f`
-// and `obstacles`).
+//
+// The particles keep their order in the `home_*` buffers (group 2), which the
+// extractor and readbacks see. Inside a substep they work in the grid's cell
+// order: `gather` copies them into the working buffers (group 0) sorted by
+// cell, so that a cell's particles sit side by side, a warp's threads share
+// neighbourhoods and a neighbour list's reads hit the same lines; `scatter`
+// copies them home. Lists are neighbour-major (entry k of particle i at
+// k n + i), so a warp reading its k-th neighbours reads one run of memory.
+// Within a cell the working order is the home order, so every sum runs in the
+// order it would over home indices.
+//
+// Expects hash.wgsl, walls.wgsl, resolve.wgsl and push.wgsl appended (they
+// read `f` and `obstacles`).
 
 struct Pbf {
     h: f32,
@@ -35,16 +46,10 @@ struct Pbf {
     push_origin: vec4<f32>, // RayPush: a point on the ray, radius in w (0: none)
     push_dir: vec4<f32>,    // its unit direction
     push_accel: vec4<f32>,  // the acceleration on the ray (m/s²)
-};
-
-// One particle's density constraint (pbf.rs `Constraint`): λ, D = 1/(Σ|∇C|² + ε),
-// ρ, and the walls' ∇(ρ_wall/ρ0) in `wall.xyz`.
-struct Constraint {
-    lambda: f32,
-    d: f32,
-    rho: f32,
-    pad: f32,
-    wall: vec4<f32>,
+    table: u32,             // the grid's hash buckets (hash.wgsl)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 // What a frame's substeps add up; cleared when a frame starts, read back
@@ -67,9 +72,11 @@ struct Stats {
 @group(0) @binding(0) var<uniform> f: Pbf;
 @group(0) @binding(1) var<storage, read_write> positions: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read_write> velocities: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> lists: array<u32>;
-@group(0) @binding(4) var<storage, read> list_len: array<u32>;
-@group(0) @binding(5) var<storage, read_write> constraints: array<Constraint>;
+@group(0) @binding(3) var<storage, read_write> lists: array<u32>;
+@group(0) @binding(4) var<storage, read_write> list_len: array<u32>;
+// Each particle's density constraint (pbf.rs `Constraint`): λ and
+// D = 1/(Σ|∇C|² + ε), all a neighbour's correction reads of it.
+@group(0) @binding(5) var<storage, read_write> lambdas: array<vec2<f32>>;
 @group(0) @binding(6) var<storage, read_write> corrections: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read_write> pressures: array<f32>;
 @group(0) @binding(8) var<storage, read_write> densities: array<f32>;
@@ -78,6 +85,17 @@ struct Stats {
 @group(0) @binding(11) var<storage, read_write> stats: Stats;
 @group(0) @binding(12) var<storage, read> obstacles: array<Obstacle>;
 @group(0) @binding(13) var<storage, read_write> partials: array<f32>;
+
+// The particles in their own order, and the grid built on them: cell order's
+// home index of each working slot (`sorted`), each bucket's first slot and
+// count. Bound by predict, gather, lists and scatter.
+@group(2) @binding(0) var<storage, read_write> home_positions: array<vec4<f32>>;
+@group(2) @binding(1) var<storage, read_write> home_velocities: array<vec4<f32>>;
+@group(2) @binding(2) var<storage, read_write> home_densities: array<f32>;
+@group(2) @binding(3) var<storage, read_write> home_pressures: array<f32>;
+@group(2) @binding(4) var<storage, read> sorted: array<u32>;
+@group(2) @binding(5) var<storage, read> starts: array<u32>;
+@group(2) @binding(6) var<storage, read> counts: array<u32>;
 
 // The gate: the workgroup counts of the frame's dispatches, as [x, y, z]
 // triples of four kinds (the grid's hash buckets, particles in 256s, one
@@ -111,7 +129,7 @@ fn neighbour_count(i: u32) -> u32 {
 }
 
 fn neighbour(i: u32, k: u32) -> u32 {
-    return lists[i * f.max_neighbours + k];
+    return lists[k * f.n + i];
 }
 
 // W_poly6 and the spiky gradient's factor s (∇W_ij = s (x_i − x_j)) from r²:
@@ -178,9 +196,9 @@ fn walls_at(x: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(grad, 1.0 - outside + extra.w);
 }
 
-// Lines 1–4: v ← v + Δt (g + a push), limited to the guard's speed, x* ← x + Δt v,
-// projected out of walls with v following the push (pbf.rs `Predict`). The
-// pressure the solve will sum starts at 0.
+// Lines 1–4, in home order: v ← v + Δt (g + a push), limited to the guard's
+// speed, x* ← x + Δt v, projected out of walls with v following the push
+// (pbf.rs `Predict`).
 @compute @workgroup_size(64)
 fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -188,9 +206,9 @@ fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let dt = f.dt;
-    let p = positions[i];
+    let p = home_positions[i];
     let a = f.gravity.xyz + push_acceleration(p.xyz);
-    var v = velocities[i].xyz + a * dt;
+    var v = home_velocities[i].xyz + a * dt;
     let speed = length(v);
     if speed > f.max_speed {
         v *= f.max_speed / speed;
@@ -199,12 +217,81 @@ fn predict(@builtin(global_invocation_id) id: vec3<u32>) {
     let free = p.xyz + v * dt;
     let x = resolve(free, vec3<f32>(0.0), 0.0)[0];
     v += (x - free) / dt;
-    positions[i] = vec4<f32>(x, p.w);
-    velocities[i] = vec4<f32>(v, 0.0);
-    pressures[i] = 0.0;
+    home_positions[i] = vec4<f32>(x, p.w);
+    home_velocities[i] = vec4<f32>(v, 0.0);
 }
 
-// Lines 9–11: ρ_i (walls and the particle itself included), λ_i and D_i.
+// The predicted particles into the working buffers in cell order (slot s
+// holds particle sorted[s]). The pressure the solve will sum starts at 0.
+@compute @workgroup_size(64)
+fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
+    let s = id.x;
+    if s >= f.n {
+        return;
+    }
+    let i = sorted[s];
+    positions[s] = home_positions[i];
+    velocities[s] = home_velocities[i];
+    pressures[s] = 0.0;
+}
+
+// Every working slot j with |x_s − x_j|² ≤ h² (s included), bucket by bucket
+// over the 27 cells around s, in slot order inside a bucket: up to
+// max_neighbours kept (neighbour-major), the full count in list_len.
+@compute @workgroup_size(64)
+fn neighbour_lists(@builtin(global_invocation_id) id: vec3<u32>) {
+    let s = id.x;
+    if s >= f.n {
+        return;
+    }
+    let x = positions[s].xyz;
+    let c = cell_at(x, f.inv_h);
+    let h2 = f.h * f.h;
+    var len = 0u;
+    for (var dz = -1; dz <= 1; dz++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let cell = c + vec3<i32>(dx, dy, dz);
+                let b = bucket_of(cell, f.table);
+                let first = starts[b];
+                let end = first + counts[b];
+                for (var j = first; j < end; j++) {
+                    let y = positions[j].xyz;
+                    // Buckets are shared by hash collisions: this cell's particles only.
+                    if any(cell_at(y, f.inv_h) != cell) {
+                        continue;
+                    }
+                    let d = x - y;
+                    if dot(d, d) <= h2 {
+                        if len < f.max_neighbours {
+                            lists[len * f.n + s] = j;
+                        }
+                        len += 1u;
+                    }
+                }
+            }
+        }
+    }
+    list_len[s] = len;
+}
+
+// The substep's particles home: positions, velocities and the density and
+// pressure the extractor and readbacks see.
+@compute @workgroup_size(64)
+fn scatter(@builtin(global_invocation_id) id: vec3<u32>) {
+    let s = id.x;
+    if s >= f.n {
+        return;
+    }
+    let i = sorted[s];
+    home_positions[i] = positions[s];
+    home_velocities[i] = velocities[s];
+    home_densities[i] = densities[s];
+    home_pressures[i] = pressures[s];
+}
+
+// Lines 9–11: ρ_i (walls and the particle itself included), λ_i and D_i;
+// Δp_i starts as the walls' share, λ_i ∇(ρ_wall/ρ0).
 @compute @workgroup_size(64)
 fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -234,7 +321,9 @@ fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
     let grad_i = walls.xyz + grad;
     let error = rho * f.inv_rho0 - 1.0;
     let dd = 1.0 / (dot(grad_i, grad_i) + squares + f.epsilon);
-    constraints[i] = Constraint(-max(error, 0.0) * dd, dd, rho, 0.0, vec4<f32>(walls.xyz, 0.0));
+    let lambda = -max(error, 0.0) * dd;
+    lambdas[i] = vec2<f32>(lambda, dd);
+    corrections[i] = vec4<f32>(lambda * walls.xyz, 0.0);
     if (HEADWAY & 1u) != 0u {
         atomicMax(&stats.first_max, bitcast<u32>(max(rho, 0.0)));
         atomicMax(&stats.most_neighbours, list_len[i]);
@@ -244,8 +333,8 @@ fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Lines 12–13: Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij plus the
-// walls' λ_i ∇(ρ_wall/ρ0).
+// Lines 12–13: Δp_i += (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij (the walls'
+// share is in already).
 @compute @workgroup_size(64)
 fn correct(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -253,7 +342,7 @@ fn correct(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let xi = positions[i].xyz;
-    let ci = constraints[i];
+    let ci = lambdas[i];
     var acc = vec3<f32>(0.0);
     let count = neighbour_count(i);
     for (var k = 0u; k < count; k++) {
@@ -262,21 +351,21 @@ fn correct(@builtin(global_invocation_id) id: vec3<u32>) {
             continue;
         }
         let y = positions[j];
-        let cj = constraints[j];
+        let cj = lambdas[j];
         let d = xi - y.xyz;
         let ws = kernels(dot(d, d));
-        var sum = ci.lambda + cj.lambda;
+        var sum = ci.x + cj.x;
         if f.scorr_k > 0.0 {
             let q = ws.x * f.inv_w_dq;
             var scorr = q;
             for (var e = 1u; e < f.scorr_n; e++) {
                 scorr *= q;
             }
-            sum -= f.scorr_k * scorr * 0.5 * (ci.d + cj.d);
+            sum -= f.scorr_k * scorr * 0.5 * (ci.y + cj.y);
         }
         acc += d * (ws.y * y.w * f.inv_rho0 * sum);
     }
-    corrections[i] = vec4<f32>(ci.lambda * ci.wall.xyz + acc, 0.0);
+    corrections[i] = vec4<f32>(corrections[i].xyz + acc, 0.0);
 }
 
 // Moves each particle by ω Δp_i and back out of walls, its velocity by that
@@ -294,7 +383,7 @@ fn apply(@builtin(global_invocation_id) id: vec3<u32>) {
     let x = resolve(free, vec3<f32>(0.0), 0.0)[0];
     velocities[i] = vec4<f32>(velocities[i].xyz + (dp + (x - free)) / f.dt, 0.0);
     positions[i] = vec4<f32>(x, p.w);
-    pressures[i] += -f.omega * f.rest_density / (f.dt * f.dt) * constraints[i].lambda;
+    pressures[i] += -f.omega * f.rest_density / (f.dt * f.dt) * lambdas[i].x;
 }
 
 // Line 22, first pass: the density at the final positions (walls included),
