@@ -310,6 +310,7 @@ impl GpuPbf {
         let curls = storage("pbf curls", 16);
         let means = storage("pbf means", 16);
         let partials = storage("pbf partial sums", 4);
+        let weighted = storage("pbf weighted positions", 16);
         let stats = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pbf stats"),
             size: size_of::<Stats>() as u64,
@@ -319,7 +320,7 @@ impl GpuPbf {
             mapped_at_creation: false,
         });
         let obstacles = obstacles_buffer(device, boundary)?;
-        let buffers: [&wgpu::Buffer; 14] = [
+        let buffers: [&wgpu::Buffer; 15] = [
             &uniform_buffer,
             &work_positions,
             &work_velocities,
@@ -334,6 +335,7 @@ impl GpuPbf {
             &stats,
             &obstacles,
             &partials,
+            &weighted,
         ];
         let home_buffers: [&wgpu::Buffer; 7] = [
             grid.positions_buffer(),

@@ -85,6 +85,9 @@ struct Stats {
 @group(0) @binding(11) var<storage, read_write> stats: Stats;
 @group(0) @binding(12) var<storage, read> obstacles: array<Obstacle>;
 @group(0) @binding(13) var<storage, read_write> partials: array<f32>;
+// Each particle's position with m λ / ρ0 in w: the one value per neighbour
+// the correction reads (without s_corr).
+@group(0) @binding(14) var<storage, read_write> weighted: array<vec4<f32>>;
 
 // The particles in their own order, and the grid built on them: cell order's
 // home index of each working slot (`sorted`), each bucket's first slot and
@@ -132,15 +135,19 @@ fn neighbour(i: u32, k: u32) -> u32 {
     return lists[k * f.n + i];
 }
 
-// W_poly6 and the spiky gradient's factor s (∇W_ij = s (x_i − x_j)) from r²:
-// pbf.rs `LaneKernels::eval`, zero beyond h.
-fn kernels(r2: f32) -> vec2<f32> {
-    let d = max(f.h * f.h - r2, 0.0);
-    let w = f.poly6 * d * d * d;
+// The spiky gradient's factor s (∇W_ij = s (x_i − x_j)) from r², zero
+// beyond h.
+fn spiky_factor(r2: f32) -> f32 {
     let len = sqrt(r2);
     let t = max(f.h - len, 0.0);
-    let s = -f.spiky * t * t / max(len, f.h * 1e-6);
-    return vec2<f32>(w, s);
+    return -f.spiky * t * t / max(len, f.h * 1e-6);
+}
+
+// W_poly6 and the spiky gradient's factor from r²: pbf.rs
+// `LaneKernels::eval`, zero beyond h.
+fn kernels(r2: f32) -> vec2<f32> {
+    let d = max(f.h * f.h - r2, 0.0);
+    return vec2<f32>(f.poly6 * d * d * d, spiky_factor(r2));
 }
 
 // A wall's fraction of the poly6 volume beyond it and that fraction's slope,
@@ -290,8 +297,9 @@ fn scatter(@builtin(global_invocation_id) id: vec3<u32>) {
     home_pressures[i] = pressures[s];
 }
 
-// Lines 9–11: ρ_i (walls and the particle itself included), λ_i and D_i;
-// Δp_i starts as the walls' share, λ_i ∇(ρ_wall/ρ0).
+// Lines 9–11: ρ_i (walls and the particle itself included), λ_i and D_i.
+// Δp_i starts as its own λ's share, λ_i (∇(ρ_wall/ρ0) + (1/ρ0) Σ_j m_j ∇W_ij):
+// the sum is ∇_i C_i, summed here already.
 @compute @workgroup_size(64)
 fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -323,7 +331,8 @@ fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
     let dd = 1.0 / (dot(grad_i, grad_i) + squares + f.epsilon);
     let lambda = -max(error, 0.0) * dd;
     lambdas[i] = vec2<f32>(lambda, dd);
-    corrections[i] = vec4<f32>(lambda * walls.xyz, 0.0);
+    weighted[i] = vec4<f32>(xi.xyz, xi.w * f.inv_rho0 * lambda);
+    corrections[i] = vec4<f32>(lambda * grad_i, 0.0);
     if (HEADWAY & 1u) != 0u {
         atomicMax(&stats.first_max, bitcast<u32>(max(rho, 0.0)));
         atomicMax(&stats.most_neighbours, list_len[i]);
@@ -333,37 +342,46 @@ fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Lines 12–13: Δp_i += (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij (the walls'
-// share is in already).
+// Lines 12–13: Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij plus the
+// walls' λ_i ∇(ρ_wall/ρ0): the λ_i share came from `lambda`, this adds λ_j's
+// (and s_corr's).
 @compute @workgroup_size(64)
 fn correct(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i >= f.n {
         return;
     }
-    let xi = positions[i].xyz;
-    let ci = lambdas[i];
+    let xi = weighted[i].xyz;
     var acc = vec3<f32>(0.0);
     let count = neighbour_count(i);
-    for (var k = 0u; k < count; k++) {
-        let j = neighbour(i, k);
-        if j == i {
-            continue;
-        }
-        let y = positions[j];
-        let cj = lambdas[j];
-        let d = xi - y.xyz;
-        let ws = kernels(dot(d, d));
-        var sum = ci.x + cj.x;
-        if f.scorr_k > 0.0 {
+    if f.scorr_k > 0.0 {
+        let di = lambdas[i].y;
+        for (var k = 0u; k < count; k++) {
+            let j = neighbour(i, k);
+            if j == i {
+                continue;
+            }
+            let y = weighted[j];
+            let d = xi - y.xyz;
+            let ws = kernels(dot(d, d));
             let q = ws.x * f.inv_w_dq;
             var scorr = q;
             for (var e = 1u; e < f.scorr_n; e++) {
                 scorr *= q;
             }
-            sum -= f.scorr_k * scorr * 0.5 * (ci.y + cj.y);
+            let tensile = -f.scorr_k * scorr * 0.5 * (di + lambdas[j].y);
+            acc += d * (ws.y * (y.w + positions[j].w * f.inv_rho0 * tensile));
         }
-        acc += d * (ws.y * y.w * f.inv_rho0 * sum);
+    } else {
+        for (var k = 0u; k < count; k++) {
+            let j = neighbour(i, k);
+            if j == i {
+                continue;
+            }
+            let y = weighted[j];
+            let d = xi - y.xyz;
+            acc += d * (spiky_factor(dot(d, d)) * y.w);
+        }
     }
     corrections[i] = vec4<f32>(corrections[i].xyz + acc, 0.0);
 }
