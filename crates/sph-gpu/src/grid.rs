@@ -77,12 +77,15 @@ const LABELS: [&str; 7] = [
 /// [`encode_build`](Self::encode_build) without leaving the GPU.
 ///
 /// Cells are hashed into a power-of-two table (≥ 2 × capacity buckets), so an
-/// unbounded domain costs no memory; each bucket's particles are sorted by
-/// index, making every later sum over a neighbourhood deterministic.
+/// unbounded domain costs no memory, or, for a grid [`in_box`](Self::in_box),
+/// laid out one bucket per cell of the box; each bucket's particles are
+/// sorted by index, making every later sum over a neighbourhood
+/// deterministic.
 pub struct GpuGrid {
     capacity: usize,
     n: u32,
     table: u32,
+    cells: Option<CellBox>,
     h: f32,
     params: wgpu::Buffer,
     positions: wgpu::Buffer,
@@ -95,6 +98,38 @@ pub struct GpuGrid {
     bind_group: wgpu::BindGroup,
     pipelines: Vec<wgpu::ComputePipeline>,
     query: wgpu::ComputePipeline,
+}
+
+/// The cells of a box, one bucket each (`hash.wgsl`'s `BOX_*` overrides).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct CellBox {
+    min: [i32; 3],
+    dims: [i32; 3],
+}
+
+impl CellBox {
+    /// The cells of size h covering `min..=max`, if there are no more than
+    /// `most` and the box is finite.
+    fn covering(min: Vec3, max: Vec3, h: f32, most: u64) -> Option<Self> {
+        if !(min.is_finite() && max.is_finite() && min.cmple(max).all()) {
+            return None;
+        }
+        let lo = (min / h).floor();
+        let hi = (max / h).floor();
+        let dims = hi - lo + Vec3::ONE;
+        let count = f64::from(dims.x) * f64::from(dims.y) * f64::from(dims.z);
+        if count > most as f64 || lo.abs().max_element() > 1e9 {
+            return None;
+        }
+        Some(Self {
+            min: lo.as_ivec3().to_array(),
+            dims: dims.as_ivec3().to_array(),
+        })
+    }
+
+    fn count(&self) -> u64 {
+        self.dims.iter().map(|&d| d as u64).product()
+    }
 }
 
 fn storage(
@@ -125,6 +160,41 @@ impl GpuGrid {
         h: f32,
         max_neighbours: u32,
     ) -> Result<Self, GpuError> {
+        Self::build(device, capacity, h, max_neighbours, None)
+    }
+
+    /// [`new`](Self::new) for particles that stay inside `min..=max` (a
+    /// solver's domain): one bucket per cell of the box, in x-fastest order,
+    /// so that a sweep in bucket order walks space (neighbouring particles
+    /// are neighbours in memory) and no two cells of the box share a bucket.
+    /// A box of more than 8 × `capacity` cells (a domain far larger than
+    /// its fluid) is hashed as by [`new`](Self::new). A particle outside the
+    /// box is still found: its cell wraps onto one inside.
+    ///
+    /// # Errors
+    /// As [`new`](Self::new).
+    pub fn in_box(
+        device: &wgpu::Device,
+        capacity: usize,
+        h: f32,
+        max_neighbours: u32,
+        min: Vec3,
+        max: Vec3,
+    ) -> Result<Self, GpuError> {
+        let most = 8 * capacity.max(32) as u64;
+        let cells = (h.is_finite() && h > 0.0)
+            .then(|| CellBox::covering(min, max, h, most))
+            .flatten();
+        Self::build(device, capacity, h, max_neighbours, cells)
+    }
+
+    fn build(
+        device: &wgpu::Device,
+        capacity: usize,
+        h: f32,
+        max_neighbours: u32,
+        cells: Option<CellBox>,
+    ) -> Result<Self, GpuError> {
         if !(h.is_finite() && h > 0.0) {
             return Err(GpuError::Invalid("h must be finite and > 0"));
         }
@@ -133,7 +203,10 @@ impl GpuGrid {
         }
         let per_particle = (4 * u64::from(max_neighbours)).max(16);
         check_fits(device, "particles", capacity, 64, per_particle)?;
-        let table = (2 * capacity).next_power_of_two().max(256);
+        let table = match cells {
+            Some(cells) => (cells.count() as usize).next_multiple_of(256),
+            None => (2 * capacity).next_power_of_two().max(256),
+        };
         check_fits(device, "hash buckets", table, 256, 4)?;
         let table = table as u32;
         let n_bytes = 4 * capacity as u64;
@@ -211,13 +284,17 @@ impl GpuGrid {
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
+        let constants = box_constants(cells);
         let pipeline = |entry: &str| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(&pipeline_layout),
                 module: &module,
                 entry_point: Some(entry),
-                compilation_options: Default::default(),
+                compilation_options: wgpu::PipelineCompilationOptions {
+                    constants: &constants,
+                    ..Default::default()
+                },
                 cache: None,
             })
         };
@@ -225,6 +302,7 @@ impl GpuGrid {
             capacity,
             n: 0,
             table,
+            cells,
             h,
             params,
             positions,
@@ -243,6 +321,17 @@ impl GpuGrid {
     /// Hash buckets in the table.
     pub fn table_size(&self) -> u32 {
         self.table
+    }
+
+    /// Whether its buckets are the cells of a box ([`in_box`](Self::in_box)).
+    pub fn is_box(&self) -> bool {
+        self.cells.is_some()
+    }
+
+    /// The pipeline constants that make `hash.wgsl`'s `bucket_of` this
+    /// grid's, for passes of other modules that walk its cells.
+    pub(crate) fn bucket_constants(&self) -> Vec<(&'static str, f64)> {
+        box_constants(self.cells)
     }
 
     /// Uploads particle positions (up to the capacity).
@@ -454,6 +543,22 @@ impl GpuGrid {
             })
             .collect())
     }
+}
+
+/// `hash.wgsl`'s `BOX_*` overrides for `cells` (none: hashed).
+fn box_constants(cells: Option<CellBox>) -> Vec<(&'static str, f64)> {
+    let Some(CellBox { min, dims }) = cells else {
+        return Vec::new();
+    };
+    vec![
+        ("BOX_CELLS", 1.0),
+        ("BOX_MIN_X", f64::from(min[0])),
+        ("BOX_MIN_Y", f64::from(min[1])),
+        ("BOX_MIN_Z", f64::from(min[2])),
+        ("BOX_DIM_X", f64::from(dims[0])),
+        ("BOX_DIM_Y", f64::from(dims[1])),
+        ("BOX_DIM_Z", f64::from(dims[2])),
+    ]
 }
 
 #[cfg(test)]

@@ -237,7 +237,15 @@ impl GpuPbf {
         let n = particles.len();
         let capacity = n.max(1);
         check_fits(device, "particles", capacity, 64, 32)?;
-        let mut grid = GpuGrid::new(device, capacity, fluid.h, MAX_NEIGHBOURS)?;
+        let domain = &boundary.domain;
+        let mut grid = GpuGrid::in_box(
+            device,
+            capacity,
+            fluid.h,
+            MAX_NEIGHBOURS,
+            domain.min,
+            domain.max,
+        )?;
         grid.upload_with_masses(queue, particles.positions(), Some(particles.masses()))?;
         let h = fluid.h;
         let poly6 = Poly6::new(h).map_err(GpuError::Params)?;
@@ -444,7 +452,13 @@ impl GpuPbf {
                 include_str!("shaders/pbf.wgsl")
             ),
         );
+        let mut constants = grid.bucket_constants();
+        constants.push(("HEADWAY", 0.0));
         let pass = |entry: &str, headway: u32| {
+            let mut constants = constants.clone();
+            if let Some(last) = constants.last_mut() {
+                last.1 = f64::from(headway);
+            }
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
                 layout: Some(match entry {
@@ -455,7 +469,7 @@ impl GpuPbf {
                 module: &module,
                 entry_point: Some(entry),
                 compilation_options: wgpu::PipelineCompilationOptions {
-                    constants: &[("HEADWAY", f64::from(headway))],
+                    constants: &constants,
                     ..Default::default()
                 },
                 cache: None,

@@ -38,16 +38,44 @@ fn gpu_grid_finds_the_cpu_grids_neighbour_sets() {
         return;
     };
     let x = particles();
+    let h = 0.02;
     for capacity in [x.len(), 40 * x.len()] {
-        neighbour_sets_match(ctx, &x, capacity);
+        let grid = GpuGrid::new(&ctx.device, capacity, h, 96).unwrap();
+        neighbour_sets_match(ctx, &x, grid);
     }
 }
 
-fn neighbour_sets_match(ctx: &GpuContext, x: &[Vec3], capacity: usize) {
+/// A grid over a box has one bucket per cell, in x-fastest order; the
+/// particles outside the box (half the lattice in one of the two boxes, and
+/// the one far away in both) wrap onto cells inside and are found all the
+/// same.
+#[test]
+fn gpu_grid_in_a_box_finds_the_cpu_grids_neighbour_sets() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let x = particles();
     let h = 0.02;
+    for (min, max) in [
+        (Vec3::new(-0.09, -0.05, -0.07), Vec3::new(0.13, 0.11, 0.07)),
+        (Vec3::new(-0.03, 0.0, -0.02), Vec3::new(0.05, 0.04, 0.03)),
+    ] {
+        let grid = GpuGrid::in_box(&ctx.device, x.len(), h, 96, min, max).unwrap();
+        assert!(grid.is_box());
+        let cells = ((max - min) / h).floor() + 1.0;
+        assert!(grid.table_size() as f32 >= cells.x * cells.y * cells.z);
+        assert!((grid.table_size() as f32) < cells.x * cells.y * cells.z + 256.0);
+        neighbour_sets_match(ctx, &x, grid);
+    }
+    // A box of more than 8 cells per particle is hashed instead.
+    let big = GpuGrid::in_box(&ctx.device, 10, h, 8, Vec3::ZERO, Vec3::splat(1.0)).unwrap();
+    assert!(!big.is_box());
+}
+
+fn neighbour_sets_match(ctx: &GpuContext, x: &[Vec3], mut grid: GpuGrid) {
+    let h = grid.h();
     let cpu = NeighbourGrid::build(x, h).unwrap();
-    let mut grid = GpuGrid::new(&ctx.device, capacity, h, 96).unwrap();
-    println!("{} hash buckets", grid.table_size());
+    println!("{} buckets", grid.table_size());
     grid.upload(&ctx.queue, x).unwrap();
     let lists = grid.neighbour_lists(&ctx.device, &ctx.queue).unwrap();
     let (mut pairs, mut ambiguous) = (0usize, 0usize);
