@@ -244,10 +244,7 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
 
 // Every working slot j with |x_s − x_j|² ≤ h² (s included), bucket by bucket
 // over the 27 cells around s, in slot order inside a bucket: up to
-// max_neighbours kept (neighbour-major), the full count in list_len. On a
-// grid over a box the three cells of a row along x are three neighbouring
-// buckets, so their particles are one run of slots, walked as one (the same
-// slots in the same order).
+// max_neighbours kept (neighbour-major), the full count in list_len.
 @compute @workgroup_size(64)
 fn neighbour_lists(@builtin(global_invocation_id) id: vec3<u32>) {
     let s = id.x;
@@ -256,48 +253,33 @@ fn neighbour_lists(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let x = positions[s].xyz;
     let c = cell_at(x, f.inv_h);
+    let h2 = f.h * f.h;
     var len = 0u;
     for (var dz = -1; dz <= 1; dz++) {
         for (var dy = -1; dy <= 1; dy++) {
-            let row = c + vec3<i32>(0, dy, dz);
-            let low = bucket_of(row - vec3<i32>(1, 0, 0), f.table);
-            let high = bucket_of(row + vec3<i32>(1, 0, 0), f.table);
-            if BOX_CELLS && high == low + 2u {
-                len = add_neighbours(s, x, row, 1, starts[low], starts[high] + counts[high], len);
-                continue;
-            }
             for (var dx = -1; dx <= 1; dx++) {
-                let b = bucket_of(row + vec3<i32>(dx, 0, 0), f.table);
-                let cell = row + vec3<i32>(dx, 0, 0);
-                len = add_neighbours(s, x, cell, 0, starts[b], starts[b] + counts[b], len);
+                let cell = c + vec3<i32>(dx, dy, dz);
+                let b = bucket_of(cell, f.table);
+                let first = starts[b];
+                let end = first + counts[b];
+                for (var j = first; j < end; j++) {
+                    let y = positions[j].xyz;
+                    // Buckets are shared by hash collisions: this cell's particles only.
+                    if any(cell_at(y, f.inv_h) != cell) {
+                        continue;
+                    }
+                    let d = x - y;
+                    if dot(d, d) <= h2 {
+                        if len < f.max_neighbours {
+                            lists[len * f.n + s] = j;
+                        }
+                        len += 1u;
+                    }
+                }
             }
         }
     }
     list_len[s] = len;
-}
-
-// Adds to s's list the slots first..end within h of x whose cell is `cell`
-// give or take `reach` along x (buckets hold other cells too: hash
-// collisions, cells wrapped onto the box); returns the new count.
-fn add_neighbours(s: u32, x: vec3<f32>, cell: vec3<i32>, reach: i32, first: u32, end: u32,
-                  count: u32) -> u32 {
-    var len = count;
-    let h2 = f.h * f.h;
-    for (var j = first; j < end; j++) {
-        let y = positions[j].xyz;
-        let cy = cell_at(y, f.inv_h);
-        if cy.y != cell.y || cy.z != cell.z || abs(cy.x - cell.x) > reach {
-            continue;
-        }
-        let d = x - y;
-        if dot(d, d) <= h2 {
-            if len < f.max_neighbours {
-                lists[len * f.n + s] = j;
-            }
-            len += 1u;
-        }
-    }
-    return len;
 }
 
 // The substep's particles home: positions, velocities and the density and
