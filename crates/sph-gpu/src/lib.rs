@@ -26,6 +26,7 @@
 //! [`wgpu_profiler::GpuProfiler`] (re-exported), which records timestamps
 //! around each pass where the device has `wgpu::Features::TIMESTAMP_QUERY`.
 
+mod anisotropy;
 mod density;
 mod extract;
 mod grid;
@@ -34,6 +35,7 @@ mod pbf;
 mod push;
 mod solver;
 
+pub use anisotropy::{GpuAnisotropy, KERNEL_BYTES};
 pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
