@@ -8,7 +8,9 @@ use surfel_extract::Anisotropy;
 use surfel_extract::anisotropy::{Centres, Ellipsoid};
 
 use crate::grid::{GpuError, GpuGrid};
-use crate::passes::{Groups, bind_buffers, pipeline, read, shader, staged_pass};
+use wgpu_profiler::GpuProfiler;
+
+use crate::passes::{Groups, bind_buffers, pipeline, read, shader, timed_pass};
 use crate::solver::HASH;
 
 /// Mirrors `struct Aniso` in `shaders/anisotropy.wgsl`.
@@ -101,7 +103,11 @@ impl GpuAnisotropy {
         );
         let n = capacity as u64;
         let centres = buffer("kernel centres", 16 * n, U::STORAGE | U::COPY_SRC);
-        let kernels = buffer("kernels", KERNEL_BYTES * n, U::STORAGE | U::COPY_SRC);
+        let kernels = buffer(
+            "kernels",
+            KERNEL_BYTES * n,
+            U::STORAGE | U::COPY_SRC | U::COPY_DST,
+        );
         let module = shader(
             device,
             "anisotropy.wgsl",
@@ -155,6 +161,19 @@ impl GpuAnisotropy {
         positions: &wgpu::Buffer,
         n: usize,
     ) -> Result<(), GpuError> {
+        self.encode_timed(queue, encoder, positions, n, None)
+    }
+
+    /// [`encode`](Self::encode), the grid's passes and the kernel pass
+    /// ("extract: kernels") timed by `profiler` where there is one.
+    pub(crate) fn encode_timed(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        positions: &wgpu::Buffer,
+        n: usize,
+        profiler: Option<&GpuProfiler>,
+    ) -> Result<(), GpuError> {
         if n > self.grid.capacity() {
             return Err(GpuError::Capacity {
                 given: n,
@@ -165,28 +184,29 @@ impl GpuAnisotropy {
         if bytes > 0 {
             encoder.copy_buffer_to_buffer(positions, 0, self.grid.positions_buffer(), 0, bytes);
         }
-        self.encode_grid(queue, encoder, n);
+        self.encode_grid(queue, encoder, n, profiler);
         Ok(())
     }
 
     /// Records the grid's build and the kernel pass over the first `n`
     /// positions in the grid's buffer.
-    fn encode_grid(&mut self, queue: &wgpu::Queue, encoder: &mut wgpu::CommandEncoder, n: usize) {
+    fn encode_grid(
+        &mut self,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        n: usize,
+        profiler: Option<&GpuProfiler>,
+    ) {
         self.grid.set_len(queue, n);
         self.uniform.n = n as u32;
         queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
-        self.grid.encode_build(encoder);
+        self.grid.encode_build_gated(encoder, None, profiler);
         let (pipeline, group) = &self.pass;
-        staged_pass(
-            encoder,
-            None,
-            "anisotropic kernels",
-            &[("anisotropic kernels", &|pass| {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                Groups::Direct((n as u32).div_ceil(64).max(1)).dispatch(pass);
-            })],
-        );
+        timed_pass(encoder, profiler, "extract: kernels", |pass| {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            Groups::Direct((n as u32).div_ceil(64).max(1)).dispatch(pass);
+        });
     }
 
     /// The kernels of `positions`, computed on the GPU and read back (for
@@ -204,7 +224,7 @@ impl GpuAnisotropy {
         self.grid.upload(queue, positions)?;
         let n = positions.len();
         let mut encoder = device.create_command_encoder(&Default::default());
-        self.encode_grid(queue, &mut encoder, n);
+        self.encode_grid(queue, &mut encoder, n, None);
         let centres = read(device, queue, encoder, &self.centres, 16 * n as u64)?;
         let encoder = device.create_command_encoder(&Default::default());
         let kernels = read(

@@ -5,11 +5,12 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
-use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Split, Surfel};
+use surfel_extract::{AllAround, ColourField, ExtractParams, Mode, Split, Surface, Surfel};
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
 use crate::GpuParticles;
+use crate::anisotropy::{GpuAnisotropy, KERNEL_BYTES};
 use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{
     Groups, PassStage, Staging, bind_pairs, pipeline, read, shader, staged_pass, timed_pass,
@@ -36,6 +37,10 @@ struct Uniform {
     poly6_grad: f32,
     work_capacity: u32,
     out_capacity: u32,
+    anisotropic: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 /// Mirrors `struct Stage`.
@@ -56,6 +61,7 @@ const LONE: usize = 5;
 const DISCARDED: usize = 6;
 const EVALUATED: usize = 7;
 const DROPPED: usize = 10;
+const DROPLETS: usize = 11;
 const COUNTERS: u64 = 16;
 
 /// Bytes of one surfel on the GPU (splat-render's splat layout).
@@ -72,6 +78,9 @@ pub struct GpuExtractStats {
     pub all_around: usize,
     /// Lone particles given their analytic iso-sphere.
     pub lone: usize,
+    /// Particles of droplets too small for anisotropic kernels, seeded on
+    /// their spheres (anisotropic field only).
+    pub droplets: usize,
     /// Surfels discarded by the step test.
     pub discarded: usize,
     /// Surfels in the result (at most the capacity).
@@ -96,7 +105,10 @@ impl GpuExtractStats {
 /// surfel capacity.
 ///
 /// It runs [`Mode::Thesis`] with the same equations, thresholds and decisions
-/// as `surfel_extract::extract`; hole closing ([`Mode::Covered`]) is CPU-only.
+/// as `surfel_extract::extract`, on the thesis's isotropic field or Yu &
+/// Turk's anisotropic one ([`Surface::Anisotropic`], whose kernels
+/// [`GpuAnisotropy`] computes on the GPU); hole closing ([`Mode::Covered`])
+/// is CPU-only.
 /// Surfels are appended with atomic counters, so their order varies from run
 /// to run (the set does not, up to float rounding). The result buffer holds
 /// `vec4(position, radius), vec4(normal, 0)` per surfel — splat-render's splat
@@ -118,6 +130,11 @@ pub struct GpuExtractor {
     stages: Vec<[(wgpu::ComputePipeline, wgpu::BindGroup); 2]>,
     finish: (wgpu::ComputePipeline, wgpu::BindGroup),
     volumes_pass: wgpu::ComputePipeline,
+    /// The anisotropic field's kernels, computed from the attached solver's
+    /// particles (`None`: the isotropic field).
+    anisotropy: Option<GpuAnisotropy>,
+    /// The kernels the field reads (the anisotropy's, or a placeholder).
+    kernels: wgpu::Buffer,
     /// The solver this extractor reads from, once [`attach`](Self::attach)ed:
     /// its positions buffer and the bind group of the volumes pass.
     attached: Option<(wgpu::Buffer, wgpu::BindGroup)>,
@@ -177,6 +194,10 @@ impl GpuExtractor {
             ));
         }
         let grid = GpuGrid::new(device, particles, params.h, 1)?;
+        let anisotropy = match params.surface {
+            Surface::Anisotropic(a) => Some(GpuAnisotropy::new(device, particles, params.h, &a)?),
+            Surface::Isotropic => None,
+        };
         let h = params.h;
         let pi = std::f32::consts::PI;
         let uniform = Uniform {
@@ -200,6 +221,10 @@ impl GpuExtractor {
             poly6_grad: 945.0 / (32.0 * pi * h.powi(9)),
             work_capacity: max_surfels as u32,
             out_capacity: max_surfels as u32,
+            anisotropic: u32::from(anisotropy.is_some()),
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         };
         use wgpu::BufferUsages as U;
         let buffer = |label, size: u64, usage| {
@@ -220,6 +245,10 @@ impl GpuExtractor {
             4 * particles as u64,
             U::STORAGE | U::COPY_DST,
         );
+        let kernels = match &anisotropy {
+            Some(a) => a.kernels_buffer().clone(),
+            None => buffer("no kernels", KERNEL_BYTES, U::STORAGE),
+        };
         let counters = buffer(
             "extract counters",
             4 * COUNTERS,
@@ -266,6 +295,7 @@ impl GpuExtractor {
             (4, grid.sorted_buffer()),
             (5, &volumes),
             (6, &counters),
+            (15, &kernels),
         ];
         let guess_pipeline = pipeline("guess");
         let mut entries = field.to_vec();
@@ -322,6 +352,8 @@ impl GpuExtractor {
             stages,
             finish: (finish_pipeline, finish_group),
             volumes_pass,
+            anisotropy,
+            kernels,
             attached: None,
         })
     }
@@ -332,12 +364,29 @@ impl GpuExtractor {
     }
 
     /// Uploads particle positions and volumes V = m/ρ (for example a
-    /// [`ColourField`]'s, see [`upload_field`](Self::upload_field)).
+    /// [`ColourField`]'s, see [`upload_field`](Self::upload_field)) for the
+    /// isotropic field.
     ///
     /// # Errors
     /// [`GpuError::Capacity`]; [`GpuError::Invalid`] for a length mismatch, a
-    /// non-finite position or a volume that is not finite and positive.
+    /// non-finite position, a volume that is not finite and positive, or an
+    /// extractor of the anisotropic field (whose kernels come with
+    /// [`upload_field`](Self::upload_field) or [`attach`](Self::attach)).
     pub fn upload(
+        &mut self,
+        queue: &wgpu::Queue,
+        positions: &[Vec3],
+        volumes: &[f32],
+    ) -> Result<(), GpuError> {
+        if self.anisotropy.is_some() {
+            return Err(GpuError::Invalid(
+                "an anisotropic extractor takes its kernels with its particles: use upload_field or attach",
+            ));
+        }
+        self.upload_particles(queue, positions, volumes)
+    }
+
+    fn upload_particles(
         &mut self,
         queue: &wgpu::Queue,
         positions: &[Vec3],
@@ -357,12 +406,14 @@ impl GpuExtractor {
         Ok(())
     }
 
-    /// Uploads the particles and volumes of a CPU colour field: the GPU then
-    /// extracts from the same field as `surfel_extract::extract_field`.
+    /// Uploads the particles (kernel centres) and volumes of a CPU colour
+    /// field, and an anisotropic field's kernels: the GPU then extracts from
+    /// the same field as `surfel_extract::extract_field`.
     ///
     /// # Errors
     /// As [`upload`](Self::upload), and [`GpuError::Invalid`] for a field of
-    /// another smoothing length.
+    /// another smoothing length or of the other kind (isotropic or
+    /// anisotropic) than the extractor's parameters.
     pub fn upload_field(
         &mut self,
         queue: &wgpu::Queue,
@@ -373,7 +424,32 @@ impl GpuExtractor {
                 "the field's h differs from the extractor's",
             ));
         }
-        self.upload(queue, field.positions(), field.volumes())
+        let anisotropic = matches!(field.surface(), Surface::Anisotropic(_));
+        if anisotropic != self.anisotropy.is_some() {
+            return Err(GpuError::Invalid(
+                "the field's surface (isotropic or anisotropic) differs from the extractor's",
+            ));
+        }
+        self.upload_particles(queue, field.positions(), field.volumes())?;
+        if anisotropic && !field.is_empty() {
+            let rows: Vec<[f32; 8]> = (field.shapes().iter())
+                .map(|e| {
+                    let [xx, xy, xz, yy, yz, zz] = e.m;
+                    [
+                        xx,
+                        xy,
+                        xz,
+                        yy,
+                        yz,
+                        zz,
+                        e.det,
+                        f32::from(u8::from(e.isolated)),
+                    ]
+                })
+                .collect();
+            queue.write_buffer(&self.kernels, 0, bytemuck::cast_slice(&rows));
+        }
+        Ok(())
     }
 
     /// Culls back-facing surfels for an eye at `camera` from the next
@@ -481,12 +557,21 @@ impl GpuExtractor {
             return Err(GpuError::Invalid("no solver attached"));
         };
         let n = self.uniform.n as usize;
+        // The field's particles: the solver's, or the anisotropic kernels'
+        // centres computed from them (with the masses in w).
+        let source = match self.anisotropy.as_mut() {
+            Some(anisotropy) => {
+                anisotropy.encode_timed(queue, encoder, positions, n, profiler)?;
+                anisotropy.centres_buffer()
+            }
+            None => positions,
+        };
         encoder.copy_buffer_to_buffer(
-            positions,
+            source,
             0,
             self.grid.positions_buffer(),
             0,
-            Some((16 * n as u64).max(16).min(positions.size())),
+            Some((16 * n as u64).max(16).min(source.size())),
         );
         timed_pass(encoder, profiler, "extract: volumes", |pass| {
             pass.set_pipeline(&self.volumes_pass);
@@ -572,6 +657,7 @@ impl GpuExtractor {
             surface_particles: c[SURFACE_PARTICLES] as usize,
             all_around: c[ALL_AROUND] as usize,
             lone: c[LONE] as usize,
+            droplets: c[DROPLETS] as usize,
             discarded: c[DISCARDED] as usize,
             surfels: c[OUT].min(self.uniform.out_capacity) as usize,
             dropped: c[DROPPED] as usize,
@@ -644,7 +730,11 @@ mod tests {
                 poly6,
                 poly6_grad,
                 work_capacity,
-                out_capacity
+                out_capacity,
+                anisotropic,
+                pad0,
+                pad1,
+                pad2
             }
         )
         .unwrap();

@@ -12,7 +12,7 @@ use sph_gpu::{GpuExtractStats, GpuExtractor, GpuSolver};
 use splat_render::GpuContext;
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
 use surfel_extract::samples::jittered_lattice;
-use surfel_extract::{ColourField, ExtractParams, Split, Surfel, extract_field};
+use surfel_extract::{ColourField, ExtractParams, Split, Surface, Surfel, extract_field};
 
 const SPACING: f32 = 0.01;
 const H: f32 = 2.0 * SPACING;
@@ -34,7 +34,9 @@ fn gpu_extract(
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     gpu.encode(&mut encoder);
     ctx.queue.submit([encoder.finish()]);
-    gpu.read_surfels(&ctx.device, &ctx.queue).unwrap()
+    let out = gpu.read_surfels(&ctx.device, &ctx.queue).unwrap();
+    ctx.check().unwrap();
+    out
 }
 
 /// GPU and CPU thesis-mode extraction of `field`: the CPU tests' bounds on the
@@ -368,4 +370,219 @@ fn gpu_surfels_render_indirectly_as_their_upload_does() {
             .use_gpu_splats(ctx, gpu.surfels_buffer(), gpu.surfels_buffer())
             .is_err()
     );
+}
+
+/// The anisotropic field (Yu & Turk) of `points` at h = `h`.
+fn anisotropic_field(points: &[Vec3], h: f32) -> ColourField {
+    let mut field = ColourField::new(Surface::anisotropic()).unwrap();
+    field.refill_from_positions(points, h).unwrap();
+    field
+}
+
+/// GPU and CPU thesis-mode extraction of an anisotropic `field`: counts
+/// within `tolerance`, the same residual and normal bounds, coverage within
+/// 0.2 points of the CPU's, and nearly every GPU surfel within 0.01 h of a
+/// CPU one (the crossings stop at a tolerance, so positions agree to it,
+/// not to rounding).
+fn compare_anisotropic(
+    ctx: &GpuContext,
+    name: &str,
+    field: &ColourField,
+    spacing: f32,
+    thickness: f32,
+    tolerance: f64,
+) -> GpuExtractStats {
+    let params = ExtractParams::new(field.h()).thesis().anisotropic();
+    let cpu = extract_field(field, &params).unwrap();
+    let (surfels, stats) = gpu_extract(ctx, field, &params, 1 << 21);
+    let r = residuals(field, params.iso, &surfels);
+    let points = iso_points(field, params.iso, spacing).expect("iso points");
+    let coverage = covered_fraction(&surfels, &points, thickness).unwrap();
+    let cpu_coverage = covered_fraction(&cpu.surfels, &points, thickness).unwrap();
+    let cell = 0.01 * field.h();
+    let index: std::collections::HashMap<[i32; 3], Vec<usize>> = {
+        let mut m: std::collections::HashMap<[i32; 3], Vec<usize>> = Default::default();
+        for (k, c) in cpu.surfels.iter().enumerate() {
+            m.entry((c.position / cell).floor().as_ivec3().to_array())
+                .or_default()
+                .push(k);
+        }
+        m
+    };
+    let matched = surfels
+        .iter()
+        .filter(|g| {
+            let at = (g.position / cell).floor().as_ivec3();
+            (-1..=1).any(|dz| {
+                (-1..=1).any(|dy| {
+                    (-1..=1).any(|dx| {
+                        let key = (at + sph_core::glam::IVec3::new(dx, dy, dz)).to_array();
+                        index.get(&key).is_some_and(|ks| {
+                            ks.iter().any(|&k| {
+                                let c = &cpu.surfels[k];
+                                (g.position - c.position).length() < cell
+                                    && (g.normal - c.normal).length() < 0.01
+                            })
+                        })
+                    })
+                })
+            })
+        })
+        .count();
+    println!(
+        "{name} (anisotropic): GPU {} surfels (CPU {}), matched {matched}, residual median {:.2e} p95 {:.2e}, normal {:.2}°, coverage {:.2} % (CPU {:.2} %), {stats:?}; CPU {:?}",
+        surfels.len(),
+        cpu.surfels.len(),
+        r.median,
+        r.p95,
+        r.median_angle_deg,
+        100.0 * coverage,
+        100.0 * cpu_coverage,
+        cpu.stats,
+    );
+    assert_eq!(stats.dropped, 0);
+    // The CPU's own surfels as the bound: droplets' and filaments' crossings
+    // leave larger residuals than a smooth surface's on both paths.
+    let rc = residuals(field, params.iso, &cpu.surfels);
+    assert!(
+        r.median <= 1.1 * rc.median + 1e-3,
+        "{name}: median residual {}",
+        r.median
+    );
+    assert!(
+        r.p95 <= 1.1 * rc.p95 + 1e-3,
+        "{name}: p95 residual {} (CPU {})",
+        r.p95,
+        rc.p95
+    );
+    assert!(r.median_angle_deg < 5.0, "{name}: {}°", r.median_angle_deg);
+    assert!(
+        coverage >= cpu_coverage - 0.002,
+        "{name}: coverage {coverage}, CPU {cpu_coverage}"
+    );
+    let diff = |a: usize, b: usize| (a as f64 - b as f64).abs() / b.max(1) as f64;
+    assert!(
+        diff(surfels.len(), cpu.surfels.len()) <= tolerance,
+        "{name}: surfel counts"
+    );
+    assert!(diff(stats.surface_particles, cpu.stats.surface_particles) <= tolerance);
+    assert!(diff(stats.all_around, cpu.stats.all_around) <= 2.0 * tolerance);
+    assert_eq!(stats.lone, cpu.stats.lone);
+    assert_eq!(stats.droplets, cpu.stats.droplets);
+    assert!(
+        matched as f64 >= (1.0 - tolerance) * surfels.len() as f64,
+        "{name}: {matched} of {} matched",
+        surfels.len()
+    );
+    stats
+}
+
+#[test]
+fn anisotropic_sphere_block_and_droplets_match_the_cpu_extractor() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let sphere = lattice(9, |x| x.length() <= 8.5 * SPACING);
+    let block = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
+    // A block with lone particles and droplets of two and three beside it.
+    let mut spray = block.clone();
+    for k in 0..6 {
+        let x = Vec3::new(0.2 + 0.06 * k as f32, 0.0, 0.0);
+        spray.push(x);
+        for m in 0..k % 3 {
+            spray.push(x + Vec3::new(0.0, 0.6 * SPACING * (m + 1) as f32, 0.0));
+        }
+    }
+    for (name, points) in [("sphere", sphere), ("block", block), ("spray", spray)] {
+        let field = anisotropic_field(&points, H);
+        let stats = compare_anisotropic(ctx, name, &field, 0.25 * H, 0.1 * H, 0.01);
+        if name == "spray" {
+            assert!(stats.lone >= 2 && stats.droplets >= 4, "{stats:?}");
+        }
+    }
+}
+
+#[test]
+fn anisotropic_dam_break_frame_matches_the_cpu_extractor() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut world = Scene::dam_break(0.2, 0.06, 0.02).build_world().unwrap();
+    world.advance(0.4).unwrap();
+    let field = anisotropic_field(world.particles.positions(), 0.04);
+    compare_anisotropic(ctx, "dam break", &field, 0.01, 0.004, 0.02);
+}
+
+/// PBF's particles extracted on the anisotropic field without leaving the
+/// GPU (kernels, centres, volumes from the solver's densities), against the
+/// CPU's extraction of the read-back state with the same volumes.
+#[test]
+fn solver_particles_are_extracted_on_the_anisotropic_field() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let mut solver = sph_gpu::GpuPbf::new(
+        device,
+        queue,
+        &world.particles,
+        world.params(),
+        &scene.pbf_params(),
+        &scene.boundary(),
+    )
+    .unwrap();
+    for _ in 0..20 {
+        solver.advance(device, queue, 1.0 / 60.0).unwrap();
+    }
+    solver.finish(device).unwrap();
+    let h = world.params().h;
+    let params = ExtractParams::new(h).thesis().anisotropic();
+    let mut gpu = GpuExtractor::new(device, world.particles.len(), 1 << 20, &params).unwrap();
+    gpu.attach(device, &solver).unwrap();
+    let mut profiler = GpuProfiler::new(device, GpuProfilerSettings::default()).unwrap();
+    let mut encoder = device.create_command_encoder(&Default::default());
+    gpu.encode_attached_profiled(queue, &mut encoder, &profiler)
+        .unwrap();
+    profiler.resolve_queries(&mut encoder);
+    queue.submit([encoder.finish()]);
+    profiler.end_frame().unwrap();
+    let (surfels, stats) = gpu.read_surfels(device, queue).unwrap();
+    ctx.check().unwrap();
+    let labels: Vec<String> = profiler
+        .process_finished_frame(queue.get_timestamp_period())
+        .expect("resolved after the read-back")
+        .into_iter()
+        .map(|q| q.label)
+        .collect();
+    assert!(labels.iter().any(|l| l == "extract: kernels"), "{labels:?}");
+
+    let state = solver.read_state(device, queue).unwrap();
+    let volumes: Vec<f32> = (world.particles.masses().iter())
+        .zip(&state.densities)
+        .map(|(m, rho)| m / rho)
+        .collect();
+    let mut field = ColourField::new(Surface::anisotropic()).unwrap();
+    field
+        .refill_with_volumes(&state.positions, &volumes, h)
+        .unwrap();
+    let cpu = extract_field(&field, &params).unwrap();
+    let r = residuals(&field, 0.5, &surfels);
+    let rc = residuals(&field, 0.5, &cpu.surfels);
+    println!(
+        "anisotropic, after 20 GPU PBF frames: {} GPU surfels vs {} CPU, residual median {:.2e} \
+         (CPU {:.2e}) p95 {:.2e} (CPU {:.2e}), {stats:?}",
+        surfels.len(),
+        cpu.surfels.len(),
+        r.median,
+        rc.median,
+        r.p95,
+        rc.p95
+    );
+    assert_eq!(stats.dropped, 0);
+    assert!(r.median <= 1.1 * rc.median + 1e-3 && r.p95 <= 1.1 * rc.p95 + 1e-3);
+    let diff = (surfels.len() as f64 - cpu.surfels.len() as f64).abs();
+    assert!(diff <= 0.02 * cpu.surfels.len() as f64);
+    assert_eq!(stats.lone, cpu.stats.lone);
 }

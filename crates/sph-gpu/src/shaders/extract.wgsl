@@ -4,6 +4,14 @@
 // splitting. The same equations, thresholds and order of decisions as
 // surfel-extract's thesis mode; surfels are appended to buffers with atomic
 // counters, in the splat renderer's layout, and drawn indirectly.
+//
+// With `anisotropic` set the field is Yu & Turk's, as surfel-extract's
+// Surface::Anisotropic makes it: positions are the kernel centres and each
+// kernel is det(G_j) W_poly6(|G_j (x - x_j)|) (`kernels`, anisotropy.wgsl),
+// and the guess and refinement follow the CPU's anisotropic path: crossings
+// bracketed along a line where the isotropic field takes one Newton step,
+// droplets of isolated kernels seeded on their spheres, lone particles
+// drawn as 400 surfels.
 
 struct Extract {
     h: f32,
@@ -23,6 +31,10 @@ struct Extract {
     poly6_grad: f32,          // 945 / (32 pi h^9)
     work_capacity: u32,
     out_capacity: u32,
+    anisotropic: u32,         // 1: Yu & Turk's field (`kernels`)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 // Which counters a refinement iteration reads and appends to.
@@ -47,6 +59,7 @@ const LONE: u32 = 5u;
 const DISCARDED: u32 = 6u;
 const EVALUATED: u32 = 7u;     // 7, 8, 9: surfels refined in iteration 0, 1, 2
 const DROPPED: u32 = 10u;      // surfels that did not fit a buffer
+const DROPLETS: u32 = 11u;     // particles of droplets of isolated kernels
 
 @group(0) @binding(0) var<uniform> e: Extract;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -62,6 +75,15 @@ const DROPPED: u32 = 10u;      // surfels that did not fit a buffer
 @group(0) @binding(11) var<storage, read_write> dispatch_args: array<u32, 3>;
 @group(0) @binding(12) var<storage, read_write> draw_args: array<u32, 4>;
 
+// One particle's anisotropic kernel (anisotropy.wgsl): G² as xx, xy, xz, yy
+// in `a`, yz, zz in `b.xy`; det G in `b.z`; 1 in `b.w` for an isolated
+// particle's sphere.
+struct Kernel {
+    a: vec4<f32>,
+    b: vec4<f32>,
+};
+@group(0) @binding(15) var<storage, read> kernels: array<Kernel>;
+
 struct Field {
     c: f32,
     gradient: vec3<f32>,
@@ -71,6 +93,24 @@ struct Field {
 // Accumulates neighbour j at offset d = x - x_j, |d|^2 = r2 <= h^2.
 fn add(f: ptr<function, Field>, j: u32, d: vec3<f32>, r2: f32) {
     let v = volumes[j];
+    if e.anisotropic != 0u {
+        // t = h² − dᵀ M d with M = G²: c = a t³, ∇c = −6 a t² M d,
+        // ∇²c = a (24 t |M d|² − 6 t² tr M), a = V det G k_poly6
+        // (surfel-extract's `ellipsoid_sums`).
+        let k = kernels[j];
+        let md = vec3<f32>(
+            k.a.x * d.x + k.a.y * d.y + k.a.z * d.z,
+            k.a.y * d.x + k.a.w * d.y + k.b.x * d.z,
+            k.a.z * d.x + k.b.x * d.y + k.b.y * d.z,
+        );
+        let t = max(e.h * e.h - dot(d, md), 0.0);
+        let at = v * k.b.z * e.poly6 * t;
+        let at2 = at * t;
+        (*f).c += at2 * t;
+        (*f).gradient += (-6.0 * at2) * md;
+        (*f).laplacian += at * (24.0 * dot(md, md)) - 6.0 * at2 * (k.a.x + k.a.w + k.b.y);
+        return;
+    }
     let q = e.h * e.h - r2;
     (*f).c += v * e.poly6 * q * q * q;
     (*f).gradient += v * (-e.poly6_grad * q * q) * d;
@@ -120,6 +160,140 @@ fn scan(x: vec3<f32>) -> Scan {
         }
     }
     return Scan(f, diagonal, off, hits);
+}
+
+// The field's value alone at x (one evaluation).
+fn value_at(x: vec3<f32>) -> f32 {
+    var f = Field(0.0, vec3<f32>(0.0), 0.0);
+    let c = cell_at(x, e.inv_h);
+    let h2 = e.h * e.h;
+    for (var dz = -1; dz <= 1; dz++) {
+        for (var dy = -1; dy <= 1; dy++) {
+            for (var dx = -1; dx <= 1; dx++) {
+                let cell = c + vec3<i32>(dx, dy, dz);
+                let b = bucket_of(cell, e.table);
+                let first = starts[b];
+                for (var k = 0u; k < counts[b]; k++) {
+                    let j = sorted[first + k];
+                    let y = positions[j].xyz;
+                    if any(cell_at(y, e.inv_h) != cell) {
+                        continue;
+                    }
+                    let d = x - y;
+                    let r2 = dot(d, d);
+                    if r2 <= h2 {
+                        add(&f, j, d, r2);
+                    }
+                }
+            }
+        }
+    }
+    return f.c;
+}
+
+// Where c crosses iso along x + t n, |t| ≤ reach, on the side c(x) = c0
+// says (t > 0 when c0 > iso): regula falsi (Illinois) from the bracket
+// [0, ±reach] until |c − iso| ≤ tolerance, at most 6 steps (surfel-extract's
+// `crossing`). `.y` is 0 when c is still on c0's side at reach.
+fn crossing(x: vec3<f32>, c0: f32, n: vec3<f32>, reach: f32, tolerance: f32) -> vec2<f32> {
+    let side = select(-1.0, 1.0, c0 >= e.iso);
+    var a = 0.0;
+    var fa = c0 - e.iso;
+    var b = side * reach;
+    var fb = value_at(x + b * n) - e.iso;
+    if fb * fa > 0.0 {
+        return vec2<f32>(0.0, 0.0);
+    }
+    var last = 0;
+    for (var step = 0; step < 6; step++) {
+        var t = 0.5 * (a + b);
+        if fa != fb {
+            t = b - fb * (b - a) / (fb - fa);
+        }
+        let ft = value_at(x + t * n) - e.iso;
+        if abs(ft) <= tolerance {
+            return vec2<f32>(t, 1.0);
+        }
+        if (ft > 0.0) == (fa > 0.0) {
+            a = t;
+            fa = ft;
+            if last == -1 {
+                fb *= 0.5;
+            }
+            last = -1;
+        } else {
+            b = t;
+            fb = ft;
+            if last == 1 {
+                fa *= 0.5;
+            }
+            last = 1;
+        }
+    }
+    return vec2<f32>(select(b, a, abs(fa) < abs(fb)), 1.0);
+}
+
+// How close to iso the guess's crossings stop (surfel-extract's
+// GUESS_TOLERANCE).
+const GUESS_TOLERANCE: f32 = 1e-3;
+
+// The distance from particle i, alone, at which its kernel reaches iso (an
+// anisotropic kernel's sphere scaled by det G), or a negative value if it
+// never does (surfel-extract's `lone_radius`).
+fn lone_radius(i: u32) -> f32 {
+    let h2 = e.h * e.h;
+    var volume = volumes[i];
+    var scale = 1.0;
+    if e.anisotropic != 0u {
+        let det = kernels[i].b.z;
+        volume *= det;
+        scale = 1.0 / pow(det, 1.0 / 3.0);
+    }
+    let d = pow(e.iso / (volume * e.poly6), 1.0 / 3.0);
+    if !(e.iso > 0.0 && d < h2) {
+        return -1.0;
+    }
+    return scale * sqrt(h2 - d);
+}
+
+// Direction k of `count` spread evenly over the sphere (a Fibonacci lattice).
+fn sphere_direction(k: u32, count: u32) -> vec3<f32> {
+    let z = 1.0 - f32(2u * k + 1u) / f32(count);
+    let r = sqrt(max(1.0 - z * z, 0.0));
+    let phi = 2.3999632 * f32(k);
+    return vec3<f32>(r * cos(phi), z, r * sin(phi));
+}
+
+// Surfel k of `count` on the sphere of `radius` about x: discs that overlap
+// (1.3 × the radius of the cap each owns), sunk by a quarter of their rim's
+// rise (surfel-extract's `sphere_surfels`).
+fn sphere_surfel(x: vec3<f32>, radius: f32, k: u32, count: u32) -> Surfel {
+    let disc = 1.3 * radius * sqrt(4.0 / f32(count));
+    let sunk = radius - 0.125 * disc * disc / radius;
+    let d = sphere_direction(k, count);
+    return surfel(x + sunk * d, d, disc);
+}
+
+// The front-facing surfels of the sphere of `radius` about x from `count`
+// directions, appended to buffer `slot` (0: work, OUT: final).
+fn push_sphere(x: vec3<f32>, radius: f32, count: u32, slot: u32) {
+    var keep = 0u;
+    for (var k = 0u; k < count; k++) {
+        let s = sphere_surfel(x, radius, k, count);
+        keep += u32(front_facing(s.position_radius.xyz, s.normal.xyz));
+    }
+    var at = reserve(slot, keep);
+    for (var k = 0u; k < count; k++) {
+        let s = sphere_surfel(x, radius, k, count);
+        if front_facing(s.position_radius.xyz, s.normal.xyz) {
+            if slot == OUT {
+                push_out(at, s);
+            } else {
+                push_work(at, s);
+            }
+            at++;
+        }
+    }
 }
 
 // The thread's index in a dispatch of up to 65535 x 65535 groups of 64.
@@ -214,13 +388,15 @@ fn guess(
     let f = at.field;
     if at.hits <= 1u {
         // Alone: the analytic iso-sphere V W(R) = iso, final as it is.
-        let d3 = e.iso / (volumes[i] * e.poly6);
-        let d = pow(d3, 1.0 / 3.0);
-        if !(d < h2) {
+        let radius = lone_radius(i);
+        if radius < 0.0 {
             return;
         }
         atomicAdd(&counters[LONE], 1u);
-        let radius = sqrt(h2 - d);
+        if e.anisotropic != 0u {
+            push_sphere(x, radius, 400u, OUT);
+            return;
+        }
         var keep = 0u;
         for (var k = 0u; k < 14u; k++) {
             let n = box_direction(k);
@@ -235,6 +411,16 @@ fn guess(
             }
         }
         return;
+    }
+    // A particle of a droplet too small for anisotropic kernels: seeds on
+    // its sphere, refined like the others.
+    if e.anisotropic != 0u && kernels[i].b.w != 0.0 {
+        let radius = lone_radius(i);
+        if radius >= 0.0 {
+            atomicAdd(&counters[DROPLETS], 1u);
+            push_sphere(x, radius, 100u, 0u);
+            return;
+        }
     }
     // Surface on several sides (eq. 36): P = det C / (tr C / 3)^3.
     let xx = at.diagonal.x;
@@ -253,6 +439,29 @@ fn guess(
     if shape < e.covariance_threshold {
         atomicAdd(&counters[ALL_AROUND], 1u);
         let first = select(6u, 0u, e.all_around == 6u);
+        if e.anisotropic != 0u {
+            // Each surfel where c crosses iso along its direction, if it
+            // does within reach.
+            var found: array<f32, 8>;
+            var keep = 0u;
+            for (var k = 0u; k < e.all_around; k++) {
+                let n = box_direction(first + k);
+                let t = crossing(x, f.c, n, e.interior_step * h, GUESS_TOLERANCE);
+                found[k] = select(-1.0, t.x, t.y != 0.0 && t.x > 0.0);
+                if found[k] > 0.0 && front_facing(x + found[k] * n, n) {
+                    keep++;
+                }
+            }
+            var at = reserve(0u, keep);
+            for (var k = 0u; k < e.all_around; k++) {
+                let n = box_direction(first + k);
+                if found[k] > 0.0 && front_facing(x + found[k] * n, n) {
+                    push_work(at, surfel(x + found[k] * n, n, e.radius * h));
+                    at++;
+                }
+            }
+            return;
+        }
         var keep = 0u;
         for (var k = first; k < first + e.all_around; k++) {
             let n = box_direction(k);
@@ -273,7 +482,16 @@ fn guess(
         return;
     }
     let normal = -f.gradient / g;
-    let nr = (f.c - e.iso) / g;
+    var nr = (f.c - e.iso) / g;
+    if e.anisotropic != 0u {
+        // Thin kernels make c peak near a surface particle and fall
+        // steeply beyond it: the crossing is bracketed along the normal.
+        let t = crossing(x, f.c, normal, e.interior_step * h, GUESS_TOLERANCE);
+        if t.y == 0.0 {
+            return;
+        }
+        nr = t.x;
+    }
     if abs(nr) > e.interior_step * h {
         return;
     }
@@ -332,10 +550,28 @@ fn refine(
     let x = s.position_radius.xyz;
     let f = scan(x).field;
     let g2 = dot(f.gradient, f.gradient);
-    let nr = -(f.c - e.iso) * f.gradient / g2;
-    if !(g2 > 1e-12 * e.inv_h * e.inv_h) || !(length(nr) <= e.discard_step * e.h) {
+    var nr = -(f.c - e.iso) * f.gradient / g2;
+    if !(g2 > 1e-12 * e.inv_h * e.inv_h) {
         atomicAdd(&counters[DISCARDED], 1u);
         return;
+    }
+    if !(length(nr) <= e.discard_step * e.h) {
+        // The anisotropic field's thin kernels leave c flat far from them,
+        // where a Newton step overshoots: its crossing along the normal
+        // within the step limit is kept instead (safeguarded Newton).
+        var kept = false;
+        if e.anisotropic != 0u && length(nr) < 3.0e38 {
+            let n = -f.gradient / sqrt(g2);
+            let t = crossing(x, f.c, n, e.discard_step * e.h, 0.0);
+            if t.y != 0.0 {
+                nr = t.x * n;
+                kept = true;
+            }
+        }
+        if !kept {
+            atomicAdd(&counters[DISCARDED], 1u);
+            return;
+        }
     }
     let p = x + nr;
     let n = -f.gradient / sqrt(g2);
