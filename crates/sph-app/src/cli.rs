@@ -101,8 +101,8 @@ pub struct Args {
     /// kernels (the default), which make smooth water, or the thesis's
     /// isotropic colour field, bumpy at the particle scale and about 3.5
     /// times cheaper to extract (`drop`: 10–11 ms a frame against 3–3.6 ms
-    /// on two cores, where its simulation takes 6–7 ms). --gpu-extract extracts
-    /// the isotropic field, its default there.
+    /// on two cores, where its simulation takes 6–7 ms). --gpu-extract
+    /// extracts either, the anisotropic one by default as well.
     #[arg(long, value_enum)]
     pub surface: Option<SurfaceField>,
 
@@ -153,15 +153,10 @@ pub struct Args {
 }
 
 impl Args {
-    /// The surface field to extract: `--surface`, else the anisotropic one,
-    /// or the isotropic one with `--gpu-extract` (the only one the GPU
-    /// extracts).
+    /// The surface field to extract: `--surface`, else the anisotropic one
+    /// (on either path).
     pub fn surface_field(&self) -> SurfaceField {
-        self.surface.unwrap_or(if self.gpu_extract {
-            SurfaceField::Isotropic
-        } else {
-            SurfaceField::Anisotropic
-        })
+        self.surface.unwrap_or(SurfaceField::Anisotropic)
     }
 }
 
@@ -273,13 +268,12 @@ mod tests {
         assert_eq!(a.surface_field(), SurfaceField::Anisotropic);
         let a = Args::try_parse_from(["sph-app", "--surface", "isotropic"]).unwrap();
         assert_eq!(a.surface_field(), SurfaceField::Isotropic);
-        // The GPU extracts the isotropic field: its default there, and the
-        // anisotropic one only when asked for (with a warning).
+        // The GPU extracts the anisotropic field too: the default there as well.
         let a = Args::try_parse_from(["sph-app", "--gpu-extract"]).unwrap();
-        assert_eq!(a.surface_field(), SurfaceField::Isotropic);
-        let a =
-            Args::try_parse_from(["sph-app", "--gpu-extract", "--surface", "anisotropic"]).unwrap();
         assert_eq!(a.surface_field(), SurfaceField::Anisotropic);
+        let a =
+            Args::try_parse_from(["sph-app", "--gpu-extract", "--surface", "isotropic"]).unwrap();
+        assert_eq!(a.surface_field(), SurfaceField::Isotropic);
         assert!(Args::try_parse_from(["sph-app", "--fps", "-1"]).is_err());
         // Frames of more than 1 s of simulation would run for hours.
         assert!(Args::try_parse_from(["sph-app", "--fps", "0.0001"]).is_err());

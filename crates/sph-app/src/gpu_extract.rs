@@ -1,6 +1,6 @@
 //! `--gpu-extract`: surfel extraction on the GPU (`sph_gpu::GpuExtractor`,
-//! the thesis mode: hole closing is CPU-only), drawn by the renderer straight
-//! from the GPU buffer.
+//! the thesis mode on the anisotropic or isotropic field: hole closing is
+//! CPU-only), drawn by the renderer straight from the GPU buffer.
 //!
 //! With `--gpu-sim` the extractor reads the GPU solver's buffers; otherwise it
 //! uploads the world's positions and volumes. Each frame reads back the
@@ -34,13 +34,12 @@ impl GpuExtract {
     /// # Errors
     /// [`AppError::Gpu`] for parameters the GPU path rejects.
     pub fn new(ctx: &GpuContext, world: &World, params: &ExtractParams) -> Result<Self, AppError> {
-        if params.surface != surfel_extract::Surface::Isotropic {
-            log::warn!(
-                "--gpu-extract extracts the thesis's isotropic colour field: the anisotropic \
-                 one is CPU-only, so the surface is bumpier"
-            );
-        }
-        let params = params.thesis();
+        // The thesis's mode (hole closing and 3×3 splits are CPU-only) on
+        // the field the CPU path would extract.
+        let params = ExtractParams {
+            surface: params.surface,
+            ..params.thesis()
+        };
         let particles = world.particles.len().max(1);
         // A first guess; grows on overflow.
         let capacity = ((2 * particles) << (2 * (params.iterations - 1))).max(1 << 12);

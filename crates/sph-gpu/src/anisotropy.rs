@@ -161,51 +161,59 @@ impl GpuAnisotropy {
         positions: &wgpu::Buffer,
         n: usize,
     ) -> Result<(), GpuError> {
-        self.encode_timed(queue, encoder, positions, n, None)
+        self.set_len(queue, n)?;
+        self.record(encoder, Some(positions), None);
+        Ok(())
     }
 
-    /// [`encode`](Self::encode), the grid's passes and the kernel pass
-    /// ("extract: kernels") timed by `profiler` where there is one.
-    pub(crate) fn encode_timed(
+    /// Uploads `positions` into the grid, for a [`record`](Self::record)
+    /// without a source buffer.
+    pub(crate) fn upload(
         &mut self,
         queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        positions: &wgpu::Buffer,
-        n: usize,
-        profiler: Option<&GpuProfiler>,
+        positions: &[Vec3],
     ) -> Result<(), GpuError> {
+        self.grid.upload(queue, positions)?;
+        self.set_len(queue, positions.len())
+    }
+
+    /// Makes the next [`record`](Self::record) compute `n` kernels.
+    pub(crate) fn set_len(&mut self, queue: &wgpu::Queue, n: usize) -> Result<(), GpuError> {
         if n > self.grid.capacity() {
             return Err(GpuError::Capacity {
                 given: n,
                 capacity: self.grid.capacity(),
             });
         }
-        let bytes = (16 * n as u64).min(positions.size());
-        if bytes > 0 {
-            encoder.copy_buffer_to_buffer(positions, 0, self.grid.positions_buffer(), 0, bytes);
-        }
-        self.encode_grid(queue, encoder, n, profiler);
-        Ok(())
-    }
-
-    /// Records the grid's build and the kernel pass over the first `n`
-    /// positions in the grid's buffer.
-    fn encode_grid(
-        &mut self,
-        queue: &wgpu::Queue,
-        encoder: &mut wgpu::CommandEncoder,
-        n: usize,
-        profiler: Option<&GpuProfiler>,
-    ) {
         self.grid.set_len(queue, n);
         self.uniform.n = n as u32;
         queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
+        Ok(())
+    }
+
+    /// Records the kernels of the particles [`set_len`](Self::set_len)
+    /// counted: copied from `positions` (else those uploaded), the grid's
+    /// build and the kernel pass ("extract: kernels"), timed by `profiler`
+    /// where there is one.
+    pub(crate) fn record(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        positions: Option<&wgpu::Buffer>,
+        profiler: Option<&GpuProfiler>,
+    ) {
+        let n = self.uniform.n;
+        if let Some(positions) = positions {
+            let bytes = (16 * u64::from(n)).min(positions.size());
+            if bytes > 0 {
+                encoder.copy_buffer_to_buffer(positions, 0, self.grid.positions_buffer(), 0, bytes);
+            }
+        }
         self.grid.encode_build_gated(encoder, None, profiler);
         let (pipeline, group) = &self.pass;
         timed_pass(encoder, profiler, "extract: kernels", |pass| {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, group, &[]);
-            Groups::Direct((n as u32).div_ceil(64).max(1)).dispatch(pass);
+            Groups::Direct(n.div_ceil(64).max(1)).dispatch(pass);
         });
     }
 
@@ -221,10 +229,10 @@ impl GpuAnisotropy {
         queue: &wgpu::Queue,
         positions: &[Vec3],
     ) -> Result<Vec<(Vec3, Ellipsoid)>, GpuError> {
-        self.grid.upload(queue, positions)?;
+        self.upload(queue, positions)?;
         let n = positions.len();
         let mut encoder = device.create_command_encoder(&Default::default());
-        self.encode_grid(queue, &mut encoder, n, None);
+        self.record(&mut encoder, None, None);
         let centres = read(device, queue, encoder, &self.centres, 16 * n as u64)?;
         let encoder = device.create_command_encoder(&Default::default());
         let kernels = read(

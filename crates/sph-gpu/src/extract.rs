@@ -135,6 +135,9 @@ pub struct GpuExtractor {
     anisotropy: Option<GpuAnisotropy>,
     /// The kernels the field reads (the anisotropy's, or a placeholder).
     kernels: wgpu::Buffer,
+    /// Whether [`encode`](Self::encode) computes the kernels first (of
+    /// particles [`upload`](Self::upload)ed; not of a CPU field's).
+    kernels_pending: bool,
     /// The solver this extractor reads from, once [`attach`](Self::attach)ed:
     /// its positions buffer and the bind group of the volumes pass.
     attached: Option<(wgpu::Buffer, wgpu::BindGroup)>,
@@ -354,6 +357,7 @@ impl GpuExtractor {
             volumes_pass,
             anisotropy,
             kernels,
+            kernels_pending: false,
             attached: None,
         })
     }
@@ -363,34 +367,32 @@ impl GpuExtractor {
         self.uniform.out_capacity as usize
     }
 
-    /// Uploads particle positions and volumes V = m/ρ (for example a
-    /// [`ColourField`]'s, see [`upload_field`](Self::upload_field)) for the
-    /// isotropic field.
+    /// Uploads particle positions and volumes V = m/ρ; on the anisotropic
+    /// field the next [`encode`](Self::encode) computes their kernels and
+    /// centres first. (A CPU [`ColourField`]'s centres, volumes and kernels:
+    /// [`upload_field`](Self::upload_field).)
     ///
     /// # Errors
     /// [`GpuError::Capacity`]; [`GpuError::Invalid`] for a length mismatch, a
-    /// non-finite position, a volume that is not finite and positive, or an
-    /// extractor of the anisotropic field (whose kernels come with
-    /// [`upload_field`](Self::upload_field) or [`attach`](Self::attach)).
+    /// non-finite position or a volume that is not finite and positive.
     pub fn upload(
         &mut self,
         queue: &wgpu::Queue,
         positions: &[Vec3],
         volumes: &[f32],
     ) -> Result<(), GpuError> {
-        if self.anisotropy.is_some() {
-            return Err(GpuError::Invalid(
-                "an anisotropic extractor takes its kernels with its particles: use upload_field or attach",
-            ));
-        }
-        self.upload_particles(queue, positions, volumes)
+        self.upload_particles(queue, positions, volumes, true)
     }
 
+    /// Uploads particles and volumes; with `kernels`, an anisotropic
+    /// extractor's positions go to its kernel pass (which the next
+    /// [`encode`](Self::encode) runs), else they are the field's centres.
     fn upload_particles(
         &mut self,
         queue: &wgpu::Queue,
         positions: &[Vec3],
         volumes: &[f32],
+        kernels: bool,
     ) -> Result<(), GpuError> {
         if volumes.len() != positions.len() {
             return Err(GpuError::Invalid("need one volume per position"));
@@ -398,7 +400,14 @@ impl GpuExtractor {
         if volumes.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return Err(GpuError::Invalid("volumes must be finite and > 0"));
         }
-        self.grid.upload(queue, positions)?;
+        match self.anisotropy.as_mut() {
+            Some(anisotropy) if kernels => {
+                anisotropy.upload(queue, positions)?;
+                self.grid.set_len(queue, positions.len());
+            }
+            _ => self.grid.upload(queue, positions)?,
+        }
+        self.kernels_pending = kernels && self.anisotropy.is_some();
         if !volumes.is_empty() {
             queue.write_buffer(&self.volumes, 0, bytemuck::cast_slice(volumes));
         }
@@ -430,7 +439,7 @@ impl GpuExtractor {
                 "the field's surface (isotropic or anisotropic) differs from the extractor's",
             ));
         }
-        self.upload_particles(queue, field.positions(), field.volumes())?;
+        self.upload_particles(queue, field.positions(), field.volumes(), false)?;
         if anisotropic && !field.is_empty() {
             let rows: Vec<[f32; 8]> = (field.shapes().iter())
                 .map(|e| {
@@ -561,11 +570,13 @@ impl GpuExtractor {
         // centres computed from them (with the masses in w).
         let source = match self.anisotropy.as_mut() {
             Some(anisotropy) => {
-                anisotropy.encode_timed(queue, encoder, positions, n, profiler)?;
+                anisotropy.set_len(queue, n)?;
+                anisotropy.record(encoder, Some(positions), profiler);
                 anisotropy.centres_buffer()
             }
             None => positions,
         };
+        self.kernels_pending = false;
         encoder.copy_buffer_to_buffer(
             source,
             0,
@@ -602,6 +613,19 @@ impl GpuExtractor {
             "extract: refine 2",
             "extract: refine 3",
         ];
+        if let (true, Some(anisotropy)) = (self.kernels_pending, &self.anisotropy) {
+            anisotropy.record(encoder, None, profiler);
+            let bytes = 16 * u64::from(self.uniform.n);
+            if bytes > 0 {
+                encoder.copy_buffer_to_buffer(
+                    anisotropy.centres_buffer(),
+                    0,
+                    self.grid.positions_buffer(),
+                    0,
+                    bytes,
+                );
+            }
+        }
         self.grid.encode_build_gated(encoder, None, profiler);
         encoder.clear_buffer(&self.counters, 0, None);
         let (x, y) = groups(self.uniform.n);

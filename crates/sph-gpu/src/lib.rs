@@ -14,9 +14,10 @@
 //! and its statistics read back asynchronously; [`GpuSolver`], the whole step of
 //! `sph_core::solver::default_program` (domain walls, box and sphere
 //! obstacles) with the particles resident on the GPU, in fixed steps or in
-//! adaptive ones whose length the GPU chooses; [`GpuExtractor`], surfel-extract's thesis-mode extraction
-//! (initial guess, Newton-Raphson refinement with splitting) with append
-//! buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
+//! adaptive ones whose length the GPU chooses; [`GpuAnisotropy`], Yu & Turk's
+//! anisotropic kernels; [`GpuExtractor`], surfel-extract's thesis-mode extraction
+//! (initial guess, Newton-Raphson refinement with splitting) on the isotropic or
+//! the anisotropic field with append buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
 //! draws without a round trip to the CPU. Emitters, sinks and hole closing are
 //! not built yet.
 //!

@@ -586,3 +586,34 @@ fn solver_particles_are_extracted_on_the_anisotropic_field() {
     assert!(diff <= 0.02 * cpu.surfels.len() as f64);
     assert_eq!(stats.lone, cpu.stats.lone);
 }
+
+/// Particles uploaded from the CPU to an anisotropic extractor get their
+/// kernels on the GPU: the same surfels as the CPU field's uploaded whole.
+#[test]
+fn uploaded_particles_get_their_kernels_on_the_gpu() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let points = lattice(6, |x| x.x < 5.5 * SPACING && x.z > -3.5 * SPACING);
+    let field = anisotropic_field(&points, H);
+    let params = ExtractParams::new(H).thesis().anisotropic();
+    let (whole, _) = gpu_extract(ctx, &field, &params, 1 << 20);
+    let mut gpu = GpuExtractor::new(&ctx.device, points.len(), 1 << 20, &params).unwrap();
+    gpu.upload(&ctx.queue, &points, field.volumes()).unwrap();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    gpu.encode(&mut encoder);
+    ctx.queue.submit([encoder.finish()]);
+    let (surfels, stats) = gpu.read_surfels(&ctx.device, &ctx.queue).unwrap();
+    ctx.check().unwrap();
+    let r = residuals(&field, params.iso, &surfels);
+    println!(
+        "uploaded: {} surfels (CPU field's kernels {}), residual median {:.2e} p95 {:.2e}, {stats:?}",
+        surfels.len(),
+        whole.len(),
+        r.median,
+        r.p95
+    );
+    let diff = (surfels.len() as f64 - whole.len() as f64).abs();
+    assert!(diff <= 0.01 * whole.len() as f64);
+    assert!(r.median < 0.01 && r.p95 < 0.05);
+}
