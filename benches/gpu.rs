@@ -8,6 +8,7 @@
 //! - `pbf_frame_1080p`: that frame, then the surfels and a 1920×1080 image:
 //!   the CPU path extracts in its default covered mode and uploads its
 //!   surfels; the GPU path records the frame, the thesis-mode extraction
+//!   (isotropic: `gpu`; anisotropic, the demo's default: `gpu_anisotropic`)
 //!   reading the solver's buffers and the render in one submission, and
 //!   nothing leaves the GPU;
 //! - `wcsph_step`: one step of the thesis's WCSPH (`World::step` vs
@@ -15,8 +16,9 @@
 //!   1/60 s frame of the dam break takes 50–100 of them;
 //! - `extraction`: the surfels of that state (a `surfel_extract::Extractor`
 //!   kept across iterations, as the demo keeps one, in the default covered
-//!   mode and the thesis mode, vs `GpuExtractor` reading the
-//!   solver's buffers, thesis mode, waiting for the device);
+//!   mode, the thesis mode and the thesis mode on the anisotropic field, vs
+//!   `GpuExtractor` reading the solver's buffers, thesis mode on either
+//!   field, waiting for the device);
 //! - `wcsph_step_1080p`: one WCSPH step, extraction and splat rendering at
 //!   1920×1080 — again one step, not a frame;
 //! - `advance_batch`: one adaptive WCSPH frame on the GPU of a small dam
@@ -319,28 +321,34 @@ fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
             })
         });
     }
-    renderer
-        .use_gpu_splats(
-            ctx,
-            extractor.surfels_buffer(),
-            extractor.draw_args_buffer(),
-        )
-        .expect("GPU splats");
-    group.bench_function(BenchmarkId::new("gpu", label), |b| {
-        b.iter(|| {
-            let mut encoder = ctx.device.create_command_encoder(&Default::default());
-            gpu.encode_frame(&ctx.device, &ctx.queue, &mut encoder, FRAME)
-                .expect("frame");
-            extractor
-                .encode_attached(&ctx.queue, &mut encoder)
-                .expect("encode");
-            renderer
-                .encode(ctx, &mut encoder, &camera, &shading)
-                .expect("render");
-            ctx.queue.submit([encoder.finish()]);
-            wait(ctx);
-        })
-    });
+    let mut anisotropic = gpu_extractor(ctx, &gpu, &thesis.anisotropic());
+    for (name, extractor) in [
+        ("gpu", &mut extractor),
+        ("gpu_anisotropic", &mut anisotropic),
+    ] {
+        renderer
+            .use_gpu_splats(
+                ctx,
+                extractor.surfels_buffer(),
+                extractor.draw_args_buffer(),
+            )
+            .expect("GPU splats");
+        group.bench_function(BenchmarkId::new(name, label), |b| {
+            b.iter(|| {
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                gpu.encode_frame(&ctx.device, &ctx.queue, &mut encoder, FRAME)
+                    .expect("frame");
+                extractor
+                    .encode_attached(&ctx.queue, &mut encoder)
+                    .expect("encode");
+                renderer
+                    .encode(ctx, &mut encoder, &camera, &shading)
+                    .expect("render");
+                ctx.queue.submit([encoder.finish()]);
+                wait(ctx);
+            })
+        });
+    }
     group.finish();
 }
 
@@ -371,6 +379,8 @@ fn gpu_vs_cpu(c: &mut Criterion) {
             cpu_thesis.stats.efficiency()
         );
         let mut extractor = gpu_extractor(&ctx, &gpu, &thesis);
+        let anisotropic = thesis.anisotropic();
+        let mut gpu_anisotropic = gpu_extractor(&ctx, &gpu, &anisotropic);
         // A frame half a stable step long: the GPU chooses its step as the
         // CPU does, so it lands on the frame's end in one adaptive step,
         // recorded alone (a batch of one). These frames move the GPU
@@ -394,6 +404,17 @@ fn gpu_vs_cpu(c: &mut Criterion) {
                 .expect("encode");
             ctx.queue.submit([encoder.finish()]);
         });
+        print_profile(
+            &ctx,
+            &format!("{label} anisotropic extraction"),
+            |profiler| {
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                gpu_anisotropic
+                    .encode_attached_profiled(&ctx.queue, &mut encoder, profiler)
+                    .expect("encode");
+                ctx.queue.submit([encoder.finish()]);
+            },
+        );
 
         let mut group = c.benchmark_group("wcsph_step");
         group.sample_size(10);
@@ -429,16 +450,29 @@ fn gpu_vs_cpu(c: &mut Criterion) {
                     .surfels
             })
         });
-        group.bench_function(BenchmarkId::new("gpu_thesis", label), |b| {
+        group.bench_function(BenchmarkId::new("cpu_anisotropic_thesis", label), |b| {
             b.iter(|| {
-                let mut encoder = ctx.device.create_command_encoder(&Default::default());
-                extractor
-                    .encode_attached(&ctx.queue, &mut encoder)
-                    .expect("encode");
-                ctx.queue.submit([encoder.finish()]);
-                wait(&ctx);
+                cpu.extract(&world.particles, &anisotropic)
+                    .expect("extract")
+                    .stats
+                    .surfels
             })
         });
+        for (name, extractor) in [
+            ("gpu_thesis", &mut extractor),
+            ("gpu_anisotropic_thesis", &mut gpu_anisotropic),
+        ] {
+            group.bench_function(BenchmarkId::new(name, label), |b| {
+                b.iter(|| {
+                    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                    extractor
+                        .encode_attached(&ctx.queue, &mut encoder)
+                        .expect("encode");
+                    ctx.queue.submit([encoder.finish()]);
+                    wait(&ctx);
+                })
+            });
+        }
         group.finish();
 
         let mut renderer =

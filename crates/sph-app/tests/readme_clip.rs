@@ -14,6 +14,9 @@ use std::process::Command;
 
 use image::{AnimationDecoder, RgbaImage};
 
+mod common;
+use common::flip;
+
 const README: &str = include_str!("../../../README.md");
 const CLIP: &str = "docs/drop.gif";
 
@@ -45,20 +48,6 @@ fn frames(path: &Path) -> Vec<(RgbaImage, u32)> {
             (f.into_buffer(), n / d.max(1))
         })
         .collect()
-}
-
-/// The FLIP mean between two frames (nv-flip: NVIDIA's perceptual difference).
-fn flip(reference: &RgbaImage, test: &RgbaImage) -> f32 {
-    let rgb = |i: &RgbaImage| {
-        let rgb = image::DynamicImage::ImageRgba8(i.clone()).to_rgb8();
-        nv_flip::FlipImageRgb8::with_data(rgb.width(), rgb.height(), &rgb)
-    };
-    let error = nv_flip::flip(
-        rgb(reference),
-        rgb(test),
-        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
-    );
-    nv_flip::FlipPool::from_image(&error).mean()
 }
 
 #[test]

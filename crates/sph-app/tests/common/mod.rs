@@ -23,3 +23,19 @@ pub fn scratch(name: &str) -> PathBuf {
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
+
+/// The FLIP mean between two images (nv-flip: NVIDIA's perceptual
+/// difference).
+#[allow(dead_code)] // Not every test binary compares images.
+pub fn flip(reference: &image::RgbaImage, test: &image::RgbaImage) -> f32 {
+    let rgb = |i: &image::RgbaImage| {
+        let rgb = image::DynamicImage::ImageRgba8(i.clone()).to_rgb8();
+        nv_flip::FlipImageRgb8::with_data(rgb.width(), rgb.height(), &rgb)
+    };
+    let error = nv_flip::flip(
+        rgb(reference),
+        rgb(test),
+        nv_flip::DEFAULT_PIXELS_PER_DEGREE,
+    );
+    nv_flip::FlipPool::from_image(&error).mean()
+}
