@@ -1,4 +1,5 @@
-//! What the binary's end-to-end tests share.
+//! What the binary's end-to-end tests share (each test binary uses some).
+#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -26,7 +27,6 @@ pub fn stderr(o: &Output) -> String {
 
 /// The FLIP mean between two images (nv-flip: NVIDIA's perceptual
 /// difference).
-#[allow(dead_code)] // Not every test binary compares images.
 pub fn flip(reference: &image::RgbaImage, test: &image::RgbaImage) -> f32 {
     let rgb = |i: &image::RgbaImage| {
         let rgb = image::DynamicImage::ImageRgba8(i.clone()).to_rgb8();
