@@ -244,12 +244,15 @@ fn layer_height(x: vec3<f32>, n: vec3<f32>) -> f32 {
     return sum / sw;
 }
 
+// One thread per particle, in the grid's cell order (thread k takes
+// sorted[k]): a warp's particles share their neighbourhoods, so its loads
+// hit the same lines.
 @compute @workgroup_size(64)
 fn kernels_pass(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if i >= p.n {
+    if id.x >= p.n {
         return;
     }
+    let i = sorted[id.x];
     let x = positions[i].xyz;
     let s = sums(x);
     let inv = 1.0 / s.w;

@@ -377,10 +377,13 @@ fn guess(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let i = flat_index(wid, groups, lid);
-    if i >= e.n {
+    // Particles in the grid's cell order (thread k takes sorted[k]): a
+    // warp's particles share their neighbourhoods.
+    let k = flat_index(wid, groups, lid);
+    if k >= e.n {
         return;
     }
+    let i = sorted[k];
     let x = positions[i].xyz;
     let h = e.h;
     let h2 = h * h;
