@@ -359,3 +359,102 @@ fn splats_match_the_ray_cast_iso_surface() {
         failures_dir.display()
     );
 }
+
+/// Holes in the GPU path's surface: surfels extracted on the GPU (the
+/// thesis's mode, no hole closing, on the anisotropic field as the demo
+/// extracts it, with its defaults: two iterations, discs of h/2) rendered
+/// against the ray-cast iso-surface of the same field, beside the thesis's
+/// isotropic field on the GPU (the demo's GPU surface before) and the CPU's
+/// default covered mode (hole closing). A hole is a pixel where the
+/// iso-surface shows and no splat does. On the sphere the GPU's anisotropic
+/// surface leaves fewer than 0.1 % of the surface's pixels uncovered, and
+/// fewer than its isotropic one. The splashing dam-break frame's figures are
+/// printed, not held: its thin sheets leave 1.8 % uncovered even with the
+/// CPU's hole closing, and 3.0–3.5 % on the GPU without it (issue 44).
+#[test]
+fn gpu_splats_close_the_anisotropic_surface() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let env = Environment::procedural();
+    let shading = Shading {
+        depth_epsilon: 0.5 * H,
+        ..Default::default()
+    };
+    let mut renderer = SplatRenderer::new(ctx, W, H_PX, &env).unwrap();
+    let sphere = lattice(9, |x| x.length() <= 8.5 * SPACING);
+    let mut world = Scene::dam_break(0.2, 0.06, 0.02)
+        .build_world()
+        .expect("built-in scene");
+    world.advance(0.4).expect("dam break runs");
+    let dam_camera = Camera::looking_at(Vec3::new(0.1, 0.2, 0.45), Vec3::new(0.1, 0.03, 0.0));
+    let sphere_camera = Camera::looking_at(Vec3::new(0.12, 0.18, 0.3), Vec3::ZERO);
+    let dam = world.particles.positions().to_vec();
+    for (name, x, h, camera) in [
+        ("sphere", &sphere[..], H, &sphere_camera),
+        ("dam-break", &dam[..], world.params().h, &dam_camera),
+    ] {
+        let mut fractions = Vec::new();
+        for (path, surface) in [
+            ("GPU, anisotropic", Surface::anisotropic()),
+            ("GPU, isotropic", Surface::Isotropic),
+            ("CPU covered, anisotropic", Surface::anisotropic()),
+        ] {
+            let mut field = ColourField::new(surface).unwrap();
+            field.refill_from_positions(x, h).unwrap();
+            let surfels = if path.starts_with("CPU") {
+                let covered = ExtractParams {
+                    surface,
+                    ..ExtractParams::new(h)
+                };
+                extract_field(&field, &covered).unwrap().surfels
+            } else {
+                let params = ExtractParams {
+                    surface,
+                    ..ExtractParams::new(h).thesis()
+                };
+                let mut gpu =
+                    sph_gpu::GpuExtractor::new(&ctx.device, x.len(), 1 << 21, &params).unwrap();
+                gpu.upload_field(&ctx.queue, &field).unwrap();
+                let mut encoder = ctx.device.create_command_encoder(&Default::default());
+                gpu.encode(&mut encoder);
+                ctx.queue.submit([encoder.finish()]);
+                gpu.read_surfels(&ctx.device, &ctx.queue).unwrap().0
+            };
+            let splats: Vec<Splat> = (surfels.iter())
+                .map(|s| Splat::new(s.position, s.normal, s.radius))
+                .collect();
+            renderer.upload(ctx, &splats).unwrap();
+            renderer.render(ctx, camera, &shading).unwrap();
+            let acc = renderer.read_accumulation(ctx).unwrap();
+            let reference = reference_normals(&field, camera);
+            let (mut surface_px, mut holes) = (0usize, 0usize);
+            for y in 0..H_PX {
+                for x in 0..W {
+                    if reference[(y * W + x) as usize].is_some() {
+                        surface_px += 1;
+                        holes += usize::from(acc.normalised(x, y).is_none());
+                    }
+                }
+            }
+            let fraction = holes as f64 / surface_px.max(1) as f64;
+            println!(
+                "{name} ({path}): {} surfels, {holes} of {surface_px} surface pixels uncovered ({:.3} %)",
+                surfels.len(),
+                100.0 * fraction
+            );
+            assert!(surface_px > 2_000, "{name}: {surface_px} px");
+            fractions.push(fraction);
+        }
+        let [gpu, isotropic, _] = fractions[..] else {
+            unreachable!("three paths")
+        };
+        if name == "sphere" {
+            assert!(gpu < 0.001, "{name}: {:.3} % holes", 100.0 * gpu);
+            assert!(
+                gpu < isotropic,
+                "{name}: anisotropic {gpu}, isotropic {isotropic}"
+            );
+        }
+    }
+}
