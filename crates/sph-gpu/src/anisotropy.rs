@@ -10,7 +10,7 @@ use surfel_extract::anisotropy::{Centres, Ellipsoid};
 use crate::grid::{GpuError, GpuGrid};
 use wgpu_profiler::GpuProfiler;
 
-use crate::passes::{Groups, bind_buffers, pipeline, read, shader, timed_pass};
+use crate::passes::{Groups, bind_buffers, buffer, pipeline, read, shader, timed_pass};
 use crate::solver::HASH;
 
 /// Mirrors `struct Aniso` in `shaders/anisotropy.wgsl`.
@@ -88,14 +88,7 @@ impl GpuAnisotropy {
             pad1: 0,
         };
         use wgpu::BufferUsages as U;
-        let buffer = |label, size: u64, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size.max(16),
-                usage,
-                mapped_at_creation: false,
-            })
-        };
+        let buffer = |label, size, usage| buffer(device, label, size, usage);
         let uniform_buffer = buffer(
             "anisotropy params",
             size_of::<Uniform>() as u64,

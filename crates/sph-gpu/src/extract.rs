@@ -13,7 +13,7 @@ use crate::GpuParticles;
 use crate::anisotropy::{GpuAnisotropy, KERNEL_BYTES};
 use crate::grid::{GpuError, GpuGrid};
 use crate::passes::{
-    Groups, PassStage, Staging, bind_pairs, pipeline, read, shader, staged_pass, timed_pass,
+    Groups, PassStage, Staging, bind_pairs, buffer, pipeline, read, shader, staged_pass, timed_pass,
 };
 
 /// Mirrors `struct Extract` in `shaders/extract.wgsl`.
@@ -230,14 +230,7 @@ impl GpuExtractor {
             pad2: 0,
         };
         use wgpu::BufferUsages as U;
-        let buffer = |label, size: u64, usage| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: size.max(16),
-                usage,
-                mapped_at_creation: false,
-            })
-        };
+        let buffer = |label, size, usage| buffer(device, label, size, usage);
         let uniform_buffer = buffer(
             "extract params",
             size_of::<Uniform>() as u64,

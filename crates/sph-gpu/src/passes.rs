@@ -144,6 +144,22 @@ pub(crate) fn shader(device: &wgpu::Device, label: &str, source: String) -> wgpu
     })
 }
 
+/// A buffer of `size` bytes (at least 16, the smallest a binding takes) for
+/// `usage`, not mapped.
+pub(crate) fn buffer(
+    device: &wgpu::Device,
+    label: &str,
+    size: u64,
+    usage: wgpu::BufferUsages,
+) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(16),
+        usage,
+        mapped_at_creation: false,
+    })
+}
+
 /// The compute pipeline of entry point `entry` in `module`, its layout derived
 /// from the shader (only the bindings the entry point uses).
 pub(crate) fn pipeline(

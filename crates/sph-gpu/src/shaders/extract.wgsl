@@ -162,33 +162,10 @@ fn scan(x: vec3<f32>) -> Scan {
     return Scan(f, diagonal, off, hits);
 }
 
-// The field's value alone at x (one evaluation).
+// The field's value alone at x (one evaluation; the scan's other sums are
+// a few multiply-adds beside its loads).
 fn value_at(x: vec3<f32>) -> f32 {
-    var f = Field(0.0, vec3<f32>(0.0), 0.0);
-    let c = cell_at(x, e.inv_h);
-    let h2 = e.h * e.h;
-    for (var dz = -1; dz <= 1; dz++) {
-        for (var dy = -1; dy <= 1; dy++) {
-            for (var dx = -1; dx <= 1; dx++) {
-                let cell = c + vec3<i32>(dx, dy, dz);
-                let b = bucket_of(cell, e.table);
-                let first = starts[b];
-                for (var k = 0u; k < counts[b]; k++) {
-                    let j = sorted[first + k];
-                    let y = positions[j].xyz;
-                    if any(cell_at(y, e.inv_h) != cell) {
-                        continue;
-                    }
-                    let d = x - y;
-                    let r2 = dot(d, d);
-                    if r2 <= h2 {
-                        add(&f, j, d, r2);
-                    }
-                }
-            }
-        }
-    }
-    return f.c;
+    return scan(x).field.c;
 }
 
 // Where c crosses iso along x + t n, |t| ≤ reach, on the side c(x) = c0
