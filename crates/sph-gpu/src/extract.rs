@@ -38,9 +38,9 @@ struct Uniform {
     work_capacity: u32,
     out_capacity: u32,
     anisotropic: u32,
+    fill_cell: f32,
+    fill_table: u32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 /// Mirrors `struct Stage`.
@@ -51,6 +51,10 @@ struct Stage {
     dst: u32,
     last: u32,
     iteration: u32,
+    keep: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 /// Slots of the counters buffer (see the shader).
@@ -62,6 +66,7 @@ const DISCARDED: usize = 6;
 const EVALUATED: usize = 7;
 const DROPPED: usize = 10;
 const DROPLETS: usize = 11;
+const FILLED: usize = 12;
 const COUNTERS: u64 = 16;
 
 /// Bytes of one surfel on the GPU (splat-render's splat layout).
@@ -81,6 +86,8 @@ pub struct GpuExtractStats {
     /// Particles of droplets too small for anisotropic kernels, seeded on
     /// their spheres (anisotropic field only).
     pub droplets: usize,
+    /// Surfels hole closing added ([`Mode::Covered`] only).
+    pub filled: usize,
     /// Surfels discarded by the step test.
     pub discarded: usize,
     /// Surfels in the result (at most the capacity).
@@ -107,8 +114,11 @@ impl GpuExtractStats {
 /// It runs [`Mode::Thesis`] with the same equations, thresholds and decisions
 /// as `surfel_extract::extract`, on the thesis's isotropic field or Yu &
 /// Turk's anisotropic one ([`Surface::Anisotropic`], whose kernels
-/// [`GpuAnisotropy`] computes on the GPU); hole closing ([`Mode::Covered`])
-/// is CPU-only.
+/// [`GpuAnisotropy`] computes on the GPU), and [`Mode::Covered`]'s hole
+/// closing after the first iteration (`shaders/fill.wgsl`: the same probes
+/// and tests; a candidate covered by another is dropped when that one's
+/// position hashes lower, where the CPU keeps the first in its order). The
+/// first split is 2×2 ([`Split::TwoByTwo`]); 3×3 is CPU-only.
 /// Surfels are appended with atomic counters, so their order varies from run
 /// to run (the set does not, up to float rounding). The result buffer holds
 /// `vec4(position, radius), vec4(normal, 0)` per surfel — splat-render's splat
@@ -135,6 +145,8 @@ pub struct GpuExtractor {
     anisotropy: Option<GpuAnisotropy>,
     /// The kernels the field reads (the anisotropy's, or a placeholder).
     kernels: wgpu::Buffer,
+    /// Hole closing's passes, in [`Mode::Covered`].
+    fill: Option<Fill>,
     /// Whether [`encode`](Self::encode) computes the kernels first (of
     /// particles [`upload`](Self::upload)ed; not of a CPU field's).
     kernels_pending: bool,
@@ -178,11 +190,12 @@ impl GpuExtractor {
         params: &ExtractParams,
     ) -> Result<Self, GpuError> {
         params.validate().map_err(GpuError::Params)?;
-        if params.mode != Mode::Thesis || params.first_split != Split::TwoByTwo {
+        if params.first_split != Split::TwoByTwo {
             return Err(GpuError::Invalid(
-                "the GPU extractor runs the thesis mode (hole closing and 3×3 splits are CPU-only): use ExtractParams::thesis()",
+                "the GPU extractor splits 2×2 (3×3 first splits are CPU-only): set first_split to Split::TwoByTwo",
             ));
         }
+        let covered = params.mode == Mode::Covered;
         if max_surfels == 0 {
             return Err(GpuError::Invalid("max_surfels must be > 0"));
         }
@@ -225,9 +238,11 @@ impl GpuExtractor {
             work_capacity: max_surfels as u32,
             out_capacity: max_surfels as u32,
             anisotropic: u32::from(anisotropy.is_some()),
+            // A probe is covered by a disc whose centre lies within
+            // √(r² + (2 × thickness)²) of it, r at most the guess's radius.
+            fill_cell: (params.radius * h).hypot(2.0 * 0.25 * h),
+            fill_table: (2 * particles).next_power_of_two().max(1024) as u32,
             pad0: 0,
-            pad1: 0,
-            pad2: 0,
         };
         use wgpu::BufferUsages as U;
         let buffer = |label, size, usage| buffer(device, label, size, usage);
@@ -258,13 +273,25 @@ impl GpuExtractor {
             16,
             U::STORAGE | U::INDIRECT | U::COPY_SRC,
         );
+        // In covered mode the first iteration keeps its refined surfels in
+        // work buffer 1 for hole closing, which splits them into buffer 0.
+        let stage_of = |i: u32| match (covered, i) {
+            (true, 0) => (0, 1, false, true),
+            (true, i) => ((i + 1) % 2, i % 2, i + 1 == params.iterations, false),
+            (false, i) => (i % 2, (i + 1) % 2, i + 1 == params.iterations, false),
+        };
         let stage_buffers: Vec<wgpu::Buffer> = (0..params.iterations)
             .map(|i| {
+                let (src, dst, last, keep) = stage_of(i);
                 let stage = Stage {
-                    src: i % 2,
-                    dst: (i + 1) % 2,
-                    last: u32::from(i + 1 == params.iterations),
+                    src,
+                    dst,
+                    last: u32::from(last),
                     iteration: i,
+                    keep: u32::from(keep),
+                    pad0: 0,
+                    pad1: 0,
+                    pad2: 0,
                 };
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("extract stage"),
@@ -278,7 +305,8 @@ impl GpuExtractor {
             "extract.wgsl",
             concat!(
                 include_str!("shaders/hash.wgsl"),
-                include_str!("shaders/extract.wgsl")
+                include_str!("shaders/extract.wgsl"),
+                include_str!("shaders/fill.wgsl")
             )
             .into(),
         );
@@ -312,10 +340,11 @@ impl GpuExtractor {
                         (11, &dispatch),
                     ],
                 );
+                let (src, dst, _, _) = stage_of(i as u32);
                 let mut entries = field.to_vec();
                 entries.extend([
-                    (7, &work[i % 2]),
-                    (8, &work[(i + 1) % 2]),
+                    (7, &work[src as usize]),
+                    (8, &work[dst as usize]),
                     (9, &result),
                     (10, stage),
                 ]);
@@ -334,6 +363,20 @@ impl GpuExtractor {
             &[(0, &uniform_buffer), (6, &counters), (12, &draw)],
         );
         let volumes_pass = pipeline("volumes_from_densities");
+        let fill = covered
+            .then(|| {
+                Fill::new(
+                    device,
+                    &pipeline,
+                    &field,
+                    [&work[0], &work[1], &result],
+                    &uniform,
+                    max_surfels,
+                    params.iterations == 1,
+                    params.fill_rounds,
+                )
+            })
+            .transpose()?;
         Ok(Self {
             uniform,
             uniform_buffer,
@@ -350,6 +393,7 @@ impl GpuExtractor {
             volumes_pass,
             anisotropy,
             kernels,
+            fill,
             kernels_pending: false,
             attached: None,
         })
@@ -634,10 +678,16 @@ impl GpuExtractor {
             })
             .collect();
         let finish = run(&self.finish, Groups::Direct(1));
+        let fill = self.fill.as_ref().map(Fill::records);
         let mut stages: Vec<PassStage<'_>> = vec![("extract: guess", &guess)];
         for (i, (prepare, refine)) in iterations.iter().enumerate() {
             stages.push((PREPARE[i], prepare));
             stages.push((REFINE[i], refine));
+            if let (0, Some(fill)) = (i, &fill) {
+                for record in fill {
+                    stages.push(("extract: fill", record.as_ref()));
+                }
+            }
         }
         stages.push(("extract: finish", &finish));
         staged_pass(encoder, profiler, "surfel extraction", &stages);
@@ -675,6 +725,7 @@ impl GpuExtractor {
             all_around: c[ALL_AROUND] as usize,
             lone: c[LONE] as usize,
             droplets: c[DROPLETS] as usize,
+            filled: c[FILLED] as usize,
             discarded: c[DISCARDED] as usize,
             surfels: c[OUT].min(self.uniform.out_capacity) as usize,
             dropped: c[DROPPED] as usize,
@@ -717,6 +768,184 @@ impl GpuExtractor {
     }
 }
 
+/// Bytes of one hole-closing candidate (`struct Candidate`: a surfel and its
+/// key).
+const CANDIDATE_BYTES: u64 = 48;
+
+type Bound = (wgpu::ComputePipeline, wgpu::BindGroup);
+
+/// Hole closing's passes ([`Mode::Covered`], `shaders/fill.wgsl`) and
+/// buffers: per round, the surfel grid's linked lists built and probed,
+/// then the candidates' built and judged; then the split.
+struct Fill {
+    args: wgpu::Buffer,
+    /// Buckets of the lists: `fill_table` of them.
+    buckets: u32,
+    rounds: u32,
+    prepare: Bound,
+    clear: Bound,
+    insert_kept: Bound,
+    probe: Bound,
+    prepare_dedup: Bound,
+    insert_candidates: Bound,
+    dedup: Bound,
+    prepare_split: Bound,
+    /// `split_kept`, or `kept_to_out` after a single iteration.
+    split: Bound,
+}
+
+impl Fill {
+    /// The passes over the field's bindings `field` and the work buffers
+    /// and result `[work 0, work 1 (the kept surfels), result]`.
+    #[allow(clippy::too_many_arguments)]
+    fn new<'a>(
+        device: &wgpu::Device,
+        pipeline: &dyn Fn(&str) -> wgpu::ComputePipeline,
+        field: &[(u32, &'a wgpu::Buffer)],
+        [work0, kept, result]: [&'a wgpu::Buffer; 3],
+        uniform: &Uniform,
+        max_surfels: usize,
+        single_iteration: bool,
+        rounds: u32,
+    ) -> Result<Self, GpuError> {
+        use wgpu::BufferUsages as U;
+        let limits = device.limits();
+        let candidates_cap = (max_surfels / 4).max(1024) as u64;
+        if candidates_cap * CANDIDATE_BYTES
+            > limits
+                .max_storage_buffer_binding_size
+                .min(limits.max_buffer_size)
+        {
+            return Err(GpuError::Invalid(
+                "hole closing's candidates exceed the device's storage buffer limit: lower max_surfels",
+            ));
+        }
+        let heads = buffer(
+            device,
+            "fill heads",
+            4 * u64::from(uniform.fill_table),
+            U::STORAGE,
+        );
+        let kept_next = buffer(
+            device,
+            "fill kept lists",
+            4 * max_surfels as u64,
+            U::STORAGE,
+        );
+        let candidates = buffer(
+            device,
+            "fill candidates",
+            candidates_cap * CANDIDATE_BYTES,
+            U::STORAGE,
+        );
+        let candidate_next = buffer(
+            device,
+            "fill candidate lists",
+            4 * candidates_cap,
+            U::STORAGE,
+        );
+        let args = buffer(device, "fill dispatch", 48, U::STORAGE | U::INDIRECT);
+        let (e, counters) = (field[0].1, field[6].1);
+        let bound = |entry: &str, entries: &[(u32, &wgpu::Buffer)]| {
+            let p = pipeline(entry);
+            let group = bind_pairs(device, entry, &p, entries);
+            (p, group)
+        };
+        let mut probe_entries = field.to_vec();
+        probe_entries.extend([(8, kept), (16, &heads), (17, &kept_next), (18, &candidates)]);
+        let (split_entry, split_out) = if single_iteration {
+            ("kept_to_out", (9, result))
+        } else {
+            ("split_kept", (8, work0))
+        };
+        Ok(Self {
+            buckets: uniform.fill_table,
+            rounds,
+            prepare: bound("fill_prepare", &[(0, e), (6, counters), (20, &args)]),
+            clear: bound("clear_heads", &[(0, e), (16, &heads)]),
+            insert_kept: bound(
+                "insert_kept",
+                &[
+                    (0, e),
+                    (6, counters),
+                    (8, kept),
+                    (16, &heads),
+                    (17, &kept_next),
+                ],
+            ),
+            probe: bound("probe", &probe_entries),
+            prepare_dedup: bound("fill_prepare_dedup", &[(0, e), (6, counters), (20, &args)]),
+            insert_candidates: bound(
+                "insert_candidates",
+                &[
+                    (0, e),
+                    (6, counters),
+                    (16, &heads),
+                    (18, &candidates),
+                    (19, &candidate_next),
+                ],
+            ),
+            dedup: bound(
+                "dedup",
+                &[
+                    (0, e),
+                    (6, counters),
+                    (8, kept),
+                    (16, &heads),
+                    (18, &candidates),
+                    (19, &candidate_next),
+                ],
+            ),
+            prepare_split: bound("fill_prepare_split", &[(0, e), (6, counters), (20, &args)]),
+            split: bound(split_entry, &[(0, e), (6, counters), (7, kept), split_out]),
+            args,
+        })
+    }
+
+    /// What the rounds and the split record, in order.
+    fn records(&self) -> Vec<Recorder<'_>> {
+        let clear_groups = self.buckets.div_ceil(256);
+        let args = &self.args;
+        let mut out = Vec::new();
+        for _ in 0..self.rounds {
+            out.push(direct(&self.prepare, 1));
+            out.push(direct(&self.clear, clear_groups));
+            out.push(indirect(&self.insert_kept, args, 12));
+            out.push(indirect(&self.probe, args, 0));
+            out.push(direct(&self.prepare_dedup, 1));
+            out.push(direct(&self.clear, clear_groups));
+            out.push(indirect(&self.insert_candidates, args, 24));
+            out.push(indirect(&self.dedup, args, 24));
+        }
+        out.push(direct(&self.prepare_split, 1));
+        out.push(indirect(&self.split, args, 36));
+        out
+    }
+}
+
+/// What one dispatch records into a compute pass.
+type Recorder<'a> = Box<dyn for<'p> Fn(&mut wgpu::ComputePass<'p>) + 'a>;
+
+/// `bound`'s dispatch over `x` workgroups.
+fn direct(bound: &Bound, x: u32) -> Recorder<'_> {
+    let (pipeline, group) = bound;
+    Box::new(move |pass| {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups(x, 1, 1);
+    })
+}
+
+/// `bound`'s dispatch over the workgroups at byte `at` of `args`.
+fn indirect<'a>(bound: &'a Bound, args: &'a wgpu::Buffer, at: u64) -> Recorder<'a> {
+    let (pipeline, group) = bound;
+    Box::new(move |pass| {
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
+        pass.dispatch_workgroups_indirect(args, at);
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::{Stage, Uniform};
@@ -725,7 +954,8 @@ mod tests {
     fn layouts_match_their_wgsl() {
         let source = concat!(
             include_str!("shaders/hash.wgsl"),
-            include_str!("shaders/extract.wgsl")
+            include_str!("shaders/extract.wgsl"),
+            include_str!("shaders/fill.wgsl")
         );
         splat_render::wgsl_layout!(
             source,
@@ -749,9 +979,9 @@ mod tests {
                 work_capacity,
                 out_capacity,
                 anisotropic,
-                pad0,
-                pad1,
-                pad2
+                fill_cell,
+                fill_table,
+                pad0
             }
         )
         .unwrap();
@@ -762,7 +992,11 @@ mod tests {
                 src,
                 dst,
                 last,
-                iteration
+                iteration,
+                keep,
+                pad0,
+                pad1,
+                pad2
             }
         )
         .unwrap();

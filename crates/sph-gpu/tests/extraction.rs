@@ -674,3 +674,68 @@ fn settled_pool_is_flat_through_the_gpu_path() {
     assert!(median <= 1.0, "median {median}°");
     assert!(p99 <= 5.0, "99th percentile {p99}°");
 }
+
+/// Hole closing on the GPU ([`Mode::Covered`], 2×2 first split) against the
+/// CPU's on the same fields: the iso-surface covered at least as fully (to
+/// 0.2 points), surfel and fill counts close, residuals no worse.
+#[test]
+fn hole_closing_covers_as_the_cpu_does() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut world = Scene::dam_break(0.2, 0.06, 0.02).build_world().unwrap();
+    world.advance(0.4).unwrap();
+    let dam = world.particles.positions().to_vec();
+    let sphere = lattice(9, |x| x.length() <= 8.5 * SPACING);
+    for (name, points, h, spacing, thickness) in [
+        ("dam break", &dam, 0.04, 0.01, 0.004),
+        ("sphere", &sphere, H, 0.25 * H, 0.1 * H),
+    ] {
+        for surface in [Surface::Isotropic, Surface::anisotropic()] {
+            let mut field = ColourField::new(surface).unwrap();
+            field.refill_from_positions(points, h).unwrap();
+            let params = ExtractParams {
+                first_split: Split::TwoByTwo,
+                surface,
+                ..ExtractParams::new(h)
+            };
+            assert_eq!(params.mode, surfel_extract::Mode::Covered);
+            let cpu = extract_field(&field, &params).unwrap();
+            let (surfels, stats) = gpu_extract(ctx, &field, &params, 1 << 21);
+            let iso = iso_points(&field, params.iso, spacing).expect("iso points");
+            let coverage = covered_fraction(&surfels, &iso, thickness).unwrap();
+            let cpu_coverage = covered_fraction(&cpu.surfels, &iso, thickness).unwrap();
+            let (r, rc) = (
+                residuals(&field, params.iso, &surfels),
+                residuals(&field, params.iso, &cpu.surfels),
+            );
+            println!(
+                "{name} ({surface:?}): GPU {} surfels, {} filled, coverage {:.2} %, residual p95 {:.2e}; \
+                 CPU {} surfels, {} filled, coverage {:.2} %, p95 {:.2e}",
+                surfels.len(),
+                stats.filled,
+                100.0 * coverage,
+                r.p95,
+                cpu.surfels.len(),
+                cpu.stats.filled,
+                100.0 * cpu_coverage,
+                rc.p95
+            );
+            assert_eq!(stats.dropped, 0);
+            assert!(
+                coverage >= cpu_coverage - 0.002,
+                "{name}: {coverage} against {cpu_coverage}"
+            );
+            let diff = (surfels.len() as f64 - cpu.surfels.len() as f64).abs();
+            assert!(
+                diff <= 0.05 * cpu.surfels.len() as f64,
+                "{name}: surfel counts"
+            );
+            assert!(
+                r.p95 <= 1.1 * rc.p95 + 1e-3,
+                "{name}: p95 residual {}",
+                r.p95
+            );
+        }
+    }
+}

@@ -32,9 +32,9 @@ struct Extract {
     work_capacity: u32,
     out_capacity: u32,
     anisotropic: u32,         // 1: Yu & Turk's field (`kernels`)
+    fill_cell: f32,           // hole closing's surfel grid: cell size (m)
+    fill_table: u32,          // and its hash buckets (fill.wgsl)
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 };
 
 // Which counters a refinement iteration reads and appends to.
@@ -43,6 +43,10 @@ struct Stage {
     dst: u32,
     last: u32,
     iteration: u32,
+    keep: u32,       // 1: the refined surfels themselves to dst (before hole closing)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 // A surfel, laid out as splat-render's splats: centre and radius, normal.
@@ -60,6 +64,9 @@ const DISCARDED: u32 = 6u;
 const EVALUATED: u32 = 7u;     // 7, 8, 9: surfels refined in iteration 0, 1, 2
 const DROPPED: u32 = 10u;      // surfels that did not fit a buffer
 const DROPLETS: u32 = 11u;     // particles of droplets of isolated kernels
+const FILLED: u32 = 12u;       // surfels hole closing added
+const CANDIDATES: u32 = 13u;   // hole closing's candidates this round
+const PROBE_START: u32 = 14u;  // the first surfel of the kept buffer that probes
 
 @group(0) @binding(0) var<uniform> e: Extract;
 @group(0) @binding(1) var<storage, read> positions: array<vec4<f32>>;
@@ -513,6 +520,43 @@ fn prepare() {
     atomicStore(&counters[EVALUATED + stage.iteration], n);
 }
 
+// Where one Newton-Raphson step (eq. 33) from x goes, and the outward normal
+// −∇c/|∇c| where it starts; `ok` 0 when the gradient vanishes or the step
+// is longer than the discard step (surfel-extract's `newton_step`: on the
+// anisotropic field a longer step is replaced by the crossing along the
+// normal within reach, a safeguarded Newton step).
+struct Step {
+    position: vec3<f32>,
+    ok: u32,
+    normal: vec3<f32>,
+};
+
+fn newton(x: vec3<f32>) -> Step {
+    var out: Step;
+    out.ok = 0u;
+    let f = scan(x).field;
+    let g2 = dot(f.gradient, f.gradient);
+    if !(g2 > 1e-12 * e.inv_h * e.inv_h) {
+        return out;
+    }
+    var nr = -(f.c - e.iso) * f.gradient / g2;
+    let n = -f.gradient / sqrt(g2);
+    if !(length(nr) <= e.discard_step * e.h) {
+        if e.anisotropic == 0u || !(length(nr) < 3.0e38) {
+            return out;
+        }
+        let t = crossing(x, f.c, n, e.discard_step * e.h, 0.0);
+        if t.y == 0.0 {
+            return out;
+        }
+        nr = t.x * n;
+    }
+    out.position = x + nr;
+    out.normal = n;
+    out.ok = 1u;
+    return out;
+}
+
 // One Newton-Raphson step (eq. 33) per surfel of the source buffer; too long a
 // step discards it; the rest are split in four (appended to dst) or, in the
 // last iteration, appended to the output.
@@ -527,40 +571,23 @@ fn refine(
         return;
     }
     let s = work_in[i];
-    let x = s.position_radius.xyz;
-    let f = scan(x).field;
-    let g2 = dot(f.gradient, f.gradient);
-    var nr = -(f.c - e.iso) * f.gradient / g2;
-    if !(g2 > 1e-12 * e.inv_h * e.inv_h) {
+    let step = newton(s.position_radius.xyz);
+    if step.ok == 0u {
         atomicAdd(&counters[DISCARDED], 1u);
         return;
     }
-    if !(length(nr) <= e.discard_step * e.h) {
-        // The anisotropic field's thin kernels leave c flat far from them,
-        // where a Newton step overshoots: its crossing along the normal
-        // within the step limit is kept instead (safeguarded Newton).
-        var kept = false;
-        if e.anisotropic != 0u && length(nr) < 3.0e38 {
-            let n = -f.gradient / sqrt(g2);
-            let t = crossing(x, f.c, n, e.discard_step * e.h, 0.0);
-            if t.y != 0.0 {
-                nr = t.x * n;
-                kept = true;
-            }
-        }
-        if !kept {
-            atomicAdd(&counters[DISCARDED], 1u);
-            return;
-        }
-    }
-    let p = x + nr;
-    let n = -f.gradient / sqrt(g2);
+    let p = step.position;
+    let n = step.normal;
     if !front_facing(p, n) {
         return;
     }
     let refined = surfel(p, n, s.position_radius.w);
     if stage.last != 0u {
         push_out(reserve(OUT, 1u), refined);
+        return;
+    }
+    if stage.keep != 0u {
+        push_work(reserve(stage.dst, 1u), refined);
         return;
     }
     let at = reserve(stage.dst, 4u);
