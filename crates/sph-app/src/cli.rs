@@ -135,9 +135,10 @@ pub struct Args {
     #[arg(long)]
     pub gpu_sim: bool,
 
-    /// Extract the surfels on the GPU (wgpu compute, `sph-gpu`; the thesis
-    /// mode, without the CPU's hole closing) and draw them without a round
-    /// trip to the CPU. With --gpu-sim it reads the GPU solver's buffers.
+    /// Extract the surfels on the GPU (wgpu compute, `sph-gpu`; the same
+    /// field and hole closing as the CPU path, first splits 2×2) and draw
+    /// them without a round trip to the CPU. With --gpu-sim it reads the GPU
+    /// solver's buffers.
     #[arg(long)]
     pub gpu_extract: bool,
 

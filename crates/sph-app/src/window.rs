@@ -571,7 +571,7 @@ impl App {
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
                 settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag pushes on either path");
-                settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu), thesis mode: no hole closing; drawn without a round trip to the CPU");
+                settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu): the same field and hole closing, 2×2 first splits; drawn without a round trip to the CPU");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");
                 egui::ComboBox::from_label("view (F)")
@@ -595,7 +595,7 @@ impl App {
                     let mut smooth = extract.surface != Surface::Isotropic;
                     if ui
                         .checkbox(&mut smooth, "anisotropic kernels (--surface)")
-                        .on_hover_text("Yu & Turk 2013: smooth water; off: the thesis's isotropic colour field. The GPU extractor always uses the isotropic field.")
+                        .on_hover_text("Yu & Turk 2013: smooth water; off: the thesis's isotropic colour field. The GPU extractor uses either.")
                         .changed()
                     {
                         extract.surface = if smooth { Surface::anisotropic() } else { Surface::Isotropic };

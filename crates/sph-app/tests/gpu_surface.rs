@@ -1,7 +1,8 @@
 //! The GPU path's surface as a user sees it: the same particles (simulated
-//! on the CPU) extracted on the GPU (`--gpu-extract`, the thesis's mode on
-//! the anisotropic field) and on the CPU (its default covered mode), the
-//! frames within a FLIP mean of 0.05 of each other.
+//! on the CPU) extracted on the GPU (`--gpu-extract`: the anisotropic field
+//! and hole closing, first splits 2×2) and on the CPU (first splits 3×3, so
+//! about 1.6 times the surfels), the frames within a FLIP mean of 0.05 of
+//! each other.
 
 mod common;
 use common::{app, flip, scratch, stderr};
@@ -40,8 +41,8 @@ fn gpu_extraction_draws_the_cpu_paths_surface() {
         let (gpu, gpu_surfels) = frame(scene, &["--gpu-extract"], &format!("surface-gpu-{scene}"));
         let mean = flip(&cpu, &gpu);
         println!(
-            "{scene}: FLIP {mean:.4}; surfels: GPU {gpu_surfels} (thesis mode), CPU \
-             {cpu_surfels} (covered mode)"
+            "{scene}: FLIP {mean:.4}; surfels: GPU {gpu_surfels} (2×2 first splits), \
+             CPU {cpu_surfels} (3×3)"
         );
         assert!(mean <= 0.05, "{scene}: FLIP {mean}");
         assert!(gpu_surfels > 0);
