@@ -135,6 +135,14 @@ pub struct Args {
     #[arg(long)]
     pub gpu_sim: bool,
 
+    /// Run the simulation and the extraction on the CPU. Without it (and
+    /// without --gpu-sim or --gpu-extract), a hardware GPU adapter runs the
+    /// whole GPU path: the scene's solver where it runs there (PBF, WCSPH;
+    /// DFSPH and emitters stay on the CPU) and the extraction. A software
+    /// adapter (lavapipe, llvmpipe) runs the CPU path.
+    #[arg(long, conflicts_with_all = ["gpu_sim", "gpu_extract"])]
+    pub cpu: bool,
+
     /// Extract the surfels on the GPU (wgpu compute, `sph-gpu`; the same
     /// field and hole closing as the CPU path, first splits 2×2) and draw
     /// them without a round trip to the CPU. With --gpu-sim it reads the GPU
@@ -154,6 +162,12 @@ pub struct Args {
 }
 
 impl Args {
+    /// Whether the run chooses where it runs (no --cpu, --gpu-sim or
+    /// --gpu-extract): the whole GPU path on a hardware adapter.
+    pub fn gpu_by_default(&self) -> bool {
+        !(self.cpu || self.gpu_sim || self.gpu_extract)
+    }
+
     /// The surface field to extract: `--surface`, else the anisotropic one
     /// (on either path).
     pub fn surface_field(&self) -> SurfaceField {
@@ -269,6 +283,18 @@ mod tests {
         assert_eq!(a.surface_field(), SurfaceField::Anisotropic);
         let a = Args::try_parse_from(["sph-app", "--surface", "isotropic"]).unwrap();
         assert_eq!(a.surface_field(), SurfaceField::Isotropic);
+        // Where it runs: chosen (the GPU path on a hardware adapter) unless
+        // a flag says; --cpu excludes the GPU flags.
+        assert!(Args::try_parse_from(["sph-app"]).unwrap().gpu_by_default());
+        for flag in ["--cpu", "--gpu-sim", "--gpu-extract"] {
+            assert!(
+                !Args::try_parse_from(["sph-app", flag])
+                    .unwrap()
+                    .gpu_by_default()
+            );
+        }
+        assert!(Args::try_parse_from(["sph-app", "--cpu", "--gpu-sim"]).is_err());
+        assert!(Args::try_parse_from(["sph-app", "--cpu", "--gpu-extract"]).is_err());
         // The GPU extracts the anisotropic field too: the default there as well.
         let a = Args::try_parse_from(["sph-app", "--gpu-extract"]).unwrap();
         assert_eq!(a.surface_field(), SurfaceField::Anisotropic);

@@ -61,6 +61,19 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
     if args.gpu_extract {
         pipeline.set_gpu_extract(Some(adapter("--gpu-extract")?))?;
     }
+    if let Some(ctx) = gpu
+        .as_ref()
+        .filter(|c| args.gpu_by_default() && !c.is_software())
+    {
+        // The whole GPU path on a hardware adapter; a scene whose solver
+        // does not run there keeps its simulation on the CPU.
+        if pipeline.playback.is_none()
+            && let Err(e) = pipeline.set_gpu_sim(Some(ctx))
+        {
+            println!("{e}: the simulation runs on the CPU");
+        }
+        pipeline.set_gpu_extract(Some(ctx))?;
+    }
     let mut renderer = match &gpu {
         Some(ctx) => {
             let mut renderer =

@@ -137,6 +137,9 @@ struct Gfx {
 struct App {
     size: (u32, u32),
     args_screenshot_after: Option<u64>,
+    /// Whether a hardware adapter switches the GPU path on
+    /// ([`Args::gpu_by_default`]).
+    gpu_by_default: bool,
     out: std::path::PathBuf,
     iterations: u32,
     pipeline: Pipeline,
@@ -174,6 +177,7 @@ impl App {
         Self {
             size: (args.width, args.height),
             args_screenshot_after: args.screenshot_after,
+            gpu_by_default: args.gpu_by_default(),
             out: args.out.clone(),
             iterations: args.iterations,
             orbit: Orbit::from_camera(&pipeline.camera()),
@@ -303,7 +307,7 @@ impl App {
     }
 
     /// Runs the scene from its start with another solver; the GPU step
-    /// (WCSPH only) is switched off, with its note, for any other.
+    /// (PBF or WCSPH) is switched off, with its note, for DFSPH.
     fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
         self.pipeline.scene.solver.kind = kind;
         let fluid = &mut self.pipeline.scene.fluid;
@@ -315,12 +319,12 @@ impl App {
             );
             fluid.surface_tension = 0.0;
         }
-        if kind != SolverKind::Wcsph && self.pipeline.gpu.is_some() {
+        if kind == SolverKind::Dfsph && self.pipeline.gpu.is_some() {
             let refusal = self
                 .pipeline
                 .set_gpu_sim(None)
                 .and(Err(AppError::Gpu(format!(
-                    "the GPU path runs only WCSPH, not {kind}: back on the CPU"
+                    "the GPU path runs PBF and WCSPH, not {kind}: back on the CPU"
                 ))));
             self.settings.gpu_sim.settle(refusal);
         }
@@ -730,7 +734,15 @@ impl ApplicationHandler for App {
             return;
         }
         match self.init_gfx(event_loop) {
-            Ok(gfx) => self.gfx = Some(gfx),
+            Ok(gfx) => {
+                if self.gpu_by_default && !gfx.ctx.is_software() {
+                    // The whole GPU path on a hardware adapter (`sync_gpu`
+                    // switches it on; a scene it cannot run unticks the box).
+                    self.settings.gpu_sim.on = self.pipeline.playback.is_none();
+                    self.settings.gpu_extract.on = true;
+                }
+                self.gfx = Some(gfx);
+            }
             Err(e) => self.fail(event_loop, e),
         }
     }

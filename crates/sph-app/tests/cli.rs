@@ -743,3 +743,32 @@ fn the_gl_backend_is_declined_not_a_panic() {
     );
     assert!(!out.join("frame_00000.png").exists());
 }
+
+/// Where a run goes without a flag: the whole GPU path on a hardware
+/// adapter, the CPU path on a software one (lavapipe here and in CI), and
+/// `--cpu` keeps it on the CPU anywhere.
+#[test]
+fn a_software_adapter_runs_the_cpu_path_by_default() {
+    let Some(ctx) = splat_render::GpuContext::headless_or_skip() else {
+        return;
+    };
+    for extra in [&[][..], &["--cpu"][..]] {
+        let out = scratch(&format!("default-path{}", extra.len()));
+        let mut args = vec!["--headless", "--scene", "drop", "--frames", "2"];
+        args.extend(["--width", "64", "--height", "48", "--out"]);
+        args.push(out.to_str().unwrap());
+        args.extend(extra);
+        let o = app(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let on_gpu = stdout.contains("(SPH step on the GPU)")
+            && stdout.contains("(surfels extracted on the GPU)");
+        let expected = extra.is_empty() && !ctx.is_software();
+        assert_eq!(
+            on_gpu,
+            expected,
+            "{extra:?} on {}: {stdout}",
+            ctx.adapter_summary()
+        );
+    }
+}
