@@ -144,7 +144,7 @@ pub struct Args {
     pub cpu: bool,
 
     /// Extract the surfels on the GPU (wgpu compute, `sph-gpu`; the same
-    /// field and hole closing as the CPU path, first splits 2×2) and draw
+    /// field, hole closing and splits as the CPU path) and draw
     /// them without a round trip to the CPU. With --gpu-sim it reads the GPU
     /// solver's buffers.
     #[arg(long)]

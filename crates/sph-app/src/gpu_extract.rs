@@ -1,6 +1,6 @@
-//! `--gpu-extract`: surfel extraction on the GPU (`sph_gpu::GpuExtractor`:
-//! the CPU path's mode, hole closing included, on its field; 2×2 first
-//! splits), drawn by the renderer straight from the GPU buffer.
+//! `--gpu-extract`: surfel extraction on the GPU (`sph_gpu::GpuExtractor`,
+//! with the CPU path's parameters: its field, hole closing, splits), drawn
+//! by the renderer straight from the GPU buffer.
 //!
 //! With `--gpu-sim` the extractor reads the GPU solver's buffers; otherwise it
 //! uploads the world's positions and volumes. Each frame reads back the
@@ -11,7 +11,7 @@
 use sph_core::World;
 use sph_gpu::{GpuExtractStats, GpuExtractor, GpuParticles, SURFEL_BYTES};
 use splat_render::{GpuContext, SplatRenderer, wgpu};
-use surfel_extract::{ColourField, ExtractParams, Split, Surfel};
+use surfel_extract::{ColourField, ExtractParams, Surfel};
 
 use crate::error::AppError;
 
@@ -34,12 +34,7 @@ impl GpuExtract {
     /// # Errors
     /// [`AppError::Gpu`] for parameters the GPU path rejects.
     pub fn new(ctx: &GpuContext, world: &World, params: &ExtractParams) -> Result<Self, AppError> {
-        // The CPU path's parameters, but the first split 2×2 (3×3 is
-        // CPU-only).
-        let params = ExtractParams {
-            first_split: Split::TwoByTwo,
-            ..*params
-        };
+        let params = *params;
         let particles = world.particles.len().max(1);
         // A first guess; grows on overflow.
         let capacity = ((2 * particles) << (2 * (params.iterations - 1))).max(1 << 12);

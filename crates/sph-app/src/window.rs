@@ -575,7 +575,7 @@ impl App {
                 ui.separator();
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
                 settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag pushes on either path");
-                settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu): the same field and hole closing, 2×2 first splits; drawn without a round trip to the CPU");
+                settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu): the same field, hole closing and splits; drawn without a round trip to the CPU");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");
                 egui::ComboBox::from_label("view (F)")

@@ -40,7 +40,7 @@ struct Uniform {
     anisotropic: u32,
     fill_cell: f32,
     fill_table: u32,
-    pad0: u32,
+    first_split: u32,
 }
 
 /// Mirrors `struct Stage`.
@@ -117,8 +117,8 @@ impl GpuExtractStats {
 /// [`GpuAnisotropy`] computes on the GPU), and [`Mode::Covered`]'s hole
 /// closing after the first iteration (`shaders/fill.wgsl`: the same probes
 /// and tests; a candidate covered by another is dropped when that one's
-/// position hashes lower, where the CPU keeps the first in its order). The
-/// first split is 2×2 ([`Split::TwoByTwo`]); 3×3 is CPU-only.
+/// position hashes lower, where the CPU keeps the first in its order), and
+/// either first split ([`Split`]).
 /// Surfels are appended with atomic counters, so their order varies from run
 /// to run (the set does not, up to float rounding). The result buffer holds
 /// `vec4(position, radius), vec4(normal, 0)` per surfel — splat-render's splat
@@ -190,11 +190,6 @@ impl GpuExtractor {
         params: &ExtractParams,
     ) -> Result<Self, GpuError> {
         params.validate().map_err(GpuError::Params)?;
-        if params.first_split != Split::TwoByTwo {
-            return Err(GpuError::Invalid(
-                "the GPU extractor splits 2×2 (3×3 first splits are CPU-only): set first_split to Split::TwoByTwo",
-            ));
-        }
         let covered = params.mode == Mode::Covered;
         if max_surfels == 0 {
             return Err(GpuError::Invalid("max_surfels must be > 0"));
@@ -242,7 +237,10 @@ impl GpuExtractor {
             // √(r² + (2 × thickness)²) of it, r at most the guess's radius.
             fill_cell: (params.radius * h).hypot(2.0 * 0.25 * h),
             fill_table: (2 * particles).next_power_of_two().max(1024) as u32,
-            pad0: 0,
+            first_split: match params.first_split {
+                Split::TwoByTwo => 2,
+                Split::ThreeByThree => 3,
+            },
         };
         use wgpu::BufferUsages as U;
         let buffer = |label, size, usage| buffer(device, label, size, usage);
@@ -981,7 +979,7 @@ mod tests {
                 anisotropic,
                 fill_cell,
                 fill_table,
-                pad0
+                first_split
             }
         )
         .unwrap();

@@ -19,7 +19,7 @@
 //! (initial guess, Newton-Raphson refinement with splitting) on the isotropic or
 //! the anisotropic field with append buffers and an indirect draw that `splat_render::SplatRenderer::use_gpu_splats`
 //! draws without a round trip to the CPU, with hole closing (`Mode::Covered`).
-//! Emitters, sinks and 3×3 first splits are not built yet.
+//! Emitters and sinks are not built yet.
 //!
 //! The solver's steps and the attached extractor's passes can be timed on
 //! the GPU: the `_profiled` variants of [`GpuSolver::step`],

@@ -175,12 +175,6 @@ fn overflow_is_reported_and_bad_input_rejected() {
     assert!(stats.dropped > 0);
 
     let device = &ctx.device;
-    assert!(GpuExtractor::new(device, 10, 100, &ExtractParams::new(H)).is_err());
-    let three_by_three = ExtractParams {
-        first_split: Split::ThreeByThree,
-        ..params
-    };
-    assert!(GpuExtractor::new(device, 10, 100, &three_by_three).is_err());
     assert!(GpuExtractor::new(device, 10, 0, &params).is_err());
     assert!(GpuExtractor::new(device, 10, usize::MAX / 64, &params).is_err());
     let bad = ExtractParams {
@@ -675,9 +669,10 @@ fn settled_pool_is_flat_through_the_gpu_path() {
     assert!(p99 <= 5.0, "99th percentile {p99}°");
 }
 
-/// Hole closing on the GPU ([`Mode::Covered`], 2×2 first split) against the
-/// CPU's on the same fields: the iso-surface covered at least as fully (to
-/// 0.2 points), surfel and fill counts close, residuals no worse.
+/// Hole closing on the GPU ([`Mode::Covered`]) against the CPU's on the same
+/// fields, with either first split (3×3 is the default): the iso-surface
+/// covered at least as fully (to 0.2 points), surfel counts within 5 %,
+/// residuals no worse.
 #[test]
 fn hole_closing_covers_as_the_cpu_does() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
@@ -691,11 +686,16 @@ fn hole_closing_covers_as_the_cpu_does() {
         ("dam break", &dam, 0.04, 0.01, 0.004),
         ("sphere", &sphere, H, 0.25 * H, 0.1 * H),
     ] {
-        for surface in [Surface::Isotropic, Surface::anisotropic()] {
+        for (surface, first_split) in [
+            (Surface::Isotropic, Split::TwoByTwo),
+            (Surface::anisotropic(), Split::TwoByTwo),
+            (Surface::Isotropic, Split::ThreeByThree),
+            (Surface::anisotropic(), Split::ThreeByThree),
+        ] {
             let mut field = ColourField::new(surface).unwrap();
             field.refill_from_positions(points, h).unwrap();
             let params = ExtractParams {
-                first_split: Split::TwoByTwo,
+                first_split,
                 surface,
                 ..ExtractParams::new(h)
             };
@@ -710,7 +710,7 @@ fn hole_closing_covers_as_the_cpu_does() {
                 residuals(&field, params.iso, &cpu.surfels),
             );
             println!(
-                "{name} ({surface:?}): GPU {} surfels, {} filled, coverage {:.2} %, residual p95 {:.2e}; \
+                "{name} ({surface:?}, {first_split:?}): GPU {} surfels, {} filled, coverage {:.2} %, residual p95 {:.2e}; \
                  CPU {} surfels, {} filled, coverage {:.2} %, p95 {:.2e}",
                 surfels.len(),
                 stats.filled,

@@ -34,7 +34,7 @@ struct Extract {
     anisotropic: u32,         // 1: Yu & Turk's field (`kernels`)
     fill_cell: f32,           // hole closing's surfel grid: cell size (m)
     fill_table: u32,          // and its hash buckets (fill.wgsl)
-    pad0: u32,
+    first_split: u32,         // cells along a side of the first split: 2 or 3
 };
 
 // Which counters a refinement iteration reads and appends to.
@@ -304,14 +304,22 @@ fn tangent(n: vec3<f32>) -> vec3<f32> {
 
 // Child k (0..3) of the four covering s in its tangent plane (figure 6).
 fn child(s: Surfel, k: u32) -> Surfel {
-    let n = s.normal.xyz;
-    let t1 = tangent(n);
-    let t2 = cross(n, t1);
+    return split_child(s, k, 2u);
+}
+
+// Child k (0..n²) of the n × n covering s in its tangent plane: the disc's
+// bounding square cut into cells, each child wide enough to cover its
+// cell's corners, 5 % over (surfel-extract's `split`).
+fn split_child(s: Surfel, k: u32, n: u32) -> Surfel {
+    let normal = s.normal.xyz;
+    let t1 = tangent(normal);
+    let t2 = cross(normal, t1);
     let r = s.position_radius.w;
-    let u = select(-1.0, 1.0, (k & 1u) == 0u);
-    let v = select(-1.0, 1.0, (k & 2u) == 0u);
-    let p = s.position_radius.xyz + 0.5 * r * (u * t1 + v * t2);
-    return surfel(p, n, r * 0.70710678 * 1.05);
+    let cells = f32(n);
+    let u = (cells - 1.0 - 2.0 * f32(k % n)) / cells;
+    let v = (cells - 1.0 - 2.0 * f32(k / n)) / cells;
+    let p = s.position_radius.xyz + r * (u * t1 + v * t2);
+    return surfel(p, normal, r * (1.4142135 / cells) * 1.05);
 }
 
 // Box faces (0..5) then corners (6..13).
@@ -529,6 +537,7 @@ struct Step {
     position: vec3<f32>,
     ok: u32,
     normal: vec3<f32>,
+    bend: f32,   // |∇²c|/|∇c| where it starts: the summed curvatures
 };
 
 fn newton(x: vec3<f32>) -> Step {
@@ -553,6 +562,7 @@ fn newton(x: vec3<f32>) -> Step {
     }
     out.position = x + nr;
     out.normal = n;
+    out.bend = abs(f.laplacian) / sqrt(g2);
     out.ok = 1u;
     return out;
 }
@@ -581,18 +591,28 @@ fn refine(
     if !front_facing(p, n) {
         return;
     }
-    let refined = surfel(p, n, s.position_radius.w);
+    var refined = surfel(p, n, s.position_radius.w);
     if stage.last != 0u {
         push_out(reserve(OUT, 1u), refined);
         return;
     }
+    // The first split 3 × 3 unless the surface curves away from the tangent
+    // plane at its corner children (√2 · 2/3 r out) by more than a step
+    // (surfel-extract's `corner_distance` and `Step::sag`).
+    var cells = 2u;
+    if stage.iteration == 0u && e.first_split == 3u {
+        let corner = 0.94280904 * s.position_radius.w;
+        cells = select(3u, 2u, 0.5 * step.bend * corner * corner > e.discard_step * e.h);
+    }
     if stage.keep != 0u {
+        // Held for hole closing, which splits it as chosen here (normal.w).
+        refined.normal.w = select(0.0, 1.0, cells == 3u);
         push_work(reserve(stage.dst, 1u), refined);
         return;
     }
-    let at = reserve(stage.dst, 4u);
-    for (var k = 0u; k < 4u; k++) {
-        push_work(at + k, child(refined, k));
+    let at = reserve(stage.dst, cells * cells);
+    for (var k = 0u; k < cells * cells; k++) {
+        push_work(at + k, split_child(refined, k, cells));
     }
 }
 

@@ -228,7 +228,7 @@ fn fill_prepare_split() {
     atomicStore(&counters[0], 0u);
 }
 
-// Each kept surfel (here `work_in`) split in four into work buffer 0.
+// Each kept surfel (here `work_in`) split into work buffer 0.
 @compute @workgroup_size(64)
 fn split_kept(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -239,9 +239,12 @@ fn split_kept(
     if i >= min(atomicLoad(&counters[KEPT]), e.work_capacity) {
         return;
     }
-    let at = reserve(0u, 4u);
-    for (var k = 0u; k < 4u; k++) {
-        push_work(at + k, child(work_in[i], k));
+    // 3 × 3 where the first iteration chose it (normal.w), the fills 2 × 2.
+    let s = work_in[i];
+    let cells = select(2u, 3u, s.normal.w != 0.0);
+    let at = reserve(0u, cells * cells);
+    for (var k = 0u; k < cells * cells; k++) {
+        push_work(at + k, split_child(s, k, cells));
     }
 }
 
@@ -256,5 +259,7 @@ fn kept_to_out(
     if i >= min(atomicLoad(&counters[KEPT]), e.work_capacity) {
         return;
     }
-    push_out(reserve(OUT, 1u), work_in[i]);
+    var s = work_in[i];
+    s.normal.w = 0.0;
+    push_out(reserve(OUT, 1u), s);
 }
