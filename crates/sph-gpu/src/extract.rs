@@ -41,6 +41,10 @@ struct Uniform {
     fill_cell: f32,
     fill_table: u32,
     first_split: u32,
+    fill_capacity: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 /// Mirrors `struct Stage`.
@@ -117,8 +121,11 @@ impl GpuExtractStats {
 /// [`GpuAnisotropy`] computes on the GPU), and [`Mode::Covered`]'s hole
 /// closing after the first iteration (`shaders/fill.wgsl`: the same probes
 /// and tests; a candidate covered by another is dropped when that one's
-/// position hashes lower, where the CPU keeps the first in its order), and
-/// either first split ([`Split`]).
+/// position hashes lower, where the CPU keeps the first in its order, so a
+/// chain of overlapping candidates can lose more than the CPU's would, which
+/// the next round's probes make up for), and either first split ([`Split`]).
+/// With a single iteration the CPU also probes around, and covers with, the
+/// lone particles' spheres; here they go straight to the result.
 /// Surfels are appended with atomic counters, so their order varies from run
 /// to run (the set does not, up to float rounding). The result buffer holds
 /// `vec4(position, radius), vec4(normal, 0)` per surfel — splat-render's splat
@@ -241,6 +248,10 @@ impl GpuExtractor {
                 Split::TwoByTwo => 2,
                 Split::ThreeByThree => 3,
             },
+            fill_capacity: fill_capacity(max_surfels) as u32,
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         };
         use wgpu::BufferUsages as U;
         let buffer = |label, size, usage| buffer(device, label, size, usage);
@@ -770,6 +781,13 @@ impl GpuExtractor {
 /// key).
 const CANDIDATE_BYTES: u64 = 48;
 
+/// Hole closing's candidates per round for buffers of `max_surfels`: a
+/// quarter (holes are a small part of a surface; more are counted as
+/// dropped, and the app grows its buffers).
+fn fill_capacity(max_surfels: usize) -> usize {
+    (max_surfels / 4).max(1024)
+}
+
 type Bound = (wgpu::ComputePipeline, wgpu::BindGroup);
 
 /// Hole closing's passes ([`Mode::Covered`], `shaders/fill.wgsl`) and
@@ -808,7 +826,7 @@ impl Fill {
     ) -> Result<Self, GpuError> {
         use wgpu::BufferUsages as U;
         let limits = device.limits();
-        let candidates_cap = (max_surfels / 4).max(1024) as u64;
+        let candidates_cap = u64::from(uniform.fill_capacity);
         if candidates_cap * CANDIDATE_BYTES
             > limits
                 .max_storage_buffer_binding_size
@@ -979,7 +997,11 @@ mod tests {
                 anisotropic,
                 fill_cell,
                 fill_table,
-                first_split
+                first_split,
+                fill_capacity,
+                pad0,
+                pad1,
+                pad2
             }
         )
         .unwrap();

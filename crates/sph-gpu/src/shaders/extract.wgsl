@@ -35,6 +35,10 @@ struct Extract {
     fill_cell: f32,           // hole closing's surfel grid: cell size (m)
     fill_table: u32,          // and its hash buckets (fill.wgsl)
     first_split: u32,         // cells along a side of the first split: 2 or 3
+    fill_capacity: u32,       // hole closing's candidates buffer (fill.wgsl)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 };
 
 // Which counters a refinement iteration reads and appends to.

@@ -151,7 +151,7 @@ fn probe(
             continue;
         }
         let slot = atomicAdd(&counters[CANDIDATES], 1u);
-        if slot < e.work_capacity {
+        if slot < e.fill_capacity {
             let u = bitcast<vec3<u32>>(second.position);
             let key = (u.x * 73856093u) ^ (u.y * 19349663u) ^ (u.z * 83492791u) ^ k;
             candidates[slot] = Candidate(found, vec4<u32>(key, 0u, 0u, 0u));
@@ -165,7 +165,7 @@ fn probe(
 // surfels this one adds (those past the kept buffer's present end).
 @compute @workgroup_size(1)
 fn fill_prepare_dedup() {
-    set_groups(6u, min(atomicLoad(&counters[CANDIDATES]), e.work_capacity));
+    set_groups(6u, min(atomicLoad(&counters[CANDIDATES]), e.fill_capacity));
     atomicStore(&counters[PROBE_START], min(atomicLoad(&counters[KEPT]), e.work_capacity));
 }
 
@@ -176,7 +176,7 @@ fn insert_candidates(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let j = flat_index(wid, groups, lid);
-    if j >= min(atomicLoad(&counters[CANDIDATES]), e.work_capacity) {
+    if j >= min(atomicLoad(&counters[CANDIDATES]), e.fill_capacity) {
         return;
     }
     let b = bucket_of(fill_cell_of(candidates[j].s.position_radius.xyz), e.fill_table);
@@ -191,7 +191,7 @@ fn dedup(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let j = flat_index(wid, groups, lid);
-    if j >= min(atomicLoad(&counters[CANDIDATES]), e.work_capacity) {
+    if j >= min(atomicLoad(&counters[CANDIDATES]), e.fill_capacity) {
         return;
     }
     let c = candidates[j];
