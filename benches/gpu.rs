@@ -8,7 +8,8 @@
 //! - `pbf_frame_1080p`: that frame, then the surfels and a 1920×1080 image:
 //!   the CPU path extracts in its default covered mode and uploads its
 //!   surfels; the GPU path records the frame, the thesis-mode extraction
-//!   (isotropic: `gpu`; anisotropic, the demo's default: `gpu_anisotropic`)
+//!   (thesis mode, isotropic: `gpu`; anisotropic: `gpu_anisotropic`; the
+//!   demo's default, covered mode on the anisotropic field: `gpu_demo`)
 //!   reading the solver's buffers and the render in one submission, and
 //!   nothing leaves the GPU;
 //! - `wcsph_step`: one step of the thesis's WCSPH (`World::step` vs
@@ -16,9 +17,9 @@
 //!   1/60 s frame of the dam break takes 50–100 of them;
 //! - `extraction`: the surfels of that state (a `surfel_extract::Extractor`
 //!   kept across iterations, as the demo keeps one, in the default covered
-//!   mode, the thesis mode and the thesis mode on the anisotropic field, vs
-//!   `GpuExtractor` reading the solver's buffers, thesis mode on either
-//!   field, waiting for the device);
+//!   mode, the thesis mode, the thesis mode on the anisotropic field and the
+//!   demo's covered mode on it (`*_demo`), vs `GpuExtractor` reading the
+//!   solver's buffers in the same modes, waiting for the device);
 //! - `wcsph_step_1080p`: one WCSPH step, extraction and splat rendering at
 //!   1920×1080 — again one step, not a frame;
 //! - `advance_batch`: one adaptive WCSPH frame on the GPU of a small dam
@@ -322,9 +323,11 @@ fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
         });
     }
     let mut anisotropic = gpu_extractor(ctx, &gpu, &thesis.anisotropic());
+    let mut demo = gpu_extractor(ctx, &gpu, &covered.anisotropic());
     for (name, extractor) in [
         ("gpu", &mut extractor),
         ("gpu_anisotropic", &mut anisotropic),
+        ("gpu_demo", &mut demo),
     ] {
         renderer
             .use_gpu_splats(
@@ -381,6 +384,10 @@ fn gpu_vs_cpu(c: &mut Criterion) {
         let mut extractor = gpu_extractor(&ctx, &gpu, &thesis);
         let anisotropic = thesis.anisotropic();
         let mut gpu_anisotropic = gpu_extractor(&ctx, &gpu, &anisotropic);
+        // The demo's: covered mode (hole closing, 3×3 first splits) on the
+        // anisotropic field.
+        let demo = covered.anisotropic();
+        let mut gpu_demo = gpu_extractor(&ctx, &gpu, &demo);
         // A frame half a stable step long: the GPU chooses its step as the
         // CPU does, so it lands on the frame's end in one adaptive step,
         // recorded alone (a batch of one). These frames move the GPU
@@ -458,9 +465,18 @@ fn gpu_vs_cpu(c: &mut Criterion) {
                     .surfels
             })
         });
+        group.bench_function(BenchmarkId::new("cpu_demo", label), |b| {
+            b.iter(|| {
+                cpu.extract(&world.particles, &demo)
+                    .expect("extract")
+                    .stats
+                    .surfels
+            })
+        });
         for (name, extractor) in [
             ("gpu_thesis", &mut extractor),
             ("gpu_anisotropic_thesis", &mut gpu_anisotropic),
+            ("gpu_demo", &mut gpu_demo),
         ] {
             group.bench_function(BenchmarkId::new(name, label), |b| {
                 b.iter(|| {
