@@ -1,0 +1,122 @@
+//! How the CPU path scales with threads (issue 45): for 1, 2, 4, 8 and 16
+//! threads (those up to the machine's cores, or `--max-threads`), the
+//! median wall time of a 1/60 s frame of PBF on the slab dam break at about
+//! 10k and 100k particles and of DFSPH at 10k, and of the anisotropic
+//! extraction (the demo's default surface) of the 10k and 100k frames, each
+//! in a rayon pool of that many threads, with the speed-up over one thread.
+//!
+//! ```text
+//! cargo run --release --example scaling [-- --frames F] [--max-threads N]
+//! ```
+//!
+//! Each row starts from the scene's first frame and times `--frames` frames
+//! (default 20) after two untimed ones; the extraction is timed five times
+//! on the state the PBF rows end in.
+
+use std::time::Instant;
+
+use sph_core::{Particles, Scene, SolverKind, World};
+use surfel_extract::{ExtractParams, Extractor};
+
+/// What a run can fail with (sent back from the pool's threads).
+type Error = Box<dyn std::error::Error + Send + Sync>;
+
+/// The median of `v` (sorted in place).
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// Milliseconds per frame (median of `frames`, after two untimed ones) of
+/// `scene` in the current pool, and the world it ends in.
+fn frames(scene: &Scene, frames: usize) -> Result<(f64, World), Error> {
+    let mut world = scene.build_world()?;
+    for _ in 0..2 {
+        world.advance(1.0 / 60.0)?;
+    }
+    let mut times = Vec::with_capacity(frames);
+    for _ in 0..frames {
+        let start = Instant::now();
+        world.advance(1.0 / 60.0)?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok((median(&mut times), world))
+}
+
+/// Milliseconds (median of five) of the anisotropic extraction of
+/// `particles` at smoothing length `h`.
+fn extraction(particles: &Particles, h: f32) -> Result<f64, Error> {
+    let params = ExtractParams::new(h).anisotropic();
+    let mut extractor = Extractor::new();
+    extractor.extract(particles, &params)?;
+    let mut times = Vec::new();
+    for _ in 0..5 {
+        let start = Instant::now();
+        extractor.extract(particles, &params)?;
+        times.push(start.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok(median(&mut times))
+}
+
+fn main() -> Result<(), Error> {
+    let (mut count, mut max_threads) = (20usize, usize::MAX);
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
+        match arg.as_str() {
+            "--frames" => count = value("--frames")?.parse()?,
+            "--max-threads" => max_threads = value("--max-threads")?.parse()?,
+            other => return Err(format!("unknown argument `{other}`").into()),
+        }
+    }
+    if count == 0 {
+        return Err("--frames must be at least 1".into());
+    }
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads: Vec<usize> = [1, 2, 4, 8, 16]
+        .into_iter()
+        .filter(|&n| n <= cores.min(max_threads))
+        .collect();
+    let pbf = |spacing| Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Pbf);
+    let cases = [
+        ("PBF frame, 10k", pbf(0.01), true),
+        ("PBF frame, 100k", pbf(0.00455), true),
+        (
+            "DFSPH frame, 10k",
+            Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Dfsph),
+            false,
+        ),
+    ];
+    println!(
+        "slab dam break, {count} frames of 1/60 s after 2 untimed; median ms (speed-up over 1 thread)"
+    );
+    print!("{:<34}", "");
+    for n in &threads {
+        print!("{:>18}", format!("{n} threads"));
+    }
+    println!();
+    for (name, scene, extract) in &cases {
+        let particles = scene.particles()?.len();
+        let mut rows = vec![(format!("{name} ({particles})"), Vec::new())];
+        if *extract {
+            rows.push(("anisotropic extraction of it".to_string(), Vec::new()));
+        }
+        for &n in &threads {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
+            let (frame, world) = pool.install(|| frames(scene, count))?;
+            rows[0].1.push(frame);
+            if *extract {
+                let (particles, h) = (&world.particles, world.params().h);
+                rows[1].1.push(pool.install(|| extraction(particles, h))?);
+            }
+        }
+        for (label, times) in rows {
+            print!("{label:<34}");
+            for t in &times {
+                print!("{:>18}", format!("{t:.2} ({:.2}×)", times[0] / t));
+            }
+            println!();
+        }
+    }
+    Ok(())
+}
