@@ -124,8 +124,6 @@ impl GpuExtractStats {
 /// position hashes lower, where the CPU keeps the first in its order, so a
 /// chain of overlapping candidates can lose more than the CPU's would, which
 /// the next round's probes make up for), and either first split ([`Split`]).
-/// With a single iteration the CPU also probes around, and covers with, the
-/// lone particles' spheres; here they go straight to the result.
 /// Surfels are appended with atomic counters, so their order varies from run
 /// to run (the set does not, up to float rounding). The result buffer holds
 /// `vec4(position, radius), vec4(normal, 0)` per surfel — splat-render's splat
@@ -808,6 +806,9 @@ struct Fill {
     prepare_split: Bound,
     /// `split_kept`, or `kept_to_out` after a single iteration.
     split: Bound,
+    /// After a single iteration: the lone particles' surfels into the kept
+    /// ones (prepare, move, reset).
+    lone: Option<[Bound; 3]>,
 }
 
 impl Fill {
@@ -860,7 +861,7 @@ impl Fill {
             4 * candidates_cap,
             U::STORAGE,
         );
-        let args = buffer(device, "fill dispatch", 48, U::STORAGE | U::INDIRECT);
+        let args = buffer(device, "fill dispatch", 60, U::STORAGE | U::INDIRECT);
         let (e, counters) = (field[0].1, field[6].1);
         let bound = |entry: &str, entries: &[(u32, &wgpu::Buffer)]| {
             let p = pipeline(entry);
@@ -914,6 +915,16 @@ impl Fill {
             ),
             prepare_split: bound("fill_prepare_split", &[(0, e), (6, counters), (20, &args)]),
             split: bound(split_entry, &[(0, e), (6, counters), (7, kept), split_out]),
+            lone: single_iteration.then(|| {
+                [
+                    bound("fill_prepare_lone", &[(0, e), (6, counters), (20, &args)]),
+                    bound(
+                        "lone_to_kept",
+                        &[(0, e), (6, counters), (8, kept), (9, result)],
+                    ),
+                    bound("lone_reset", &[(6, counters)]),
+                ]
+            }),
             args,
         })
     }
@@ -923,6 +934,11 @@ impl Fill {
         let clear_groups = self.buckets.div_ceil(256);
         let args = &self.args;
         let mut out = Vec::new();
+        if let Some([prepare, to_kept, reset]) = &self.lone {
+            out.push(direct(prepare, 1));
+            out.push(indirect(to_kept, args, 48));
+            out.push(direct(reset, 1));
+        }
         for _ in 0..self.rounds {
             out.push(direct(&self.prepare, 1));
             out.push(direct(&self.clear, clear_groups));

@@ -27,8 +27,8 @@ struct Candidate {
 @group(0) @binding(18) var<storage, read_write> candidates: array<Candidate>;
 @group(0) @binding(19) var<storage, read_write> candidate_next: array<u32>;
 // Indirect dispatches: [0..3] the probing surfels, [3..6] the kept ones,
-// [6..9] the candidates.
-@group(0) @binding(20) var<storage, read_write> fill_args: array<u32, 12>;
+// [6..9] the candidates, [9..12] the split, [12..15] the lone surfels.
+@group(0) @binding(20) var<storage, read_write> fill_args: array<u32, 15>;
 
 const EMPTY: u32 = 0xffffffffu;
 const KEPT: u32 = 1u;
@@ -61,6 +61,36 @@ fn set_groups(at: u32, count: u32) {
     fill_args[at] = (groups + y - 1u) / y;
     fill_args[at + 1u] = y;
     fill_args[at + 2u] = 1u;
+}
+
+// With a single iteration the lone particles' spheres, already in the
+// result, join the kept surfels first: they probe and cover like the others
+// (the CPU closes holes over its whole result then), and `kept_to_out` puts
+// them back.
+@compute @workgroup_size(1)
+fn fill_prepare_lone() {
+    set_groups(12u, min(atomicLoad(&counters[OUT]), e.out_capacity));
+}
+
+@compute @workgroup_size(64)
+fn lone_to_kept(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let i = flat_index(wid, groups, lid);
+    if i >= min(atomicLoad(&counters[OUT]), e.out_capacity) {
+        return;
+    }
+    let at = reserve(KEPT, 1u);
+    if at < e.work_capacity {
+        work_out[at] = result[i];
+    }
+}
+
+@compute @workgroup_size(1)
+fn lone_reset() {
+    atomicStore(&counters[OUT], 0u);
 }
 
 // One thread, a round's start: the probing surfels (those added last
