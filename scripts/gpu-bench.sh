@@ -18,7 +18,7 @@ shift
 
 # (grep reads a process substitution: with pipefail, `ldconfig -p | grep -q`
 # fails when grep's early exit kills ldconfig with SIGPIPE.)
-if ! grep -q 'libvulkan\.so\.1' < <(ldconfig -p); then
+if ! grep -q 'libvulkan\.so\.1' < <(ldconfig -p) || ! grep -q 'libGLdispatch\.so\.0' < <(ldconfig -p); then
     for f in "$kit"/deb/*.deb; do dpkg -x "$f" /; done
     ldconfig
 fi

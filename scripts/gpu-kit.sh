@@ -25,16 +25,18 @@ for bench in gpu render realtime sph-app; do
     strip -o "$kit/$bench" "$exe"
 done
 
-# The Vulkan loader of this machine's distribution, for a machine whose image
-# has the NVIDIA driver but no libvulkan.so.1; the run script unpacks it only
-# where none is installed. apt's lists and cache go to /tmp, leaving the
-# system's alone.
+# The Vulkan loader and glvnd's libraries of this machine's distribution,
+# for a machine whose image has the NVIDIA driver but not them; the run
+# script unpacks them only where one is missing. apt's lists and cache go to
+# /tmp, leaving the system's alone.
 o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64
     -oDir::State::Lists=/tmp/gpu-kit-apt/lists -oDir::Cache=/tmp/gpu-kit-apt/cache
     -oAPT::Sandbox::User=root)
 mkdir -p /tmp/gpu-kit-apt/lists/partial /tmp/gpu-kit-apt/cache/archives/partial
 apt-get "${o[@]}" update -q >/dev/null
-(cd "$kit/deb" && apt-get "${o[@]}" download libvulkan1)
+# NVIDIA's Vulkan ICD (libGLX_nvidia) loads glvnd's libraries: the H100
+# runs of 2026-11-26 found no adapter without them.
+(cd "$kit/deb" && apt-get "${o[@]}" download libvulkan1 libglvnd0 libglx0 libegl1 libgl1 libgles2 libopengl0)
 
 # The commit the binaries were built from, marked when the tree had changes.
 { git rev-parse HEAD; git diff --quiet HEAD || echo "with uncommitted changes"; } | paste -sd' ' >"$kit/COMMIT"
