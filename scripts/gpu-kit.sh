@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Packs what a GPU machine without a Rust toolchain or network access needs to
 # run the GPU benches (`render` and `gpu`), the `realtime` example and the demo
-# (`sph-app`) into .gpu-kit/ (git-ignored): the four binaries, stripped, and Debian's Vulkan
-# loader package. Copy the repository with .gpu-kit/ to that machine (same x86-64
-# Linux, glibc 2.35 or later) and run scripts/gpu-bench.sh there.
+# (`sph-app`) into .gpu-kit/ (git-ignored): the four binaries, stripped, and
+# Debian's Vulkan loader and glvnd packages. Copy the repository with
+# .gpu-kit/ to that machine (same x86-64 Linux, glibc 2.35 or later) and run
+# scripts/gpu-bench.sh there.
 #
-#   scripts/gpu-kit.sh            # here: build and pack (about 20 MB)
+#   scripts/gpu-kit.sh            # here: build and pack (about 50 MB)
 #   scripts/gpu-bench.sh render   # there: see that script
 set -euo pipefail
 cd "$(dirname "$0")/.."
