@@ -378,9 +378,7 @@ impl GpuExtractor {
                     &field,
                     [&work[0], &work[1], &result],
                     &uniform,
-                    max_surfels,
-                    params.iterations == 1,
-                    params.fill_rounds,
+                    params,
                 )
             })
             .transpose()?;
@@ -813,18 +811,17 @@ struct Fill {
 
 impl Fill {
     /// The passes over the field's bindings `field` and the work buffers
-    /// and result `[work 0, work 1 (the kept surfels), result]`.
-    #[allow(clippy::too_many_arguments)]
+    /// and result `[work 0, work 1 (the kept surfels), result]`, sized by
+    /// `uniform`'s capacities, for `params`' iterations and rounds.
     fn new<'a>(
         device: &wgpu::Device,
         pipeline: &dyn Fn(&str) -> wgpu::ComputePipeline,
         field: &[(u32, &'a wgpu::Buffer)],
         [work0, kept, result]: [&'a wgpu::Buffer; 3],
         uniform: &Uniform,
-        max_surfels: usize,
-        single_iteration: bool,
-        rounds: u32,
+        params: &ExtractParams,
     ) -> Result<Self, GpuError> {
+        let single_iteration = params.iterations == 1;
         use wgpu::BufferUsages as U;
         let limits = device.limits();
         let candidates_cap = u64::from(uniform.fill_capacity);
@@ -846,7 +843,7 @@ impl Fill {
         let kept_next = buffer(
             device,
             "fill kept lists",
-            4 * max_surfels as u64,
+            4 * u64::from(uniform.work_capacity),
             U::STORAGE,
         );
         let candidates = buffer(
@@ -877,7 +874,7 @@ impl Fill {
         };
         Ok(Self {
             buckets: uniform.fill_table,
-            rounds,
+            rounds: params.fill_rounds,
             prepare: bound("fill_prepare", &[(0, e), (6, counters), (20, &args)]),
             clear: bound("clear_heads", &[(0, e), (16, &heads)]),
             insert_kept: bound(
