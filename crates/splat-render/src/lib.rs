@@ -52,7 +52,7 @@ pub use context::{GpuContext, instance_from_env};
 pub use error::{RenderError, Result};
 pub use geometry::{Backdrop, Material, Mesh, Object, SceneGeometry};
 pub use readback::{Accumulation, read_texture_rgba8};
-pub use renderer::{OUTPUT_FORMAT, SplatRenderer};
+pub use renderer::{OUTPUT_FORMAT, SplatPath, SplatRenderer};
 pub use shading::{Shading, View, WATER_ABSORPTION};
 pub use splat::{Splat, alpha_mask};
 pub use textures::Environment;

@@ -3,12 +3,15 @@
 //! they share written once:
 //! - `scene`: backdrop and meshes into the scene image and depth;
 //! - `splats`: the back surface, visibility and attribute passes;
+//! - `compute`: the visibility and attribute passes in compute
+//!   ([`SplatPath::Compute`]);
 //! - `shade`: normalise and shade (compute);
 //! - `blit`: the result onto a window surface;
 //! - `targets`: the render targets and the environment's textures;
 //! - `plumbing`: layout entries, bind groups, shader modules, timed passes.
 
 mod blit;
+mod compute;
 mod plumbing;
 mod scene;
 mod shade;
@@ -29,6 +32,7 @@ use crate::splat::{GpuSplat, Splat};
 use crate::textures::Environment;
 
 use blit::Blit;
+use compute::ComputeSplats;
 use scene::ScenePass;
 use shade::ShadePass;
 use splats::SplatPasses;
@@ -36,6 +40,30 @@ pub use targets::OUTPUT_FORMAT;
 use targets::{Surroundings, Targets, check_size};
 
 const MIN_SPLAT_CAPACITY: usize = 1024;
+
+/// How the visibility and attribute passes draw the splats.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SplatPath {
+    /// The raster hardware: each splat a quad, depth-tested and blended
+    /// (the default).
+    #[default]
+    Raster,
+    /// Compute shaders: splats binned to screen tiles and summed per tile
+    /// in fixed point, past the raster hardware's blending rate (see
+    /// `renderer/compute.rs`). The same images, to FLIP ≤ 0.01 on the
+    /// reference goldens.
+    Compute,
+}
+
+impl SplatPath {
+    /// Its name on the command line: `raster` or `compute`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SplatPath::Raster => "raster",
+            SplatPath::Compute => "compute",
+        }
+    }
+}
 
 /// Uniforms of every pass; mirrors `struct Frame` in `shaders/frame.wgsl`.
 #[repr(C)]
@@ -89,6 +117,10 @@ pub struct SplatRenderer {
     blit: Blit,
     around: Surroundings,
     targets: Targets,
+    path: SplatPath,
+    /// The compute splat passes, made when [`SplatPath::Compute`] is first
+    /// chosen.
+    compute: Option<ComputeSplats>,
 }
 
 impl SplatRenderer {
@@ -135,7 +167,62 @@ impl SplatRenderer {
             buffer_allocations: 1,
             around,
             targets,
+            path: SplatPath::Raster,
+            compute: None,
         })
+    }
+
+    /// The splat path in use.
+    pub fn splat_path(&self) -> SplatPath {
+        self.path
+    }
+
+    /// Draws the splats by `path` from the next frame on.
+    ///
+    /// # Errors
+    /// [`RenderError::InvalidSource`] for [`SplatPath::Compute`] while
+    /// drawing GPU-resident splats whose draw arguments are not a storage
+    /// buffer (the compute passes read the count from them).
+    pub fn set_splat_path(&mut self, ctx: &GpuContext, path: SplatPath) -> Result<()> {
+        if let (SplatPath::Compute, Some(g)) = (path, &self.gpu_source) {
+            check_args_readable(&g.draw_args)?;
+        }
+        self.path = path;
+        self.reserve_compute(ctx);
+        Ok(())
+    }
+
+    /// Sizes the compute passes' memory for the targets and the splat
+    /// buffer, making them first when the compute path is on.
+    fn reserve_compute(&mut self, ctx: &GpuContext) {
+        if self.path != SplatPath::Compute {
+            return;
+        }
+        let size = self.size();
+        let splats = match &self.gpu_source {
+            Some(g) => g.splats.size() / size_of::<GpuSplat>() as u64,
+            None => self.splat_capacity as u64,
+        };
+        let splats = u32::try_from(splats).unwrap_or(u32::MAX);
+        match &mut self.compute {
+            Some(c) => c.reserve(&ctx.device, size, splats),
+            None => {
+                self.compute = Some(ComputeSplats::new(
+                    &ctx.device,
+                    self.accum_format,
+                    size,
+                    splats,
+                ));
+            }
+        }
+    }
+
+    /// Frames drawn by the compute path whose tile lists outgrew their
+    /// buffer (see [`SplatPath::Compute`]; as read back, a frame or more
+    /// late). Such a frame is still drawn whole, by testing every tile
+    /// against every splat, and the buffer grows for the next.
+    pub fn compute_overflows(&self) -> u32 {
+        self.compute.as_ref().map_or(0, ComputeSplats::overflows)
     }
 
     /// Image size in pixels.
@@ -170,6 +257,7 @@ impl SplatRenderer {
         if (width, height) != self.size() {
             self.targets = Targets::new(&ctx.device, width, height, self.accum_format);
             self.rebind(ctx);
+            self.reserve_compute(ctx);
         }
         Ok(())
     }
@@ -253,6 +341,7 @@ impl SplatRenderer {
                 .write_buffer(&self.splats, 0, bytemuck::cast_slice(gpu));
         }
         self.splat_count = gpu.len() as u32;
+        self.reserve_compute(ctx);
         Ok(())
     }
 
@@ -294,11 +383,15 @@ impl SplatRenderer {
         if self.gpu_source.as_ref().is_none_or(|g| g.splats != *splats) {
             self.splat_passes.bind(&ctx.device, &self.frame, splats);
         }
+        if self.path == SplatPath::Compute {
+            check_args_readable(draw_args)?;
+        }
         self.gpu_source = Some(GpuSource {
             splats: splats.clone(),
             draw_args: draw_args.clone(),
         });
         self.splat_count = 0;
+        self.reserve_compute(ctx);
         Ok(())
     }
 
@@ -405,10 +498,31 @@ impl SplatRenderer {
         if absorbing {
             self.splat_passes.record_back(encoder, profiler, t, &draw);
         }
-        self.splat_passes
-            .record_visibility(encoder, profiler, t, &draw);
-        self.splat_passes
-            .record_attribute(encoder, profiler, t, &draw);
+        match (self.path, &self.compute) {
+            (SplatPath::Compute, Some(compute)) => {
+                let (splats, args) = match &self.gpu_source {
+                    Some(g) => (&g.splats, Some(&g.draw_args)),
+                    None => (&self.splats, None),
+                };
+                compute.record(
+                    &ctx.device,
+                    &ctx.queue,
+                    encoder,
+                    profiler,
+                    &self.frame,
+                    splats,
+                    args,
+                    self.splat_count,
+                    t,
+                );
+            }
+            _ => {
+                self.splat_passes
+                    .record_visibility(encoder, profiler, t, &draw);
+                self.splat_passes
+                    .record_attribute(encoder, profiler, t, &draw);
+            }
+        }
         self.shade.record(encoder, profiler, t);
         Ok(())
     }
@@ -484,6 +598,17 @@ struct GpuSource {
     draw_args: wgpu::Buffer,
 }
 
+/// The compute path reads the splat count from GPU-resident draw arguments.
+fn check_args_readable(draw_args: &wgpu::Buffer) -> Result<()> {
+    if draw_args.usage().contains(wgpu::BufferUsages::STORAGE) {
+        Ok(())
+    } else {
+        Err(RenderError::InvalidSource(
+            "the compute splat path reads the splat count from draw_args: it must be a storage buffer too",
+        ))
+    }
+}
+
 fn create_splat_buffer(device: &wgpu::Device, capacity: usize) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("splats"),
@@ -520,7 +645,7 @@ mod layout_tests {
         .unwrap();
         let splat = concat!(
             include_str!("../shaders/frame.wgsl"),
-            include_str!("../shaders/splat.wgsl")
+            include_str!("../shaders/disc.wgsl")
         );
         crate::wgsl_layout!(
             splat,

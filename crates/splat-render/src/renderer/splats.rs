@@ -50,6 +50,7 @@ impl SplatPasses {
             "splat.wgsl",
             &[
                 include_str!("../shaders/frame.wgsl"),
+                include_str!("../shaders/disc.wgsl"),
                 include_str!("../shaders/splat.wgsl"),
             ],
         );

@@ -8,11 +8,6 @@
 // on an NVIDIA H200 4 % faster up to 100k splats, 7-10 % slower at 1M
 // (BENCHMARKS.md, "Splats as planar quads").
 
-struct Splat {
-    position_radius: vec4<f32>,
-    normal: vec4<f32>,
-};
-
 @group(0) @binding(1) var<storage, read> splats: array<Splat>;
 
 struct VsOut {
@@ -83,29 +78,6 @@ fn vs_splat_visibility(@builtin(vertex_index) vi: u32, @builtin(instance_index) 
 @vertex
 fn vs_splat_back(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) -> VsOut {
     return splat_quad(vi, ii, 2u, 0.0);
-}
-
-// Ray-disc intersection for the pixel at `xy`: (view-space hit, r^2/h^2), or w < 0 on a miss.
-fn hit_disc(xy: vec2<f32>, centre: vec4<f32>, normal_world: vec3<f32>) -> vec4<f32> {
-    let n = (frame.view * vec4<f32>(normal_world, 0.0)).xyz;
-    let d = view_ray(xy);
-    let denom = dot(d, n);
-    if abs(denom) < 1e-12 {
-        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
-    }
-    let t = dot(centre.xyz, n) / denom;
-    let q = d * t;
-    let e = q - centre.xyz;
-    let s = dot(e, e) / (centre.w * centre.w);
-    if t <= 0.0 || s > 1.0 {
-        return vec4<f32>(0.0, 0.0, 0.0, -1.0);
-    }
-    return vec4<f32>(q, s);
-}
-
-fn depth_of(q: vec3<f32>) -> f32 {
-    let c = frame.proj * vec4<f32>(q, 1.0);
-    return c.z / c.w;
 }
 
 // Pass 1: nearest surface depth, pushed back by epsilon along the view ray

@@ -1,0 +1,398 @@
+// Compute splatting: the visibility and attribute passes of splat.wgsl
+// without the raster hardware (renderer/compute.rs). Splats are binned to
+// 16×16-pixel tiles by a counting sort (count, scan, scatter); each work
+// item is one tile and at most CHUNK of its splats, so a dense tile is split
+// over several workgroups. A workgroup loads its splats into workgroup
+// memory and each thread tests its own pixel against them all:
+// - visibility: the nearest splat depth, pushed back by epsilon, min'd with
+//   the scene's depth by an integer atomicMin (depths in 0..1 order as their
+//   bits);
+// - attributes: w (n, 1) for the splats within it, summed in registers and
+//   added to the pixel's sums once per work item, by compare-and-swap on
+//   the floats' bits (a dense tile's work items add in any order, as the
+//   raster hardware blends in its own).
+// When the lists outgrow their buffer (the renderer reads the total back
+// and grows it for the next frame), the frame is still drawn whole: each
+// work item is then a tile and a chunk of all the splats, of which it keeps
+// those whose tiles include it.
+// A full-screen pass (compute_resolve.wgsl) turns them into the depth and
+// accumulation targets the shade pass reads.
+
+const TILE: u32 = 16u;
+const CHUNK: u32 = 256u;
+// Largest workgroup count per dispatch dimension.
+const ROW: u32 = 65535u;
+
+@group(0) @binding(1) var<storage, read> splats: array<Splat>;
+// Tiles across, tiles down, entry capacity, splats the buffer holds.
+@group(0) @binding(2) var<uniform> setup: vec4<u32>;
+// DrawIndirectArgs: the splat count is the instance count.
+@group(0) @binding(3) var<storage, read> draw_args: array<u32>;
+// Each splat's tiles (x0, y0, x1, y1), empty (x0 > x1) when it is dropped.
+@group(0) @binding(4) var<storage, read_write> rects: array<vec4<i32>>;
+// [0] entries, [1] work items, [2] work items per tile when the lists did
+// not fit (0 when they did); then per tile its count, the first entry
+// (tiles + 1), the first work item (tiles + 1) and the scatter's cursor.
+@group(0) @binding(5) var<storage, read_write> tiles: array<atomic<u32>>;
+@group(0) @binding(6) var<storage, read_write> entries: array<u32>;
+@group(0) @binding(7) var<storage, read_write> depth_bits: array<atomic<u32>>;
+@group(0) @binding(8) var<storage, read_write> accum: array<atomic<u32>>;
+@group(0) @binding(9) var scene_depth: texture_depth_2d;
+// The work items' indirect dispatch, then the entries and work items again
+// (read back to size the entries).
+@group(1) @binding(0) var<storage, read_write> dispatch: array<u32>;
+
+const HEAD: u32 = 3u;
+
+fn tile_count() -> u32 {
+    return setup.x * setup.y;
+}
+fn counts_at() -> u32 {
+    return HEAD;
+}
+fn starts_at() -> u32 {
+    return HEAD + tile_count();
+}
+fn items_at() -> u32 {
+    return HEAD + 2u * tile_count() + 1u;
+}
+fn cursors_at() -> u32 {
+    return HEAD + 3u * tile_count() + 2u;
+}
+
+fn screen() -> vec2<u32> {
+    return vec2<u32>(frame.viewport.xy);
+}
+
+// The scene's depth into the visibility depth; the sums cleared.
+@compute @workgroup_size(16, 16)
+fn cs_clear(@builtin(global_invocation_id) id: vec3<u32>) {
+    let size = screen();
+    if id.x >= size.x || id.y >= size.y {
+        return;
+    }
+    let p = id.y * size.x + id.x;
+    atomicStore(&depth_bits[p], bitcast<u32>(max(textureLoad(scene_depth, vec2<i32>(id.xy), 0), 0.0)));
+    for (var k = 0u; k < 4u; k++) {
+        atomicStore(&accum[4u * p + k], 0u);
+    }
+}
+
+fn splat_index(id: vec3<u32>) -> u32 {
+    return id.x + id.y * ROW * 256u;
+}
+
+// Each splat's tiles, as the raster path's quad covers them (splat_quad in
+// splat.wgsl: dropped when a corner is in front of the near plane or, with
+// culling, when it faces away), counted per tile.
+@compute @workgroup_size(256)
+fn cs_bin(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = splat_index(id);
+    if i >= min(draw_args[1], setup.w) {
+        return;
+    }
+    let s = splats[i];
+    let r = s.position_radius.w;
+    let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
+    let n = (frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz;
+    var a = vec3<f32>(1.0, 0.0, 0.0);
+    if abs(n.x) > 0.9 {
+        a = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let u = normalize(cross(n, a)) * r;
+    let v = cross(n, u);
+    let size = vec2<f32>(frame.viewport.xy);
+    var lo = vec2<f32>(3.0e38);
+    var hi = vec2<f32>(-3.0e38);
+    var clipped = false;
+    for (var k = 0u; k < 4u; k++) {
+        let su = select(-1.0, 1.0, (k & 1u) != 0u);
+        let sv = select(-1.0, 1.0, (k & 2u) != 0u);
+        let p = c + su * u + sv * v;
+        if -p.z < frame.ray.z {
+            clipped = true;
+        }
+        let clip = frame.proj * vec4<f32>(p, 1.0);
+        let ndc = clip.xy / clip.w;
+        let px = vec2<f32>((ndc.x * 0.5 + 0.5) * size.x, (0.5 - ndc.y * 0.5) * size.y);
+        lo = min(lo, px);
+        hi = max(hi, px);
+    }
+    let culled = frame.flags.x > 0.5 && dot(n, c) >= 0.0;
+    var rect = vec4<i32>(0, 0, -1, -1);
+    if !clipped && !culled && hi.x >= 0.0 && hi.y >= 0.0 && lo.x < size.x && lo.y < size.y {
+        let last = vec2<f32>(size) - 1.0;
+        let p0 = vec2<u32>(clamp(floor(lo), vec2<f32>(0.0), last));
+        let p1 = vec2<u32>(clamp(floor(hi), vec2<f32>(0.0), last));
+        rect = vec4<i32>(vec2<i32>(p0 / TILE), vec2<i32>(p1 / TILE));
+    }
+    rects[i] = rect;
+    for (var ty = rect.y; ty <= rect.w; ty++) {
+        for (var tx = rect.x; tx <= rect.z; tx++) {
+            atomicAdd(&tiles[counts_at() + u32(ty) * setup.x + u32(tx)], 1u);
+        }
+    }
+}
+
+var<workgroup> partial: array<vec2<u32>, 256>;
+
+// One workgroup: each tile's first entry and first work item (exclusive
+// prefix sums of the counts and of ceil(count / CHUNK)), the cursors, the
+// totals and the work items' dispatch.
+@compute @workgroup_size(256)
+fn cs_scan(@builtin(local_invocation_index) li: u32) {
+    let t = tile_count();
+    let per = (t + 255u) / 256u;
+    let first = min(li * per, t);
+    let last = min(first + per, t);
+    var sum = vec2<u32>(0u);
+    for (var k = first; k < last; k++) {
+        let c = atomicLoad(&tiles[counts_at() + k]);
+        sum += vec2<u32>(c, (c + CHUNK - 1u) / CHUNK);
+    }
+    partial[li] = sum;
+    workgroupBarrier();
+    // Hillis-Steele inclusive scan of the 256 partial sums.
+    for (var step = 1u; step < 256u; step *= 2u) {
+        var add = vec2<u32>(0u);
+        if li >= step {
+            add = partial[li - step];
+        }
+        workgroupBarrier();
+        partial[li] += add;
+        workgroupBarrier();
+    }
+    var run = vec2<u32>(0u);
+    if li > 0u {
+        run = partial[li - 1u];
+    }
+    for (var k = first; k < last; k++) {
+        let c = atomicLoad(&tiles[counts_at() + k]);
+        atomicStore(&tiles[starts_at() + k], run.x);
+        atomicStore(&tiles[cursors_at() + k], run.x);
+        atomicStore(&tiles[items_at() + k], run.y);
+        run += vec2<u32>(c, (c + CHUNK - 1u) / CHUNK);
+    }
+    if li == 255u {
+        let total = partial[255];
+        atomicStore(&tiles[starts_at() + t], total.x);
+        atomicStore(&tiles[items_at() + t], total.y);
+        var items = total.y;
+        if total.x > setup.z {
+            let per_tile = (min(draw_args[1], setup.w) + CHUNK - 1u) / CHUNK;
+            atomicStore(&tiles[2], per_tile);
+            items = t * per_tile;
+        }
+        atomicStore(&tiles[0], total.x);
+        atomicStore(&tiles[1], items);
+        dispatch[0] = min(items, ROW);
+        dispatch[1] = (items + ROW - 1u) / ROW;
+        dispatch[2] = 1u;
+        dispatch[3] = total.x;
+        dispatch[4] = items;
+    }
+}
+
+// Each splat into the lists of its tiles (up to the entry capacity; the
+// renderer grows it when the total it reads back is larger).
+@compute @workgroup_size(256)
+fn cs_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = splat_index(id);
+    if i >= min(draw_args[1], setup.w) {
+        return;
+    }
+    let rect = rects[i];
+    for (var ty = rect.y; ty <= rect.w; ty++) {
+        for (var tx = rect.x; tx <= rect.z; tx++) {
+            let slot = atomicAdd(&tiles[cursors_at() + u32(ty) * setup.x + u32(tx)], 1u);
+            if slot < setup.z {
+                entries[slot] = i;
+            }
+        }
+    }
+}
+
+// A work item's splats: view-space centre and radius, view-space normal,
+// world-space normal.
+var<workgroup> s_centre: array<vec4<f32>, CHUNK>;
+var<workgroup> s_normal: array<vec4<f32>, CHUNK>;
+var<workgroup> s_world: array<vec4<f32>, CHUNK>;
+// The work item's tile, first entry and splat count, set by thread 0.
+var<workgroup> w_tile: u32;
+var<workgroup> w_base: u32;
+var<workgroup> w_count: u32;
+
+var<workgroup> w_fill: atomic<u32>;
+
+// Loads work item `item`'s splats into workgroup memory; returns its tile
+// and splat count. Work items past the last (the dispatch's rounding) have
+// no splats.
+fn load_item(item: u32, li: u32) -> vec2<u32> {
+    let per_tile = atomicLoad(&tiles[2]);
+    if li == 0u {
+        var tile = 0u;
+        var base = 0u;
+        var count = 0u;
+        if item < atomicLoad(&tiles[1]) && per_tile > 0u {
+            // The fallback: a chunk of all the splats.
+            tile = item / per_tile;
+            base = (item % per_tile) * CHUNK;
+        } else if item < atomicLoad(&tiles[1]) {
+            // The last tile whose first work item is at or before `item`.
+            var lo = 0u;
+            var hi = tile_count();
+            while hi - lo > 1u {
+                let mid = (lo + hi) / 2u;
+                if atomicLoad(&tiles[items_at() + mid]) <= item {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            tile = lo;
+            base = atomicLoad(&tiles[starts_at() + tile])
+                + (item - atomicLoad(&tiles[items_at() + tile])) * CHUNK;
+            let end = min(min(base + CHUNK, atomicLoad(&tiles[starts_at() + tile + 1u])), setup.z);
+            if end > base {
+                count = end - base;
+            }
+        }
+        w_tile = tile;
+        w_base = base;
+        w_count = count;
+        atomicStore(&w_fill, 0u);
+    }
+    workgroupBarrier();
+    let tile = w_tile;
+    let base = w_base;
+    var index = 0xffffffffu;
+    var slot = li;
+    if per_tile > 0u {
+        let i = base + li;
+        if item < atomicLoad(&tiles[1]) && i < min(draw_args[1], setup.w) {
+            let r = rects[i];
+            let at = vec2<i32>(vec2<u32>(tile % setup.x, tile / setup.x));
+            if all(at >= r.xy) && all(at <= r.zw) {
+                index = i;
+                slot = atomicAdd(&w_fill, 1u);
+            }
+        }
+    } else if li < w_count {
+        index = entries[base + li];
+    }
+    if index != 0xffffffffu {
+        let s = splats[index];
+        let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
+        s_centre[slot] = vec4<f32>(c, s.position_radius.w);
+        s_normal[slot] = vec4<f32>((frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz, 0.0);
+        s_world[slot] = vec4<f32>(s.normal.xyz, 0.0);
+    }
+    workgroupBarrier();
+    var count = w_count;
+    if per_tile > 0u {
+        count = atomicLoad(&w_fill);
+    }
+    return vec2<u32>(tile, count);
+}
+
+fn pixel_of(tile: u32, lid: vec3<u32>) -> vec2<u32> {
+    return vec2<u32>(tile % setup.x, tile / setup.x) * TILE + lid.xy;
+}
+
+// The depth the raster path's visibility pass gives the pixel of view ray
+// `d`, whose ray meets the disc (`centre`, view-space normal `n`) at `q`:
+// splat_quad's quad with its corners pushed back by `push` along their
+// rays, and of its two triangles (split along the corners (+u, -v) and
+// (-u, +v)) the one the pixel is in. The corners move along their own
+// rays, so the quad's outline and diagonal stay where they were on screen,
+// and the side of the diagonal is the side `q` is on.
+fn pushed_depth(d: vec3<f32>, q: vec3<f32>, centre: vec4<f32>, n: vec3<f32>, push: f32) -> f32 {
+    var a = vec3<f32>(1.0, 0.0, 0.0);
+    if abs(n.x) > 0.9 {
+        a = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let u = normalize(cross(n, a)) * centre.w;
+    let v = cross(n, u);
+    let e = q - centre.xyz;
+    var k0 = centre.xyz + u - v;
+    var k1 = centre.xyz - u + v;
+    var k2 = centre.xyz - u - v;
+    if dot(e, u) + dot(e, v) > 0.0 {
+        k2 = centre.xyz + u + v;
+    }
+    k0 += normalize(k0) * push;
+    k1 += normalize(k1) * push;
+    k2 += normalize(k2) * push;
+    let m = cross(k1 - k0, k2 - k0);
+    return depth_of(d * (dot(k0, m) / dot(d, m)));
+}
+
+@compute @workgroup_size(16, 16)
+fn cs_visibility(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let work = load_item(wid.x + wid.y * ROW, li);
+    let px = pixel_of(work.x, lid);
+    let size = screen();
+    let d = view_ray(vec2<f32>(px) + 0.5);
+    var best = 2.0;
+    for (var k = 0u; k < work.y; k++) {
+        let h = hit_view(d, s_centre[k], s_normal[k].xyz);
+        if h.w >= 0.0 {
+            let pushed = pushed_depth(d, h.xyz, s_centre[k], s_normal[k].xyz, frame.params.x);
+            best = min(best, max(pushed, 0.0));
+        }
+    }
+    if px.x < size.x && px.y < size.y && best < 2.0 {
+        atomicMin(&depth_bits[px.y * size.x + px.x], bitcast<u32>(best));
+    }
+}
+
+// accum[i] += x, on the float's bits.
+fn add_float(i: u32, x: f32) {
+    var old = atomicLoad(&accum[i]);
+    loop {
+        let r = atomicCompareExchangeWeak(&accum[i], old, bitcast<u32>(bitcast<f32>(old) + x));
+        if r.exchanged {
+            break;
+        }
+        old = r.old_value;
+    }
+}
+
+@compute @workgroup_size(16, 16)
+fn cs_attributes(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let work = load_item(wid.x + wid.y * ROW, li);
+    let px = pixel_of(work.x, lid);
+    let size = screen();
+    let inside = px.x < size.x && px.y < size.y;
+    var p = 0u;
+    var visible = 0.0;
+    if inside {
+        p = px.y * size.x + px.x;
+        visible = bitcast<f32>(atomicLoad(&depth_bits[p]));
+    }
+    let d = view_ray(vec2<f32>(px) + 0.5);
+    var sum = vec4<f32>(0.0);
+    var any = false;
+    for (var k = 0u; k < work.y; k++) {
+        let h = hit_view(d, s_centre[k], s_normal[k].xyz);
+        if h.w >= 0.0 && depth_of(h.xyz) <= visible {
+            let m = 1.0 - h.w;
+            let w = m * m * m;
+            sum += vec4<f32>(s_world[k].xyz * w, w);
+            any = true;
+        }
+    }
+    if inside && any {
+        for (var k = 0u; k < 4u; k++) {
+            add_float(4u * p + k, sum[k]);
+        }
+    }
+}
