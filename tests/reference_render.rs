@@ -22,7 +22,7 @@ use image::RgbaImage;
 use rayon::prelude::*;
 use sph_core::Scene;
 use splat_render::shading::shade_pixel;
-use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer};
+use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatPath, SplatRenderer};
 use surfel_extract::raycast::Raycaster;
 use surfel_extract::samples::jittered_lattice;
 use surfel_extract::{ColourField, ExtractParams, Surface, extract_field};
@@ -307,6 +307,27 @@ fn splats_match_the_ray_cast_iso_surface() {
             "{}: FLIP mean against the ray-cast reference {flip_mean:.4} > {}",
             case.name,
             case.max_flip
+        );
+
+        // The compute splat path draws the same picture.
+        renderer.set_splat_path(ctx, SplatPath::Compute).unwrap();
+        renderer.render(ctx, &case.camera, &shading).unwrap();
+        let computed = renderer.read_image(ctx).unwrap();
+        renderer.set_splat_path(ctx, SplatPath::Raster).unwrap();
+        let (compute_mean, _) = flip(&image, &computed);
+        println!(
+            "{}: FLIP mean of the compute path vs raster {compute_mean:e}",
+            case.name
+        );
+        if compute_mean > 0.01 {
+            computed
+                .save(out.join(format!("{}-compute.png", case.name)))
+                .unwrap();
+        }
+        assert!(
+            compute_mean <= 0.01,
+            "{}: compute splatting differs from raster splatting by FLIP {compute_mean:.4}",
+            case.name
         );
 
         let golden_path = golden_dir.join(format!("{}.png", case.name));
