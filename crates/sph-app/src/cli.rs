@@ -150,6 +150,12 @@ pub struct Args {
     #[arg(long)]
     pub gpu_extract: bool,
 
+    /// How the splats are drawn: by the raster hardware (the default) or by
+    /// compute shaders that bin them to screen tiles, past the raster
+    /// hardware's blending rate. Both draw the same images.
+    #[arg(long, value_enum, default_value_t = SplatsArg::Raster)]
+    pub splats: SplatsArg,
+
     /// Extract only the surfels facing the camera (thesis 4.2.1), about half
     /// of them; the window re-extracts as the camera turns, and surfel exports
     /// then hold only those.
@@ -189,6 +195,24 @@ impl From<SurfaceField> for surfel_extract::Surface {
         match f {
             SurfaceField::Isotropic => Self::Isotropic,
             SurfaceField::Anisotropic => Self::anisotropic(),
+        }
+    }
+}
+
+/// How splats are drawn (`--splats`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SplatsArg {
+    /// The raster hardware: each splat a quad, blended.
+    Raster,
+    /// Compute shaders over screen tiles.
+    Compute,
+}
+
+impl From<SplatsArg> for splat_render::SplatPath {
+    fn from(s: SplatsArg) -> Self {
+        match s {
+            SplatsArg::Raster => Self::Raster,
+            SplatsArg::Compute => Self::Compute,
         }
     }
 }

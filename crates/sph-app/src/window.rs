@@ -10,7 +10,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3};
 use sph_core::SolverKind;
 use sph_core::solver::ExternalAcceleration;
-use splat_render::{GpuContext, Shading, SplatRenderer, View, wgpu};
+use splat_render::{GpuContext, Shading, SplatPath, SplatRenderer, View, wgpu};
 use surfel_extract::{Split, Surface};
 use winit::application::ApplicationHandler;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -83,6 +83,8 @@ struct Settings {
     gpu_extract: Toggle,
     /// Only front-facing surfels (`--cull`, the panel).
     cull: bool,
+    /// Splats drawn by compute shaders (`--splats compute`, the panel).
+    compute_splats: bool,
     /// The tank, obstacles and ground around the fluid (`--no-scenery`
     /// turns them off, the panel toggles them).
     scenery: bool,
@@ -190,6 +192,7 @@ impl App {
                 gpu_sim: Toggle::new(args.gpu_sim),
                 gpu_extract: Toggle::new(args.gpu_extract),
                 cull: args.cull,
+                compute_splats: args.splats == crate::cli::SplatsArg::Compute,
                 scenery: !args.no_scenery,
             },
             push,
@@ -473,6 +476,17 @@ impl App {
             }
         };
         let view = frame.texture.create_view(&Default::default());
+        let path = if self.settings.compute_splats {
+            SplatPath::Compute
+        } else {
+            SplatPath::Raster
+        };
+        if gfx.renderer.splat_path() != path
+            && let Err(e) = gfx.renderer.set_splat_path(&gfx.ctx, path)
+        {
+            log::warn!("{e}");
+            self.settings.compute_splats = false;
+        }
         gfx.renderer
             .render_to_surface(&gfx.ctx, &camera, &shading, &view, gfx.config.format)?;
 
@@ -576,6 +590,8 @@ impl App {
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
                 settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag pushes on either path");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu): the same field, hole closing and splits; drawn without a round trip to the CPU");
+                ui.checkbox(&mut settings.compute_splats, "splats drawn in compute (--splats)")
+                    .on_hover_text("compute shaders over 16×16-pixel tiles instead of the raster hardware: the same image");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");
                 egui::ComboBox::from_label("view (F)")

@@ -772,3 +772,45 @@ fn a_software_adapter_runs_the_cpu_path_by_default() {
         );
     }
 }
+
+/// `--splats compute` draws the frames `--splats raster` draws (FLIP ≤
+/// 0.01), from the same CPU simulation and extraction.
+#[test]
+fn compute_splats_draw_the_raster_frames() {
+    let mut frames = Vec::new();
+    for path in ["raster", "compute"] {
+        let out = scratch(&format!("splats-{path}"));
+        let o = app(&[
+            "--headless",
+            "--scene",
+            "drop",
+            "--frames",
+            "2",
+            "--width",
+            "160",
+            "--height",
+            "96",
+            "--cpu",
+            "--splats",
+            path,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{path}: {}", stderr(&o));
+        match image::open(out.join("frame_00001.png")) {
+            Ok(image) => frames.push(image.to_rgba8()),
+            // Without an adapter nothing is drawn (the run still succeeds).
+            Err(_) if std::env::var("SPH_REQUIRE_GPU").as_deref() != Ok("1") => {
+                eprintln!("skipped: no GPU adapter");
+                return;
+            }
+            Err(e) => panic!("{path}: no frame: {e}"),
+        }
+    }
+    let mean = common::flip(&frames[0], &frames[1]);
+    eprintln!("FLIP mean compute vs raster {mean:e}");
+    assert!(mean <= 0.01, "FLIP mean {mean}");
+    let o = app(&["--headless", "--splats", "tiles"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("raster"), "{}", stderr(&o));
+}
