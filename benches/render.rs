@@ -6,6 +6,9 @@
 //! about half the frame. On a machine without a GPU this runs on lavapipe:
 //! CPU-rasteriser figures.
 //!
+//! Each size runs twice: `WxH` through the raster splat passes (the
+//! default), `compute-WxH` through the compute ones (`SplatPath::Compute`).
+//!
 //! The group `scenery` times the same frame at 1920×1080 without scene
 //! geometry (`bare`), with the demo's kind (`geometry`: an open tank around
 //! the sphere, a sphere obstacle, the ground and the environment's sky), and
@@ -18,7 +21,7 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use glam::Vec3;
 use splat_render::{
     Backdrop, Camera, Environment, GpuContext, Material, Mesh, Object, SceneGeometry, Shading,
-    Splat, SplatRenderer, wgpu,
+    Splat, SplatPath, SplatRenderer, wgpu,
 };
 
 /// `n` surfels on the unit sphere, each with radius 1.5 × the mean spacing.
@@ -53,12 +56,22 @@ fn render(c: &mut Criterion) {
     };
     let mut group = c.benchmark_group("render");
     group.sample_size(10);
-    for (w, h) in [(1280, 720), (1920, 1080)] {
+    for (w, h, path) in [
+        (1280, 720, SplatPath::Raster),
+        (1280, 720, SplatPath::Compute),
+        (1920, 1080, SplatPath::Raster),
+        (1920, 1080, SplatPath::Compute),
+    ] {
         let mut renderer = SplatRenderer::new(&ctx, w, h, &env).expect("renderer");
+        renderer.set_splat_path(&ctx, path).expect("splat path");
+        let name = match path {
+            SplatPath::Raster => format!("{w}x{h}"),
+            SplatPath::Compute => format!("compute-{w}x{h}"),
+        };
         for n in [20_000, 100_000, 1_000_000] {
             let splats = sphere(n);
             group.throughput(Throughput::Elements(n as u64));
-            group.bench_function(BenchmarkId::new(format!("{w}x{h}"), n), |b| {
+            group.bench_function(BenchmarkId::new(&name, n), |b| {
                 b.iter(|| {
                     renderer.upload(&ctx, black_box(&splats)).expect("upload");
                     renderer.render(&ctx, &camera, &shading).expect("render");

@@ -591,7 +591,7 @@ impl App {
                 settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag pushes on either path");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu): the same field, hole closing and splits; drawn without a round trip to the CPU");
                 ui.checkbox(&mut settings.compute_splats, "splats drawn in compute (--splats)")
-                    .on_hover_text("compute shaders over 16×16-pixel tiles instead of the raster hardware: the same image");
+                    .on_hover_text("compute shaders over 8×8-pixel tiles instead of the raster hardware: the same image");
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");
                 egui::ComboBox::from_label("view (F)")

@@ -543,8 +543,8 @@ fn compute_path_matches_the_raster_path() {
         })
         .collect();
     // 120 discs each over the whole image: 9,600 tile entries, more than the
-    // lists' first buffer holds, so the first frames take the all-tiles
-    // fallback.
+    // lists' first buffer holds, so in the first frames the splats that do
+    // not fit are drawn from the overflow list.
     let wall: Vec<Splat> = (0..120)
         .map(|k| Splat::new(Vec3::new(0.0, 0.0, -0.0137 * k as f32), Vec3::Z, 3.0))
         .collect();

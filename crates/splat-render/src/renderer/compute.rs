@@ -1,15 +1,16 @@
 //! The visibility and attribute passes in compute (`shaders/compute_splat.wgsl`),
-//! past the raster hardware's blending rate: splats binned to 16×16-pixel
+//! past the raster hardware's blending rate: splats binned to 8×8-pixel
 //! tiles by a counting sort, each tile's splats tested by one thread per
-//! pixel in chunks of at most 256 (a dense tile is split over several
+//! pixel in chunks of at most 64 (a dense tile is split over several
 //! workgroups), sums in registers added once per work item, then one
 //! full-screen pass (`shaders/compute_resolve.wgsl`) into the same depth
 //! and accumulation targets the raster passes fill, so shading is shared.
 //!
 //! The tiles' lists live in one buffer whose size the frame's splats decide.
-//! A frame whose lists do not fit is still drawn whole: the passes then test
-//! every tile against every splat (slow, but nothing is lost), and the
-//! renderer reads the total back to size the buffer for the next frame.
+//! A frame whose lists do not fit is still drawn whole: the splats that did
+//! not fit go in a list apart that every tile runs over (slow when many
+//! overflow, but nothing is lost), and the renderer reads the total back to
+//! size the buffer for the next frame.
 
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -23,7 +24,7 @@ use super::plumbing::{
 use super::targets::{DEPTH_FORMAT, Targets};
 
 /// Tile side in pixels (`TILE` in the shader).
-const TILE: u32 = 16;
+const TILE: u32 = 8;
 /// Words before the per-tile arrays in the tiles buffer (`HEAD`).
 const HEAD: u64 = 3;
 /// Workgroup size of the per-splat passes.
@@ -69,8 +70,11 @@ pub(super) struct ComputeSplats {
     bin: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
     scatter: wgpu::ComputePipeline,
+    lone_dispatch: wgpu::ComputePipeline,
     visibility: wgpu::ComputePipeline,
     attributes: wgpu::ComputePipeline,
+    lone_visibility: wgpu::ComputePipeline,
+    lone_attributes: wgpu::ComputePipeline,
     resolve: wgpu::RenderPipeline,
     /// Tiles across and down, entry capacity, splats the buffer holds.
     setup: wgpu::Buffer,
@@ -214,8 +218,11 @@ impl ComputeSplats {
             bin: pipeline("cs_bin", &plain),
             scan: pipeline("cs_scan", &with_dispatch),
             scatter: pipeline("cs_scatter", &plain),
+            lone_dispatch: pipeline("cs_lone_dispatch", &with_dispatch),
             visibility: pipeline("cs_visibility", &plain),
             attributes: pipeline("cs_attributes", &plain),
+            lone_visibility: pipeline("cs_lone_visibility", &plain),
+            lone_attributes: pipeline("cs_lone_attributes", &plain),
             resolve,
             layout: splat_layout,
             dispatch_layout,
@@ -224,7 +231,7 @@ impl ComputeSplats {
             own_args: buffer("compute splat count", 16, U::STORAGE | U::COPY_DST),
             dispatch: buffer(
                 "compute splat dispatch",
-                32,
+                48,
                 U::STORAGE | U::INDIRECT | U::COPY_SRC,
             ),
             totals: buffer("compute splat totals", 8, U::COPY_DST | U::MAP_READ),
@@ -263,8 +270,8 @@ impl ComputeSplats {
     }
 
     /// Frames so far (as read back, a frame or more late) whose tile lists
-    /// did not fit their buffer and were drawn by testing every tile against
-    /// every splat.
+    /// did not fit their buffer, their overflowing splats drawn from a list
+    /// apart.
     pub(super) fn overflows(&self) -> u32 {
         self.overflows.load(Ordering::Relaxed)
     }
@@ -378,16 +385,22 @@ impl ComputeSplats {
             pass.dispatch_workgroups(1, 1, 1);
             pass.set_pipeline(&self.scatter);
             pass.dispatch_workgroups(splat_groups.0, splat_groups.1, 1);
+            pass.set_pipeline(&self.lone_dispatch);
+            pass.dispatch_workgroups(1, 1, 1);
         });
         compute_pass(encoder, profiler, "visibility pass", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&self.visibility);
             pass.dispatch_workgroups_indirect(&self.dispatch, 0);
+            pass.set_pipeline(&self.lone_visibility);
+            pass.dispatch_workgroups_indirect(&self.dispatch, 32);
         });
         compute_pass(encoder, profiler, "attribute pass", |pass| {
             pass.set_bind_group(0, &group, &[]);
             pass.set_pipeline(&self.attributes);
             pass.dispatch_workgroups_indirect(&self.dispatch, 0);
+            pass.set_pipeline(&self.lone_attributes);
+            pass.dispatch_workgroups_indirect(&self.dispatch, 32);
         });
         let resolve_group = bind_in_order(
             device,
@@ -414,10 +427,10 @@ impl ComputeSplats {
     }
 }
 
-/// Entries to start with: four tiles per splat, at least two per tile.
+/// Entries to start with: eight tiles per splat, at least four per tile.
 fn initial_entries(splats: u32, width: u32, height: u32) -> u32 {
     let tiles = width.div_ceil(TILE) * height.div_ceil(TILE);
-    splats.saturating_mul(4).max(2 * tiles).max(1024)
+    splats.saturating_mul(8).max(4 * tiles).max(1024)
 }
 
 fn entries_buffer(device: &wgpu::Device, capacity: u32) -> wgpu::Buffer {
@@ -429,10 +442,11 @@ fn entries_buffer(device: &wgpu::Device, capacity: u32) -> wgpu::Buffer {
     })
 }
 
+/// Each splat's pixels, then room for the list of those that overflow.
 fn rects_buffer(device: &wgpu::Device, splats: u32) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("compute splat rects"),
-        size: u64::from(splats.max(1)) * 16,
+        size: u64::from(splats.max(1)) * 32,
         usage: wgpu::BufferUsages::STORAGE,
         mapped_at_creation: false,
     })

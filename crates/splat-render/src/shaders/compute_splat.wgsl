@@ -1,6 +1,6 @@
 // Compute splatting: the visibility and attribute passes of splat.wgsl
 // without the raster hardware (renderer/compute.rs). Splats are binned to
-// 16×16-pixel tiles by a counting sort (count, scan, scatter); each work
+// 8×8-pixel tiles by a counting sort (count, scan, scatter); each work
 // item is one tile and at most CHUNK of its splats, so a dense tile is split
 // over several workgroups. A workgroup loads its splats into workgroup
 // memory and each thread tests its own pixel against them all:
@@ -12,14 +12,14 @@
 //   the floats' bits (a dense tile's work items add in any order, as the
 //   raster hardware blends in its own).
 // When the lists outgrow their buffer (the renderer reads the total back
-// and grows it for the next frame), the frame is still drawn whole: each
-// work item is then a tile and a chunk of all the splats, of which it keeps
-// those whose tiles include it.
+// and grows it for the next frame), the frame is still drawn whole: a splat
+// that did not fit in one of its tiles' lists is flagged, skipped there,
+// and listed apart; every tile then also runs over that list in chunks.
 // A full-screen pass (compute_resolve.wgsl) turns them into the depth and
 // accumulation targets the shade pass reads.
 
-const TILE: u32 = 16u;
-const CHUNK: u32 = 256u;
+const TILE: u32 = 8u;
+const CHUNK: u32 = 64u;
 // Largest workgroup count per dispatch dimension.
 const ROW: u32 = 65535u;
 
@@ -28,18 +28,21 @@ const ROW: u32 = 65535u;
 @group(0) @binding(2) var<uniform> setup: vec4<u32>;
 // DrawIndirectArgs: the splat count is the instance count.
 @group(0) @binding(3) var<storage, read> draw_args: array<u32>;
-// Each splat's tiles (x0, y0, x1, y1), empty (x0 > x1) when it is dropped.
+// Each splat's pixels (x0, y0, x1, y1), empty (x0 > x1) when it is dropped;
+// x0 is stored as -x0 - 1 when the splat overflowed the lists. After the
+// splats' (from index setup.w), the splats that overflowed, in .x.
 @group(0) @binding(4) var<storage, read_write> rects: array<vec4<i32>>;
-// [0] entries, [1] work items, [2] work items per tile when the lists did
-// not fit (0 when they did); then per tile its count, the first entry
-// (tiles + 1), the first work item (tiles + 1) and the scatter's cursor.
+// [0] entries, [1] work items, [2] splats that overflowed the lists; then
+// per tile its count, the first entry (tiles + 1), the first work item
+// (tiles + 1) and the scatter's cursor.
 @group(0) @binding(5) var<storage, read_write> tiles: array<atomic<u32>>;
 @group(0) @binding(6) var<storage, read_write> entries: array<u32>;
 @group(0) @binding(7) var<storage, read_write> depth_bits: array<atomic<u32>>;
 @group(0) @binding(8) var<storage, read_write> accum: array<atomic<u32>>;
 @group(0) @binding(9) var scene_depth: texture_depth_2d;
-// The work items' indirect dispatch, then the entries and work items again
-// (read back to size the entries).
+// The work items' indirect dispatch, the entries and work items again (read
+// back to size the entries), then the overflow's work items' dispatch (from
+// word 8).
 @group(1) @binding(0) var<storage, read_write> dispatch: array<u32>;
 
 const HEAD: u32 = 3u;
@@ -65,7 +68,7 @@ fn screen() -> vec2<u32> {
 }
 
 // The scene's depth into the visibility depth; the sums cleared.
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(8, 8)
 fn cs_clear(@builtin(global_invocation_id) id: vec3<u32>) {
     let size = screen();
     if id.x >= size.x || id.y >= size.y {
@@ -76,6 +79,14 @@ fn cs_clear(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var k = 0u; k < 4u; k++) {
         atomicStore(&accum[4u * p + k], 0u);
     }
+}
+
+// The tiles a pixel rectangle covers (empty stays empty).
+fn tiles_of(pixels: vec4<i32>) -> vec4<i32> {
+    if pixels.x > pixels.z {
+        return pixels;
+    }
+    return pixels / i32(TILE);
 }
 
 fn splat_index(id: vec3<u32>) -> u32 {
@@ -119,14 +130,15 @@ fn cs_bin(@builtin(global_invocation_id) id: vec3<u32>) {
         hi = max(hi, px);
     }
     let culled = frame.flags.x > 0.5 && dot(n, c) >= 0.0;
-    var rect = vec4<i32>(0, 0, -1, -1);
+    var pixels = vec4<i32>(0, 0, -1, -1);
     if !clipped && !culled && hi.x >= 0.0 && hi.y >= 0.0 && lo.x < size.x && lo.y < size.y {
         let last = vec2<f32>(size) - 1.0;
-        let p0 = vec2<u32>(clamp(floor(lo), vec2<f32>(0.0), last));
-        let p1 = vec2<u32>(clamp(floor(hi), vec2<f32>(0.0), last));
-        rect = vec4<i32>(vec2<i32>(p0 / TILE), vec2<i32>(p1 / TILE));
+        let p0 = vec2<i32>(clamp(floor(lo), vec2<f32>(0.0), last));
+        let p1 = vec2<i32>(clamp(floor(hi), vec2<f32>(0.0), last));
+        pixels = vec4<i32>(p0, p1);
     }
-    rects[i] = rect;
+    rects[i] = pixels;
+    let rect = tiles_of(pixels);
     for (var ty = rect.y; ty <= rect.w; ty++) {
         for (var tx = rect.x; tx <= rect.z; tx++) {
             atomicAdd(&tiles[counts_at() + u32(ty) * setup.x + u32(tx)], 1u);
@@ -177,12 +189,7 @@ fn cs_scan(@builtin(local_invocation_index) li: u32) {
         let total = partial[255];
         atomicStore(&tiles[starts_at() + t], total.x);
         atomicStore(&tiles[items_at() + t], total.y);
-        var items = total.y;
-        if total.x > setup.z {
-            let per_tile = (min(draw_args[1], setup.w) + CHUNK - 1u) / CHUNK;
-            atomicStore(&tiles[2], per_tile);
-            items = t * per_tile;
-        }
+        let items = total.y;
         atomicStore(&tiles[0], total.x);
         atomicStore(&tiles[1], items);
         dispatch[0] = min(items, ROW);
@@ -193,50 +200,75 @@ fn cs_scan(@builtin(local_invocation_index) li: u32) {
     }
 }
 
-// Each splat into the lists of its tiles (up to the entry capacity; the
-// renderer grows it when the total it reads back is larger).
+// Each splat into the lists of its tiles, up to the entry capacity; a
+// splat that does not fit in one is flagged and listed apart.
 @compute @workgroup_size(256)
 fn cs_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = splat_index(id);
     if i >= min(draw_args[1], setup.w) {
         return;
     }
-    let rect = rects[i];
+    let pixels = rects[i];
+    let rect = tiles_of(pixels);
+    var overflow = false;
     for (var ty = rect.y; ty <= rect.w; ty++) {
         for (var tx = rect.x; tx <= rect.z; tx++) {
             let slot = atomicAdd(&tiles[cursors_at() + u32(ty) * setup.x + u32(tx)], 1u);
             if slot < setup.z {
                 entries[slot] = i;
+            } else {
+                overflow = true;
             }
         }
     }
+    if overflow {
+        rects[i].x = -pixels.x - 1;
+        let k = atomicAdd(&tiles[2], 1u);
+        rects[setup.w + k].x = i32(i);
+    }
+}
+
+// The chunks of the overflow list per tile (0 without overflow).
+fn lone_chunks() -> u32 {
+    return (atomicLoad(&tiles[2]) + CHUNK - 1u) / CHUNK;
+}
+
+// The overflow's work items: every tile times the chunks of its list.
+@compute @workgroup_size(1)
+fn cs_lone_dispatch() {
+    let items = tile_count() * lone_chunks();
+    dispatch[8] = min(items, ROW);
+    dispatch[9] = (items + ROW - 1u) / ROW;
+    dispatch[10] = 1u;
 }
 
 // A work item's splats: view-space centre and radius, view-space normal,
-// world-space normal.
+// the pixels their quads cover (a pixel outside skips the ray test).
 var<workgroup> s_centre: array<vec4<f32>, CHUNK>;
 var<workgroup> s_normal: array<vec4<f32>, CHUNK>;
-var<workgroup> s_world: array<vec4<f32>, CHUNK>;
+var<workgroup> s_pixels: array<vec4<i32>, CHUNK>;
 // The work item's tile, first entry and splat count, set by thread 0.
 var<workgroup> w_tile: u32;
 var<workgroup> w_base: u32;
 var<workgroup> w_count: u32;
 
-var<workgroup> w_fill: atomic<u32>;
-
-// Loads work item `item`'s splats into workgroup memory; returns its tile
-// and splat count. Work items past the last (the dispatch's rounding) have
-// no splats.
-fn load_item(item: u32, li: u32) -> vec2<u32> {
-    let per_tile = atomicLoad(&tiles[2]);
+// Loads work item `item`'s splats into workgroup memory and returns its
+// tile and splat count: from its tile's list, or with `lone` from the
+// overflow list (work items tile-major). Work items past the last (the
+// dispatch's rounding) have no splats; a flagged splat in a tile's list
+// covers no pixel there.
+fn load_item(item: u32, li: u32, lone: bool) -> vec2<u32> {
     if li == 0u {
         var tile = 0u;
         var base = 0u;
         var count = 0u;
-        if item < atomicLoad(&tiles[1]) && per_tile > 0u {
-            // The fallback: a chunk of all the splats.
-            tile = item / per_tile;
-            base = (item % per_tile) * CHUNK;
+        if lone {
+            let chunks = lone_chunks();
+            if item < tile_count() * chunks {
+                tile = item / chunks;
+                base = (item % chunks) * CHUNK;
+                count = min(CHUNK, atomicLoad(&tiles[2]) - base);
+            }
         } else if item < atomicLoad(&tiles[1]) {
             // The last tile whose first work item is at or before `item`.
             var lo = 0u;
@@ -260,38 +292,30 @@ fn load_item(item: u32, li: u32) -> vec2<u32> {
         w_tile = tile;
         w_base = base;
         w_count = count;
-        atomicStore(&w_fill, 0u);
     }
     workgroupBarrier();
     let tile = w_tile;
-    let base = w_base;
-    var index = 0xffffffffu;
-    var slot = li;
-    if per_tile > 0u {
-        let i = base + li;
-        if item < atomicLoad(&tiles[1]) && i < min(draw_args[1], setup.w) {
-            let r = rects[i];
-            let at = vec2<i32>(vec2<u32>(tile % setup.x, tile / setup.x));
-            if all(at >= r.xy) && all(at <= r.zw) {
-                index = i;
-                slot = atomicAdd(&w_fill, 1u);
-            }
+    let count = w_count;
+    if li < count {
+        var index = 0u;
+        if lone {
+            index = u32(rects[setup.w + w_base + li].x);
+        } else {
+            index = entries[w_base + li];
         }
-    } else if li < w_count {
-        index = entries[base + li];
-    }
-    if index != 0xffffffffu {
         let s = splats[index];
         let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
-        s_centre[slot] = vec4<f32>(c, s.position_radius.w);
-        s_normal[slot] = vec4<f32>((frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz, 0.0);
-        s_world[slot] = vec4<f32>(s.normal.xyz, 0.0);
+        s_centre[li] = vec4<f32>(c, s.position_radius.w);
+        s_normal[li] = vec4<f32>((frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz, 0.0);
+        var pixels = rects[index];
+        if lone {
+            pixels.x = -pixels.x - 1;
+        } else if pixels.x < 0 {
+            pixels = vec4<i32>(0, 0, -1, -1);
+        }
+        s_pixels[li] = pixels;
     }
     workgroupBarrier();
-    var count = w_count;
-    if per_tile > 0u {
-        count = atomicLoad(&w_fill);
-    }
     return vec2<u32>(tile, count);
 }
 
@@ -327,18 +351,20 @@ fn pushed_depth(d: vec3<f32>, q: vec3<f32>, centre: vec4<f32>, n: vec3<f32>, pus
     return depth_of(d * (dot(k0, m) / dot(d, m)));
 }
 
-@compute @workgroup_size(16, 16)
-fn cs_visibility(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(local_invocation_index) li: u32,
-) {
-    let work = load_item(wid.x + wid.y * ROW, li);
+// The visibility pass over work item `item`: the nearest pushed depth of
+// its splats at each of the tile's pixels, min'd into the depth bits.
+fn visibility(item: u32, lid: vec3<u32>, li: u32, lone: bool) {
+    let work = load_item(item, li, lone);
     let px = pixel_of(work.x, lid);
     let size = screen();
     let d = view_ray(vec2<f32>(px) + 0.5);
     var best = 2.0;
+    let at = vec2<i32>(px);
     for (var k = 0u; k < work.y; k++) {
+        let r = s_pixels[k];
+        if any(at < r.xy) || any(at > r.zw) {
+            continue;
+        }
         let h = hit_view(d, s_centre[k], s_normal[k].xyz);
         if h.w >= 0.0 {
             let pushed = pushed_depth(d, h.xyz, s_centre[k], s_normal[k].xyz, frame.params.x);
@@ -362,13 +388,10 @@ fn add_float(i: u32, x: f32) {
     }
 }
 
-@compute @workgroup_size(16, 16)
-fn cs_attributes(
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(local_invocation_id) lid: vec3<u32>,
-    @builtin(local_invocation_index) li: u32,
-) {
-    let work = load_item(wid.x + wid.y * ROW, li);
+// The attribute pass over work item `item`: w (n, 1) of its splats within
+// the visibility depth, summed per pixel and added to the pixel's sums.
+fn attributes(item: u32, lid: vec3<u32>, li: u32, lone: bool) {
+    let work = load_item(item, li, lone);
     let px = pixel_of(work.x, lid);
     let size = screen();
     let inside = px.x < size.x && px.y < size.y;
@@ -380,19 +403,62 @@ fn cs_attributes(
     }
     let d = view_ray(vec2<f32>(px) + 0.5);
     var sum = vec4<f32>(0.0);
-    var any = false;
+    var hit = false;
+    let at = vec2<i32>(px);
     for (var k = 0u; k < work.y; k++) {
+        let r = s_pixels[k];
+        if any(at < r.xy) || any(at > r.zw) {
+            continue;
+        }
         let h = hit_view(d, s_centre[k], s_normal[k].xyz);
         if h.w >= 0.0 && depth_of(h.xyz) <= visible {
             let m = 1.0 - h.w;
             let w = m * m * m;
-            sum += vec4<f32>(s_world[k].xyz * w, w);
-            any = true;
+            // The world-space normal, as the raster path sums it.
+            let n = (frame.inv_view * vec4<f32>(s_normal[k].xyz, 0.0)).xyz;
+            sum += vec4<f32>(n * w, w);
+            hit = true;
         }
     }
-    if inside && any {
+    if inside && hit {
         for (var k = 0u; k < 4u; k++) {
             add_float(4u * p + k, sum[k]);
         }
     }
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_visibility(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    visibility(wid.x + wid.y * ROW, lid, li, false);
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_lone_visibility(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    visibility(wid.x + wid.y * ROW, lid, li, true);
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_attributes(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    attributes(wid.x + wid.y * ROW, lid, li, false);
+}
+
+@compute @workgroup_size(8, 8)
+fn cs_lone_attributes(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    attributes(wid.x + wid.y * ROW, lid, li, true);
 }
