@@ -634,3 +634,35 @@ fn compute_path_matches_the_raster_path() {
         );
     }
 }
+
+/// The compute path's lists grow with the splat buffer: a renderer switched
+/// to compute before a large upload draws it without overflowing them.
+#[test]
+fn compute_lists_grow_with_the_uploads() {
+    use splat_render::SplatPath;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+    // 20,000 discs of about 6 px: some 80,000 tile entries, ten times the
+    // lists' first size for the buffer's first 1,024 splats.
+    let splats: Vec<Splat> = (0..20_000)
+        .map(|k| {
+            let (x, y) = (
+                (k % 200) as f32 / 100.0 - 1.0,
+                (k / 200) as f32 / 50.0 - 1.0,
+            );
+            Splat::new(Vec3::new(1.2 * x, 0.9 * y, 0.0), Vec3::Z, 0.03)
+        })
+        .collect();
+    r.upload(ctx, &splats).unwrap();
+    for _ in 0..4 {
+        r.render(ctx, &camera(), &Shading::default()).unwrap();
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .unwrap();
+    }
+    assert_eq!(r.compute_overflows(), 0);
+    assert!(r.read_accumulation(ctx).unwrap().covered() > 10_000);
+}

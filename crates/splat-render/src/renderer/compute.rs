@@ -267,6 +267,14 @@ impl ComputeSplats {
             self.rects = rects_buffer(device, splat_capacity);
             self.splat_capacity = splat_capacity;
         }
+        // The lists' first guess for this many splats (the readback grows
+        // them further when a frame needs more).
+        let entries = self.entries.get_mut().unwrap_or_else(|e| e.into_inner());
+        let capacity = initial_entries(self.splat_capacity, width, height);
+        if capacity > entries.capacity {
+            entries.buffer = entries_buffer(device, capacity);
+            entries.capacity = capacity;
+        }
     }
 
     /// Frames so far (as read back, a frame or more late) whose tile lists
