@@ -80,6 +80,19 @@ pub enum RenderError {
         /// Device limit.
         max: u64,
     },
+    /// Working memory of the compute splat path past this device's storage
+    /// binding limit (a resolution or splat count it cannot splat in compute).
+    #[error(
+        "the compute splat path's {what} need {bytes} bytes, more than this device's storage binding limit of {max} bytes: lower the resolution or use --splats raster"
+    )]
+    ComputeLimit {
+        /// Which buffer: "pixel sums" or "splat rectangles".
+        what: &'static str,
+        /// Bytes it needs.
+        bytes: u64,
+        /// The device's `max_storage_buffer_binding_size` (or `max_buffer_size`).
+        max: u64,
+    },
     /// A GPU-resident splat source whose buffers cannot serve as one.
     #[error("invalid GPU splat source: {0}")]
     InvalidSource(&'static str),

@@ -22,6 +22,7 @@ use super::plumbing::{
     shader, storage_entry, texture_entry, uniform_entry,
 };
 use super::targets::{DEPTH_FORMAT, Targets};
+use crate::error::{RenderError, Result};
 
 /// Tile side in pixels (`TILE` in the shader).
 const TILE: u32 = 8;
@@ -212,7 +213,7 @@ impl ComputeSplats {
             })
         };
         let (tiles, depth_bits, accum) = size_buffers(device, width, height);
-        let capacity = initial_entries(splat_capacity, width, height);
+        let capacity = initial_entries(splat_capacity, width, height).min(max_entries(device));
         Self {
             clear: pipeline("cs_clear", &plain),
             bin: pipeline("cs_bin", &plain),
@@ -270,7 +271,7 @@ impl ComputeSplats {
         // The lists' first guess for this many splats (the readback grows
         // them further when a frame needs more).
         let entries = self.entries.get_mut().unwrap_or_else(|e| e.into_inner());
-        let capacity = initial_entries(self.splat_capacity, width, height);
+        let capacity = initial_entries(self.splat_capacity, width, height).min(max_entries(device));
         if capacity > entries.capacity {
             entries.buffer = entries_buffer(device, capacity);
             entries.capacity = capacity;
@@ -304,7 +305,11 @@ impl ComputeSplats {
                         let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
                         if words[0] > entries.capacity {
                             self.overflows.fetch_add(1, Ordering::Relaxed);
-                            let capacity = words[0].checked_next_power_of_two().unwrap_or(u32::MAX);
+                            // Past the binding limit the overflow list
+                            // draws the rest, every frame.
+                            let capacity = (words[0].checked_next_power_of_two())
+                                .unwrap_or(u32::MAX)
+                                .min(max_entries(device));
                             entries.buffer = entries_buffer(device, capacity);
                             entries.capacity = capacity;
                         }
@@ -435,10 +440,44 @@ impl ComputeSplats {
     }
 }
 
+/// The largest storage binding this device takes (bytes).
+fn binding_limit(device: &wgpu::Device) -> u64 {
+    let limits = device.limits();
+    limits
+        .max_storage_buffer_binding_size
+        .min(limits.max_buffer_size)
+}
+
+/// Checks that the compute path's memory for `width`×`height` and
+/// `splats` fits this device's storage bindings.
+///
+/// # Errors
+/// [`RenderError::ComputeLimit`] naming the buffer.
+pub(super) fn check_fits(
+    device: &wgpu::Device,
+    (width, height): (u32, u32),
+    splats: u32,
+) -> Result<()> {
+    let max = binding_limit(device);
+    let sums = u64::from(width) * u64::from(height) * 16;
+    let rects = u64::from(splats.max(1)) * 32;
+    for (what, bytes) in [("pixel sums", sums), ("splat rectangles", rects)] {
+        if bytes > max {
+            return Err(RenderError::ComputeLimit { what, bytes, max });
+        }
+    }
+    Ok(())
+}
+
 /// Entries to start with: eight tiles per splat, at least four per tile.
 fn initial_entries(splats: u32, width: u32, height: u32) -> u32 {
     let tiles = width.div_ceil(TILE) * height.div_ceil(TILE);
     splats.saturating_mul(8).max(4 * tiles).max(1024)
+}
+
+/// The most list entries one storage binding holds.
+fn max_entries(device: &wgpu::Device) -> u32 {
+    u32::try_from(binding_limit(device) / 4).unwrap_or(u32::MAX)
 }
 
 fn entries_buffer(device: &wgpu::Device, capacity: u32) -> wgpu::Buffer {

@@ -182,14 +182,29 @@ impl SplatRenderer {
     /// # Errors
     /// [`RenderError::InvalidSource`] for [`SplatPath::Compute`] while
     /// drawing GPU-resident splats whose draw arguments are not a storage
-    /// buffer (the compute passes read the count from them).
+    /// buffer (the compute passes read the count from them);
+    /// [`RenderError::ComputeLimit`] when its memory for this size or splat
+    /// buffer is past the device's storage binding limit. The path is
+    /// unchanged then.
     pub fn set_splat_path(&mut self, ctx: &GpuContext, path: SplatPath) -> Result<()> {
-        if let (SplatPath::Compute, Some(g)) = (path, &self.gpu_source) {
-            check_args_readable(&g.draw_args)?;
+        if path == SplatPath::Compute {
+            if let Some(g) = &self.gpu_source {
+                check_args_readable(&g.draw_args)?;
+            }
+            compute::check_fits(&ctx.device, self.size(), self.splat_buffer_len())?;
         }
         self.path = path;
         self.reserve_compute(ctx);
         Ok(())
+    }
+
+    /// Splats the bound splat buffer holds.
+    fn splat_buffer_len(&self) -> u32 {
+        let splats = match &self.gpu_source {
+            Some(g) => g.splats.size() / size_of::<GpuSplat>() as u64,
+            None => self.splat_capacity as u64,
+        };
+        u32::try_from(splats).unwrap_or(u32::MAX)
     }
 
     /// Sizes the compute passes' memory for the targets and the splat
@@ -199,11 +214,7 @@ impl SplatRenderer {
             return;
         }
         let size = self.size();
-        let splats = match &self.gpu_source {
-            Some(g) => g.splats.size() / size_of::<GpuSplat>() as u64,
-            None => self.splat_capacity as u64,
-        };
-        let splats = u32::try_from(splats).unwrap_or(u32::MAX);
+        let splats = self.splat_buffer_len();
         match &mut self.compute {
             Some(c) => c.reserve(&ctx.device, size, splats),
             None => {
@@ -252,9 +263,14 @@ impl SplatRenderer {
     /// Changes the image size (recreating the targets when it differs).
     ///
     /// # Errors
-    /// [`RenderError::InvalidSize`].
+    /// [`RenderError::InvalidSize`]; [`RenderError::ComputeLimit`] on the
+    /// compute splat path when its memory for that size is past the
+    /// device's storage binding limit. Nothing changes then.
     pub fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
         check_size(ctx, width, height)?;
+        if self.path == SplatPath::Compute {
+            compute::check_fits(&ctx.device, (width, height), self.splat_buffer_len())?;
+        }
         if (width, height) != self.size() {
             self.targets = Targets::new(&ctx.device, width, height, self.accum_format);
             self.rebind(ctx);
@@ -302,7 +318,9 @@ impl SplatRenderer {
     /// # Errors
     /// [`RenderError::InvalidSplat`] naming the first splat with a non-finite
     /// field, a zero normal or a non-positive radius (nothing is uploaded then);
-    /// [`RenderError::TooManySplats`] beyond the device's storage binding limit.
+    /// [`RenderError::TooManySplats`] beyond the device's storage binding limit;
+    /// [`RenderError::ComputeLimit`] on the compute splat path when its
+    /// memory for them is past that limit.
     pub fn upload(&mut self, ctx: &GpuContext, splats: &[Splat]) -> Result<()> {
         // Converted into a CPU buffer kept between frames (no allocation once it
         // is large enough); the GPU buffer is untouched if a splat is invalid.
@@ -323,6 +341,10 @@ impl SplatRenderer {
                 bytes,
                 max,
             });
+        }
+        if self.path == SplatPath::Compute && gpu.len() > self.splat_capacity {
+            let capacity = u32::try_from(gpu.len().next_power_of_two()).unwrap_or(u32::MAX);
+            compute::check_fits(&ctx.device, self.size(), capacity)?;
         }
         if self.gpu_source.take().is_some() {
             self.splat_passes
@@ -356,7 +378,9 @@ impl SplatRenderer {
     /// # Errors
     /// [`RenderError::InvalidSource`] when `splats` is not a storage buffer of
     /// one or more whole splats within the binding limit or `draw_args` not an indirect
-    /// buffer of at least 16 bytes.
+    /// buffer of at least 16 bytes (and, on the compute splat path, a storage
+    /// buffer); [`RenderError::ComputeLimit`] on the compute splat path when
+    /// its memory for them is past the binding limit.
     pub fn use_gpu_splats(
         &mut self,
         ctx: &GpuContext,
@@ -380,12 +404,14 @@ impl SplatRenderer {
                 "draw_args must be an indirect buffer of at least 16 bytes",
             ));
         }
+        if self.path == SplatPath::Compute {
+            check_args_readable(draw_args)?;
+            let count = u32::try_from(splats.size() / per).unwrap_or(u32::MAX);
+            compute::check_fits(&ctx.device, self.size(), count)?;
+        }
         // Called every frame with the same buffers: bind them only when they change.
         if self.gpu_source.as_ref().is_none_or(|g| g.splats != *splats) {
             self.splat_passes.bind(&ctx.device, &self.frame, splats);
-        }
-        if self.path == SplatPath::Compute {
-            check_args_readable(draw_args)?;
         }
         self.gpu_source = Some(GpuSource {
             splats: splats.clone(),
