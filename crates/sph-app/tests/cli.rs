@@ -774,12 +774,22 @@ fn a_software_adapter_runs_the_cpu_path_by_default() {
 }
 
 /// `--splats compute` draws the frames `--splats raster` draws (FLIP ≤
-/// 0.01), from the same CPU simulation and extraction.
+/// 0.01), from the same CPU simulation and extraction, and from the GPU
+/// extraction's buffers (splats that never leave the GPU).
 #[test]
 fn compute_splats_draw_the_raster_frames() {
+    for extraction in ["--cpu", "--gpu-extract"] {
+        compute_splats_draw_the_raster_frame(extraction);
+    }
+    let o = app(&["--headless", "--splats", "tiles"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("raster"), "{}", stderr(&o));
+}
+
+fn compute_splats_draw_the_raster_frame(extraction: &str) {
     let mut frames = Vec::new();
     for path in ["raster", "compute"] {
-        let out = scratch(&format!("splats-{path}"));
+        let out = scratch(&format!("splats-{path}{extraction}"));
         let o = app(&[
             "--headless",
             "--scene",
@@ -790,12 +800,15 @@ fn compute_splats_draw_the_raster_frames() {
             "160",
             "--height",
             "96",
-            "--cpu",
+            extraction,
             "--splats",
             path,
             "--out",
             out.to_str().unwrap(),
         ]);
+        if skipped_without_adapter(&o) {
+            return;
+        }
         assert!(o.status.success(), "{path}: {}", stderr(&o));
         match image::open(out.join("frame_00001.png")) {
             Ok(image) => frames.push(image.to_rgba8()),
@@ -808,9 +821,6 @@ fn compute_splats_draw_the_raster_frames() {
         }
     }
     let mean = common::flip(&frames[0], &frames[1]);
-    eprintln!("FLIP mean compute vs raster {mean:e}");
-    assert!(mean <= 0.01, "FLIP mean {mean}");
-    let o = app(&["--headless", "--splats", "tiles"]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("raster"), "{}", stderr(&o));
+    eprintln!("{extraction}: FLIP mean compute vs raster {mean:e}");
+    assert!(mean <= 0.01, "{extraction}: FLIP mean {mean}");
 }
