@@ -168,8 +168,9 @@ pub struct Boundary {
     /// so a settled pool lost 2–9 mm of its 10 mm first layer and 2–13 % of
     /// its depth (issue 41; `cargo run --release -p sph-core --example
     /// pool_at_rest`). FleX's `collisionDistance` is the same idea.
-    /// [`Boundary::new`] gives 0; [`crate::Scene::boundary`] half the
-    /// particle spacing.
+    /// [`Boundary::new`] gives 0, and so do scenes unless they set
+    /// [`crate::Scene::clearance`] (half the spacing holds a lattice's
+    /// first layer where it was put).
     pub clearance: f32,
 }
 
