@@ -666,3 +666,42 @@ fn compute_lists_grow_with_the_uploads() {
     assert_eq!(r.compute_overflows(), 0);
     assert!(r.read_accumulation(ctx).unwrap().covered() > 10_000);
 }
+
+/// The compute path follows a resize: its per-pixel memory and tiles are
+/// remade, and the picture matches the raster path's at the new size.
+#[test]
+fn compute_path_follows_resizes() {
+    use splat_render::SplatPath;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let splats = [
+        Splat::new(Vec3::ZERO, Vec3::Z, 0.5),
+        Splat::new(
+            Vec3::new(0.3, 0.1, 0.05),
+            Vec3::new(0.3, 0.0, 1.0).normalize(),
+            0.4,
+        ),
+    ];
+    let shading = Shading::default();
+    let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+    r.upload(ctx, &splats).unwrap();
+    r.render(ctx, &camera(), &shading).unwrap();
+    for (w, h) in [(97, 61), (W + 40, H + 24)] {
+        r.resize(ctx, w, h).unwrap();
+        r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+        r.render(ctx, &camera(), &shading).unwrap();
+        let compute = r.read_image(ctx).unwrap();
+        r.set_splat_path(ctx, SplatPath::Raster).unwrap();
+        r.render(ctx, &camera(), &shading).unwrap();
+        let raster = r.read_image(ctx).unwrap();
+        assert_eq!(compute.dimensions(), (w, h));
+        let differ = compute
+            .pixels()
+            .zip(raster.pixels())
+            .filter(|(a, b)| a.0.iter().zip(b.0).any(|(x, y)| x.abs_diff(y) > 2))
+            .count();
+        assert_eq!(differ, 0, "{w}×{h}: {differ} pixels differ");
+    }
+}
