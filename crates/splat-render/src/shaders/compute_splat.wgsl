@@ -247,21 +247,26 @@ fn cs_lone_dispatch() {
 var<workgroup> s_centre: array<vec4<f32>, CHUNK>;
 var<workgroup> s_normal: array<vec4<f32>, CHUNK>;
 var<workgroup> s_pixels: array<vec4<i32>, CHUNK>;
-// The work item's tile, first entry and splat count, set by thread 0.
+// The work item's tile, first entry and splat count, and whether it is its
+// tile's only one, set by thread 0.
 var<workgroup> w_tile: u32;
 var<workgroup> w_base: u32;
 var<workgroup> w_count: u32;
+var<workgroup> w_alone: u32;
 
 // Loads work item `item`'s splats into workgroup memory and returns its
-// tile and splat count: from its tile's list, or with `lone` from the
-// overflow list (work items tile-major). Work items past the last (the
-// dispatch's rounding) have no splats; a flagged splat in a tile's list
-// covers no pixel there.
-fn load_item(item: u32, li: u32, lone: bool) -> vec2<u32> {
+// tile, its splat count and 1 when it is the only work item drawing its
+// tile's pixels (one chunk, nothing overflowed), else 0: from its tile's
+// list, or with `lone` from the overflow list (work items tile-major). Work
+// items past the last (the dispatch's rounding) have no splats; a flagged
+// splat in a tile's list covers no pixel there. With `skip_alone` a work
+// item alone on its tile loads nothing (the visibility pass drew it whole).
+fn load_item(item: u32, li: u32, lone: bool, skip_alone: bool) -> vec3<u32> {
     if li == 0u {
         var tile = 0u;
         var base = 0u;
         var count = 0u;
+        var alone = 0u;
         if lone {
             let chunks = lone_chunks();
             if item < tile_count() * chunks {
@@ -282,20 +287,28 @@ fn load_item(item: u32, li: u32, lone: bool) -> vec2<u32> {
                 }
             }
             tile = lo;
-            base = atomicLoad(&tiles[starts_at() + tile])
-                + (item - atomicLoad(&tiles[items_at() + tile])) * CHUNK;
+            let first = atomicLoad(&tiles[items_at() + tile]);
+            base = atomicLoad(&tiles[starts_at() + tile]) + (item - first) * CHUNK;
             let end = min(min(base + CHUNK, atomicLoad(&tiles[starts_at() + tile + 1u])), setup.z);
             if end > base {
                 count = end - base;
+            }
+            if atomicLoad(&tiles[2]) == 0u && atomicLoad(&tiles[items_at() + tile + 1u]) == first + 1u {
+                alone = 1u;
+                if skip_alone {
+                    count = 0u;
+                }
             }
         }
         w_tile = tile;
         w_base = base;
         w_count = count;
+        w_alone = alone;
     }
     workgroupBarrier();
     let tile = w_tile;
     let count = w_count;
+    let alone = w_alone;
     if li < count {
         var index = 0u;
         if lone {
@@ -316,7 +329,7 @@ fn load_item(item: u32, li: u32, lone: bool) -> vec2<u32> {
         s_pixels[li] = pixels;
     }
     workgroupBarrier();
-    return vec2<u32>(tile, count);
+    return vec3<u32>(tile, count, alone);
 }
 
 fn pixel_of(tile: u32, lid: vec3<u32>) -> vec2<u32> {
@@ -352,9 +365,11 @@ fn pushed_depth(d: vec3<f32>, q: vec3<f32>, centre: vec4<f32>, n: vec3<f32>, pus
 }
 
 // The visibility pass over work item `item`: the nearest pushed depth of
-// its splats at each of the tile's pixels, min'd into the depth bits.
+// its splats at each of the tile's pixels, min'd into the depth bits. A
+// work item alone on its tile knows its pixels' final depth at once, and
+// sums their attributes too (the attribute pass then skips it).
 fn visibility(item: u32, lid: vec3<u32>, li: u32, lone: bool) {
-    let work = load_item(item, li, lone);
+    let work = load_item(item, li, lone, false);
     let px = pixel_of(work.x, lid);
     let size = screen();
     let d = view_ray(vec2<f32>(px) + 0.5);
@@ -371,9 +386,44 @@ fn visibility(item: u32, lid: vec3<u32>, li: u32, lone: bool) {
             best = min(best, max(pushed, 0.0));
         }
     }
-    if px.x < size.x && px.y < size.y && best < 2.0 {
-        atomicMin(&depth_bits[px.y * size.x + px.x], bitcast<u32>(best));
+    if px.x >= size.x || px.y >= size.y {
+        return;
     }
+    let p = px.y * size.x + px.x;
+    if work.z == 0u {
+        if best < 2.0 {
+            atomicMin(&depth_bits[p], bitcast<u32>(best));
+        }
+        return;
+    }
+    // The only writer of these pixels: the depth and the sums are stored.
+    let visible = min(bitcast<f32>(atomicLoad(&depth_bits[p])), best);
+    atomicStore(&depth_bits[p], bitcast<u32>(visible));
+    let sum = sums(at, d, visible, work.y);
+    for (var k = 0u; k < 4u; k++) {
+        atomicStore(&accum[4u * p + k], bitcast<u32>(sum[k]));
+    }
+}
+
+// Σ w (n, 1) over the loaded splats that the pixel `at` (view ray `d`)
+// sees within the depth `visible`.
+fn sums(at: vec2<i32>, d: vec3<f32>, visible: f32, count: u32) -> vec4<f32> {
+    var sum = vec4<f32>(0.0);
+    for (var k = 0u; k < count; k++) {
+        let r = s_pixels[k];
+        if any(at < r.xy) || any(at > r.zw) {
+            continue;
+        }
+        let h = hit_view(d, s_centre[k], s_normal[k].xyz);
+        if h.w >= 0.0 && depth_of(h.xyz) <= visible {
+            let m = 1.0 - h.w;
+            let w = m * m * m;
+            // The world-space normal, as the raster path sums it.
+            let n = (frame.inv_view * vec4<f32>(s_normal[k].xyz, 0.0)).xyz;
+            sum += vec4<f32>(n * w, w);
+        }
+    }
+    return sum;
 }
 
 // accum[i] += x, on the float's bits.
@@ -389,38 +439,19 @@ fn add_float(i: u32, x: f32) {
 }
 
 // The attribute pass over work item `item`: w (n, 1) of its splats within
-// the visibility depth, summed per pixel and added to the pixel's sums.
+// the visibility depth, summed per pixel and added to the pixel's sums
+// (work items alone on their tile were summed by the visibility pass).
 fn attributes(item: u32, lid: vec3<u32>, li: u32, lone: bool) {
-    let work = load_item(item, li, lone);
+    let work = load_item(item, li, lone, true);
     let px = pixel_of(work.x, lid);
     let size = screen();
-    let inside = px.x < size.x && px.y < size.y;
-    var p = 0u;
-    var visible = 0.0;
-    if inside {
-        p = px.y * size.x + px.x;
-        visible = bitcast<f32>(atomicLoad(&depth_bits[p]));
+    if work.y == 0u || px.x >= size.x || px.y >= size.y {
+        return;
     }
-    let d = view_ray(vec2<f32>(px) + 0.5);
-    var sum = vec4<f32>(0.0);
-    var hit = false;
-    let at = vec2<i32>(px);
-    for (var k = 0u; k < work.y; k++) {
-        let r = s_pixels[k];
-        if any(at < r.xy) || any(at > r.zw) {
-            continue;
-        }
-        let h = hit_view(d, s_centre[k], s_normal[k].xyz);
-        if h.w >= 0.0 && depth_of(h.xyz) <= visible {
-            let m = 1.0 - h.w;
-            let w = m * m * m;
-            // The world-space normal, as the raster path sums it.
-            let n = (frame.inv_view * vec4<f32>(s_normal[k].xyz, 0.0)).xyz;
-            sum += vec4<f32>(n * w, w);
-            hit = true;
-        }
-    }
-    if inside && hit {
+    let p = px.y * size.x + px.x;
+    let visible = bitcast<f32>(atomicLoad(&depth_bits[p]));
+    let sum = sums(vec2<i32>(px), view_ray(vec2<f32>(px) + 0.5), visible, work.y);
+    if sum.w > 0.0 {
         for (var k = 0u; k < 4u; k++) {
             add_float(4u * p + k, sum[k]);
         }
