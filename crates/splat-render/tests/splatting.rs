@@ -37,6 +37,20 @@ fn disc_hit(camera: &Camera, x: u32, y: u32, s: &Splat) -> Option<(f32, f32)> {
     (t > 0.0 && r <= s.radius).then(|| (t, alpha_mask(r, s.radius)))
 }
 
+/// A tilted square of 21 × 21 splats of spacing s and radius s (every
+/// point of it within 0.71 s of a centre): the splats, the normal and the
+/// square's in-plane axes.
+fn tiled_plane() -> (Vec<Splat>, Vec3, Vec3, Vec3) {
+    let s = 0.1;
+    let normal = Vec3::new(0.0, 1.0, 0.2).normalize();
+    let (u, v) = (Vec3::X, normal.cross(Vec3::X));
+    let splats = (-10..=10)
+        .flat_map(|i| (-10..=10).map(move |j| (i, j)))
+        .map(|(i, j)| Splat::new(u * (i as f32 * s) + v * (j as f32 * s), normal, s))
+        .collect();
+    (splats, normal, u, v)
+}
+
 fn camera() -> Camera {
     Camera::looking_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO)
 }
@@ -204,14 +218,7 @@ fn tiled_plane_has_no_holes_and_a_constant_normal() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
-    // Square grid of spacing s with radius s: every point lies within 0.71 s of a centre.
-    let s = 0.1;
-    let normal = Vec3::new(0.0, 1.0, 0.2).normalize();
-    let (u, v) = (Vec3::X, normal.cross(Vec3::X));
-    let splats: Vec<Splat> = (-10..=10)
-        .flat_map(|i| (-10..=10).map(move |j| (i, j)))
-        .map(|(i, j)| Splat::new(u * (i as f32 * s) + v * (j as f32 * s), normal, s))
-        .collect();
+    let (splats, normal, u, v) = tiled_plane();
     let cam = Camera::looking_at(Vec3::new(0.6, 2.0, 1.5), Vec3::ZERO);
     let (_, acc) = render(ctx, &splats, &cam, &Shading::default());
     let mut inside = 0;
@@ -513,13 +520,7 @@ fn compute_path_matches_the_raster_path() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
-    let s = 0.1;
-    let normal = Vec3::new(0.0, 1.0, 0.2).normalize();
-    let (u, v) = (Vec3::X, normal.cross(Vec3::X));
-    let plane: Vec<Splat> = (-10..=10)
-        .flat_map(|i| (-10..=10).map(move |j| (i, j)))
-        .map(|(i, j)| Splat::new(u * (i as f32 * s) + v * (j as f32 * s), normal, s))
-        .collect();
+    let (plane, ..) = tiled_plane();
     let golden = std::f32::consts::PI * (3.0 - 5f32.sqrt());
     let sphere: Vec<Splat> = (0..2000)
         .map(|k| {
@@ -704,4 +705,35 @@ fn compute_path_follows_resizes() {
             .count();
         assert_eq!(differ, 0, "{w}×{h}: {differ} pixels differ");
     }
+}
+
+/// Two frames encoded before either is submitted (what `encode` allows)
+/// submit cleanly on the compute path: its readback of the list total maps
+/// only on submit.
+#[test]
+fn compute_path_takes_two_encodes_before_a_submit() {
+    use splat_render::SplatPath;
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+    r.upload(ctx, &[Splat::new(Vec3::ZERO, Vec3::Z, 0.5)])
+        .unwrap();
+    for _ in 0..3 {
+        let encoders: Vec<_> = (0..2)
+            .map(|_| {
+                let mut e = ctx.device.create_command_encoder(&Default::default());
+                r.encode(ctx, &mut e, &camera(), &Shading::default())
+                    .unwrap();
+                e.finish()
+            })
+            .collect();
+        ctx.queue.submit(encoders);
+        ctx.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .unwrap();
+        ctx.check().unwrap();
+    }
+    assert!(r.read_accumulation(ctx).unwrap().covered() > 1_000);
 }

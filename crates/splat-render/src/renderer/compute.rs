@@ -51,14 +51,13 @@ struct Entries {
     capacity: u32,
 }
 
-/// Reading the frame's list total back, a frame or more late.
+/// Reading a frame's list total back, a frame or more late.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Readback {
     /// Nothing in flight: the next frame copies its total.
     Idle,
-    /// A frame copied its total; the next call maps it (after the submit).
-    Copied,
-    /// Mapping; the callback sets `mapped`.
+    /// A frame copied its total, mapped when its commands are submitted;
+    /// the callback sets `mapped`.
     Mapping,
 }
 
@@ -285,17 +284,10 @@ impl ComputeSplats {
         self.overflows.load(Ordering::Relaxed)
     }
 
-    /// Moves the readback of an earlier frame's list total along (see
-    /// [`Readback`]) and grows the list memory to the largest total read.
+    /// Reads an earlier frame's list total once its mapping is done, and
+    /// grows the list memory to it.
     fn settle(&self, device: &wgpu::Device) {
         let mut state = self.readback.lock().unwrap_or_else(|e| e.into_inner());
-        if *state == Readback::Copied {
-            let mapped = self.mapped.clone();
-            self.totals.map_async(wgpu::MapMode::Read, .., move |r| {
-                mapped.store(if r.is_ok() { 1 } else { 2 }, Ordering::Release);
-            });
-            *state = Readback::Mapping;
-        }
         if *state == Readback::Mapping {
             let _ = device.poll(wgpu::PollType::Poll);
             match self.mapped.swap(0, Ordering::Acquire) {
@@ -310,8 +302,10 @@ impl ComputeSplats {
                             let capacity = (words[0].checked_next_power_of_two())
                                 .unwrap_or(u32::MAX)
                                 .min(max_entries(device));
-                            entries.buffer = entries_buffer(device, capacity);
-                            entries.capacity = capacity;
+                            if capacity > entries.capacity {
+                                entries.buffer = entries_buffer(device, capacity);
+                                entries.capacity = capacity;
+                            }
                         }
                     }
                     self.totals.unmap();
@@ -435,7 +429,11 @@ impl ComputeSplats {
         let mut state = self.readback.lock().unwrap_or_else(|e| e.into_inner());
         if *state == Readback::Idle {
             encoder.copy_buffer_to_buffer(&self.dispatch, 12, &self.totals, 0, 8);
-            *state = Readback::Copied;
+            let mapped = self.mapped.clone();
+            encoder.map_buffer_on_submit(&self.totals, wgpu::MapMode::Read, .., move |r| {
+                mapped.store(if r.is_ok() { 1 } else { 2 }, Ordering::Release);
+            });
+            *state = Readback::Mapping;
         }
     }
 }

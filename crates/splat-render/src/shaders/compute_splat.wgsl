@@ -106,12 +106,9 @@ fn cs_bin(@builtin(global_invocation_id) id: vec3<u32>) {
     let r = s.position_radius.w;
     let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
     let n = (frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz;
-    var a = vec3<f32>(1.0, 0.0, 0.0);
-    if abs(n.x) > 0.9 {
-        a = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let u = normalize(cross(n, a)) * r;
-    let v = cross(n, u);
+    let axes = disc_axes(n, r);
+    let u = axes[0];
+    let v = axes[1];
     let size = vec2<f32>(frame.viewport.xy);
     var lo = vec2<f32>(3.0e38);
     var hi = vec2<f32>(-3.0e38);
@@ -344,12 +341,9 @@ fn pixel_of(tile: u32, lid: vec3<u32>) -> vec2<u32> {
 // rays, so the quad's outline and diagonal stay where they were on screen,
 // and the side of the diagonal is the side `q` is on.
 fn pushed_depth(d: vec3<f32>, q: vec3<f32>, centre: vec4<f32>, n: vec3<f32>, push: f32) -> f32 {
-    var a = vec3<f32>(1.0, 0.0, 0.0);
-    if abs(n.x) > 0.9 {
-        a = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let u = normalize(cross(n, a)) * centre.w;
-    let v = cross(n, u);
+    let axes = disc_axes(n, centre.w);
+    let u = axes[0];
+    let v = axes[1];
     let e = q - centre.xyz;
     var k0 = centre.xyz + u - v;
     var k1 = centre.xyz - u + v;

@@ -29,6 +29,18 @@ fn hit_view(d: vec3<f32>, centre: vec4<f32>, n: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(q, s);
 }
 
+// The half-sides u, v of the square bounding a disc of view-space normal `n`
+// and radius `r` in its own plane: the quad the raster path draws, whose
+// corners the compute path bins and pushes back the same way.
+fn disc_axes(n: vec3<f32>, r: f32) -> mat2x3<f32> {
+    var a = vec3<f32>(1.0, 0.0, 0.0);
+    if abs(n.x) > 0.9 {
+        a = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let u = normalize(cross(n, a)) * r;
+    return mat2x3<f32>(u, cross(n, u));
+}
+
 fn depth_of(q: vec3<f32>) -> f32 {
     let c = frame.proj * vec4<f32>(q, 1.0);
     return c.z / c.w;

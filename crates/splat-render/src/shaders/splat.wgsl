@@ -29,12 +29,9 @@ fn splat_quad(vi: u32, ii: u32, keep: u32, push: f32) -> VsOut {
     let r = s.position_radius.w;
     let c = (frame.view * vec4<f32>(s.position_radius.xyz, 1.0)).xyz;
     let n = (frame.view * vec4<f32>(s.normal.xyz, 0.0)).xyz;
-    var a = vec3<f32>(1.0, 0.0, 0.0);
-    if abs(n.x) > 0.9 {
-        a = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let u = normalize(cross(n, a)) * r;
-    let v = cross(n, u);
+    let axes = disc_axes(n, r);
+    let u = axes[0];
+    let v = axes[1];
     // Splats reaching in front of the near plane are dropped.
     var clipped = false;
     for (var k = 0u; k < 4u; k++) {
