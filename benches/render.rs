@@ -6,14 +6,20 @@
 //! about half the frame. On a machine without a GPU this runs on lavapipe:
 //! CPU-rasteriser figures.
 //!
-//! Each size runs twice: `WxH` through the raster splat passes (the
-//! default), `compute-WxH` through the compute ones (`SplatPath::Compute`).
+//! Each size runs twice: `WxH` through the raster splat passes,
+//! `compute-WxH` through the compute ones (`SplatPath::Compute`).
 //!
-//! The group `scenery` times the same frame at 1920×1080 without scene
-//! geometry (`bare`), with the demo's kind (`geometry`: an open tank around
-//! the sphere, a sphere obstacle, the ground and the environment's sky), and
-//! with that plus Beer–Lambert absorption (`geometry+absorption`, which adds
-//! the back surface pass).
+//! The group `drawn` times the 1920×1080 frames of both paths without the
+//! upload, as the GPU path draws its surfels (they never leave the GPU): at
+//! 1M surfels the upload is most of a `render` row's time on a datacenter
+//! GPU.
+//!
+//! The group `scenery` times the same frame at 1920×1080, on the adapter's
+//! splat path (`SplatPath::for_device`), without scene geometry (`bare`),
+//! with the demo's kind (`geometry`: an open tank around the sphere, a
+//! sphere obstacle, the ground and the environment's sky), and with that
+//! plus Beer–Lambert absorption (`geometry+absorption`, which adds the back
+//! surface pass).
 
 use std::hint::black_box;
 
@@ -54,35 +60,38 @@ fn render(c: &mut Criterion) {
         depth_epsilon: 0.02,
         ..Default::default()
     };
-    let mut group = c.benchmark_group("render");
-    group.sample_size(10);
-    for (w, h, path) in [
-        (1280, 720, SplatPath::Raster),
-        (1280, 720, SplatPath::Compute),
-        (1920, 1080, SplatPath::Raster),
-        (1920, 1080, SplatPath::Compute),
-    ] {
-        let mut renderer = SplatRenderer::new(&ctx, w, h, &env).expect("renderer");
-        renderer.set_splat_path(&ctx, path).expect("splat path");
-        let name = match path {
-            SplatPath::Raster => format!("{w}x{h}"),
-            SplatPath::Compute => format!("compute-{w}x{h}"),
-        };
-        for n in [20_000, 100_000, 1_000_000] {
-            let splats = sphere(n);
-            group.throughput(Throughput::Elements(n as u64));
-            group.bench_function(BenchmarkId::new(&name, n), |b| {
-                b.iter(|| {
-                    renderer.upload(&ctx, black_box(&splats)).expect("upload");
-                    renderer.render(&ctx, &camera, &shading).expect("render");
-                    ctx.device
-                        .poll(wgpu::PollType::wait_indefinitely())
-                        .expect("GPU finished");
-                })
-            });
+    let sizes = [(1280, 720), (1920, 1080)];
+    for (group_name, upload) in [("render", true), ("drawn", false)] {
+        let mut group = c.benchmark_group(group_name);
+        group.sample_size(10);
+        for (w, h) in sizes.into_iter().filter(|&(w, _)| upload || w == 1920) {
+            for path in [SplatPath::Raster, SplatPath::Compute] {
+                let mut renderer = SplatRenderer::new(&ctx, w, h, &env).expect("renderer");
+                renderer.set_splat_path(&ctx, path).expect("splat path");
+                let name = match path {
+                    SplatPath::Raster => format!("{w}x{h}"),
+                    SplatPath::Compute => format!("compute-{w}x{h}"),
+                };
+                for n in [20_000, 100_000, 1_000_000] {
+                    let splats = sphere(n);
+                    renderer.upload(&ctx, &splats).expect("upload");
+                    group.throughput(Throughput::Elements(n as u64));
+                    group.bench_function(BenchmarkId::new(&name, n), |b| {
+                        b.iter(|| {
+                            if upload {
+                                renderer.upload(&ctx, black_box(&splats)).expect("upload");
+                            }
+                            renderer.render(&ctx, &camera, &shading).expect("render");
+                            ctx.device
+                                .poll(wgpu::PollType::wait_indefinitely())
+                                .expect("GPU finished");
+                        })
+                    });
+                }
+            }
         }
+        group.finish();
     }
-    group.finish();
 }
 
 /// The demo's kind of scenery around the unit sphere of surfels.

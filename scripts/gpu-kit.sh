@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Packs what a GPU machine without a Rust toolchain or network access needs to
-# run the GPU benches (`render` and `gpu`), the `realtime` and `splat_passes`
-# examples and the demo (`sph-app`) into .gpu-kit/ (git-ignored): the five
+# run the GPU benches (`render` and `gpu`), the `realtime`, `scaling` and
+# `splat_passes` examples and the demo (`sph-app`) into .gpu-kit/
+# (git-ignored): the six
 # binaries, stripped, and
 # Debian's Vulkan loader and glvnd packages. Copy the repository with
 # .gpu-kit/ to that machine (same x86-64 Linux, glibc 2.35 or later) and run
@@ -19,9 +20,9 @@ mkdir -p "$kit/deb"
 # artifact whose target is named after the bench (the realtime example too:
 # its `pbf-gpu` column).
 json=$(CARGO_TERM_COLOR=never cargo bench --bench gpu --bench render --no-run --message-format=json
-    CARGO_TERM_COLOR=never cargo build --release --example realtime --bin sph-app --message-format=json
+    CARGO_TERM_COLOR=never cargo build --release --example realtime --example scaling --bin sph-app --message-format=json
     CARGO_TERM_COLOR=never cargo build --release -p splat-render --example splat_passes --message-format=json)
-for bench in gpu render realtime sph-app splat_passes; do
+for bench in gpu render realtime scaling sph-app splat_passes; do
     exe=$(printf '%s\n' "$json" |
         sed -n "s|.*\"target\":{[^}]*\"name\":\"$bench\".*\"executable\":\"\([^\"]*\)\".*|\1|p" | tail -1)
     [ -n "$exe" ] || { echo "gpu-kit: no executable for bench $bench" >&2; exit 1; }

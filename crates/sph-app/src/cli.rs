@@ -150,10 +150,11 @@ pub struct Args {
     #[arg(long)]
     pub gpu_extract: bool,
 
-    /// How the splats are drawn: by the raster hardware (the default) or by
-    /// compute shaders that bin them to screen tiles, past the raster
-    /// hardware's blending rate. Both draw the same images.
-    #[arg(long, value_enum, default_value_t = SplatsArg::Raster)]
+    /// How the splats are drawn: by the raster hardware, or by compute
+    /// shaders that bin them to screen tiles, past the raster hardware's
+    /// blending rate. Both draw the same images. `auto` takes the faster one
+    /// on the adapter: compute on a GPU, raster on a software adapter.
+    #[arg(long, value_enum, default_value_t = SplatsArg::Auto)]
     pub splats: SplatsArg,
 
     /// Extract only the surfels facing the camera (thesis 4.2.1), about half
@@ -202,17 +203,21 @@ impl From<SurfaceField> for surfel_extract::Surface {
 /// How splats are drawn (`--splats`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum SplatsArg {
+    /// The adapter's faster path (`SplatPath::for_device`).
+    Auto,
     /// The raster hardware: each splat a quad, blended.
     Raster,
     /// Compute shaders over screen tiles.
     Compute,
 }
 
-impl From<SplatsArg> for splat_render::SplatPath {
-    fn from(s: SplatsArg) -> Self {
-        match s {
-            SplatsArg::Raster => Self::Raster,
-            SplatsArg::Compute => Self::Compute,
+impl SplatsArg {
+    /// The path forced on the renderer, none for `auto`.
+    pub fn forced(self) -> Option<splat_render::SplatPath> {
+        match self {
+            SplatsArg::Auto => None,
+            SplatsArg::Raster => Some(splat_render::SplatPath::Raster),
+            SplatsArg::Compute => Some(splat_render::SplatPath::Compute),
         }
     }
 }

@@ -78,7 +78,9 @@ pub fn run(args: &Args, mut pipeline: Pipeline) -> Result<(), AppError> {
         Some(ctx) => {
             let mut renderer =
                 SplatRenderer::new(ctx, args.width, args.height, &crate::environment())?;
-            renderer.set_splat_path(ctx, args.splats.into())?;
+            if let Some(path) = args.splats.forced() {
+                renderer.set_splat_path(ctx, path)?;
+            }
             if !args.no_scenery {
                 renderer.set_geometry(ctx, &pipeline.scenery()?)?;
             }

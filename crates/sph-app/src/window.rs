@@ -83,8 +83,10 @@ struct Settings {
     gpu_extract: Toggle,
     /// Only front-facing surfels (`--cull`, the panel).
     cull: bool,
-    /// Splats drawn by compute shaders (`--splats compute`, the panel).
-    compute_splats: bool,
+    /// Splats drawn by compute shaders (`--splats`, the panel); `None`
+    /// until the first frame takes the renderer's choice for its adapter
+    /// (`--splats auto`).
+    compute_splats: Option<bool>,
     /// The tank, obstacles and ground around the fluid (`--no-scenery`
     /// turns them off, the panel toggles them).
     scenery: bool,
@@ -192,7 +194,7 @@ impl App {
                 gpu_sim: Toggle::new(args.gpu_sim),
                 gpu_extract: Toggle::new(args.gpu_extract),
                 cull: args.cull,
-                compute_splats: args.splats == crate::cli::SplatsArg::Compute,
+                compute_splats: args.splats.forced().map(|path| path == SplatPath::Compute),
                 scenery: !args.no_scenery,
             },
             push,
@@ -476,7 +478,8 @@ impl App {
             }
         };
         let view = frame.texture.create_view(&Default::default());
-        let path = if self.settings.compute_splats {
+        let chosen = gfx.renderer.splat_path() == SplatPath::Compute;
+        let path = if *self.settings.compute_splats.get_or_insert(chosen) {
             SplatPath::Compute
         } else {
             SplatPath::Raster
@@ -485,7 +488,7 @@ impl App {
             && let Err(e) = gfx.renderer.set_splat_path(&gfx.ctx, path)
         {
             log::warn!("{e}");
-            self.settings.compute_splats = false;
+            self.settings.compute_splats = Some(false);
         }
         gfx.renderer
             .render_to_surface(&gfx.ctx, &camera, &shading, &view, gfx.config.format)?;
@@ -590,8 +593,10 @@ impl App {
                 ui.checkbox(&mut settings.paused, "paused (space; N steps)");
                 settings.gpu_sim.show(ui, "SPH step on the GPU", "wgpu compute (sph-gpu): PBF or WCSPH; ctrl+drag pushes on either path");
                 settings.gpu_extract.show(ui, "surfels extracted on the GPU", "wgpu compute (sph-gpu): the same field, hole closing and splits; drawn without a round trip to the CPU");
-                ui.checkbox(&mut settings.compute_splats, "splats drawn in compute (--splats)")
-                    .on_hover_text("compute shaders over 8×8-pixel tiles instead of the raster hardware: the same image");
+                if let Some(compute) = &mut settings.compute_splats {
+                    ui.checkbox(compute, "splats drawn in compute (--splats)")
+                        .on_hover_text("compute shaders over 8×8-pixel tiles instead of the raster hardware: the same image; the default on a GPU");
+                }
                 ui.checkbox(&mut settings.cull, "only front-facing surfels (--cull)")
                     .on_hover_text("thesis 4.2.1: about half the surfels; re-extracts as the camera turns");
                 egui::ComboBox::from_label("view (F)")

@@ -158,6 +158,41 @@ pub(crate) fn read_texture(
         },
         texture.size(),
     );
+    let mapped = submit_and_map(ctx, encoder, &buffer)?;
+    let mut out = Vec::with_capacity(row * height as usize);
+    for r in 0..height as usize {
+        let start = r * padded as usize;
+        out.extend_from_slice(&mapped[start..start + row]);
+    }
+    Ok(out)
+}
+
+/// Copies a whole storage buffer (made with `COPY_SRC`) to the CPU.
+pub(crate) fn read_buffer(ctx: &GpuContext, source: &wgpu::Buffer) -> Result<Vec<u8>> {
+    if !source.usage().contains(wgpu::BufferUsages::COPY_SRC) {
+        return Err(RenderError::Readback(format!(
+            "a buffer of usage {:?} cannot be read back: it needs COPY_SRC",
+            source.usage()
+        )));
+    }
+    let buffer = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size: source.size(),
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, source.size());
+    Ok(submit_and_map(ctx, encoder, &buffer)?.to_vec())
+}
+
+/// Submits `encoder`, which copies into `buffer`, and maps `buffer` once the
+/// copy is done.
+fn submit_and_map(
+    ctx: &GpuContext,
+    encoder: wgpu::CommandEncoder,
+    buffer: &wgpu::Buffer,
+) -> Result<wgpu::BufferView> {
     ctx.queue.submit([encoder.finish()]);
     let (tx, rx) = std::sync::mpsc::channel();
     buffer.map_async(wgpu::MapMode::Read, .., move |r| {
@@ -169,15 +204,9 @@ pub(crate) fn read_texture(
     rx.recv()
         .map_err(|e| RenderError::Readback(e.to_string()))?
         .map_err(|e| RenderError::Readback(e.to_string()))?;
-    let mapped = buffer
+    buffer
         .get_mapped_range(..)
-        .map_err(|e| RenderError::Readback(e.to_string()))?;
-    let mut out = Vec::with_capacity(row * height as usize);
-    for r in 0..height as usize {
-        let start = r * padded as usize;
-        out.extend_from_slice(&mapped[start..start + row]);
-    }
-    Ok(out)
+        .map_err(|e| RenderError::Readback(e.to_string()))
 }
 
 #[cfg(test)]

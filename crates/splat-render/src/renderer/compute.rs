@@ -2,9 +2,11 @@
 //! past the raster hardware's blending rate: splats binned to 8×8-pixel
 //! tiles by a counting sort, each tile's splats tested by one thread per
 //! pixel in chunks of at most 64 (a dense tile is split over several
-//! workgroups), sums in registers added once per work item, then one
-//! full-screen pass (`shaders/compute_resolve.wgsl`) into the same depth
-//! and accumulation targets the raster passes fill, so shading is shared.
+//! workgroups), sums in registers added once per work item. The visible
+//! depth and the sums stay in two storage buffers, which the shared shade
+//! pass reads in place of the raster path's depth and accumulation targets
+//! (a full-screen copy into those targets took 1.3 ms at 1080p on an H200,
+//! more than the splat passes).
 //!
 //! The tiles' lists live in one buffer whose size the frame's splats decide.
 //! A frame whose lists do not fit is still drawn whole: the splats that did
@@ -18,10 +20,10 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use wgpu_profiler::GpuProfiler;
 
 use super::plumbing::{
-    bind_in_order, cleared, compute_pass, depth_attachment, layout, pipeline_layout, render_pass,
-    shader, storage_entry, texture_entry, uniform_entry,
+    bind_in_order, compute_pass, layout, pipeline_layout, shader, storage_entry, texture_entry,
+    uniform_entry,
 };
-use super::targets::{DEPTH_FORMAT, Targets};
+use super::targets::Targets;
 use crate::error::{RenderError, Result};
 
 /// Tile side in pixels (`TILE` in the shader).
@@ -65,7 +67,6 @@ enum Readback {
 pub(super) struct ComputeSplats {
     layout: wgpu::BindGroupLayout,
     dispatch_layout: wgpu::BindGroupLayout,
-    resolve_layout: wgpu::BindGroupLayout,
     clear: wgpu::ComputePipeline,
     bin: wgpu::ComputePipeline,
     scan: wgpu::ComputePipeline,
@@ -75,7 +76,6 @@ pub(super) struct ComputeSplats {
     attributes: wgpu::ComputePipeline,
     lone_visibility: wgpu::ComputePipeline,
     lone_attributes: wgpu::ComputePipeline,
-    resolve: wgpu::RenderPipeline,
     /// Tiles across and down, entry capacity, splats the buffer holds.
     setup: wgpu::Buffer,
     /// Draw arguments for uploaded splats (the count at word 1).
@@ -98,11 +98,10 @@ pub(super) struct ComputeSplats {
 }
 
 impl ComputeSplats {
-    /// The passes for `width`×`height` targets, accumulating in
-    /// `accum_format`, for up to `splat_capacity` splats.
+    /// The passes for `width`×`height` targets, for up to
+    /// `splat_capacity` splats.
     pub(super) fn new(
         device: &wgpu::Device,
-        accum_format: wgpu::TextureFormat,
         (width, height): (u32, u32),
         splat_capacity: u32,
     ) -> Self {
@@ -149,59 +148,6 @@ impl ComputeSplats {
                 cache: None,
             })
         };
-        let f = wgpu::ShaderStages::FRAGMENT;
-        let resolve_layout = layout(
-            device,
-            "compute resolve layout",
-            &[
-                uniform_entry(0, f),
-                storage_entry(1, f),
-                storage_entry(2, f),
-            ],
-        );
-        let resolve_module = shader(
-            device,
-            "compute_resolve.wgsl",
-            &[
-                include_str!("../shaders/frame.wgsl"),
-                include_str!("../shaders/compute_resolve.wgsl"),
-            ],
-        );
-        let resolve = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("compute resolve"),
-            layout: Some(&pipeline_layout(
-                device,
-                "compute resolve pipeline layout",
-                &[&resolve_layout],
-            )),
-            vertex: wgpu::VertexState {
-                module: &resolve_module,
-                entry_point: Some("vs_full"),
-                compilation_options: Default::default(),
-                buffers: &[],
-            },
-            primitive: Default::default(),
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Always),
-                stencil: Default::default(),
-                bias: Default::default(),
-            }),
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &resolve_module,
-                entry_point: Some("fs_resolve"),
-                compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: accum_format,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
         use wgpu::BufferUsages as U;
         let buffer = |label, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -223,10 +169,8 @@ impl ComputeSplats {
             attributes: pipeline("cs_attributes", &plain),
             lone_visibility: pipeline("cs_lone_visibility", &plain),
             lone_attributes: pipeline("cs_lone_attributes", &plain),
-            resolve,
             layout: splat_layout,
             dispatch_layout,
-            resolve_layout,
             setup: buffer("compute splat setup", 16, U::UNIFORM | U::COPY_DST),
             own_args: buffer("compute splat count", 16, U::STORAGE | U::COPY_DST),
             dispatch: buffer(
@@ -275,6 +219,18 @@ impl ComputeSplats {
             entries.buffer = entries_buffer(device, capacity);
             entries.capacity = capacity;
         }
+    }
+
+    /// The visible depth per pixel, row-major: f32 bits, the scene's depth
+    /// where no splat is nearer. Read by the shade pass.
+    pub(super) fn depth_bits(&self) -> &wgpu::Buffer {
+        &self.depth_bits
+    }
+
+    /// The attribute sums per pixel, row-major: four f32 bits, Σw·n and Σw.
+    /// Read by the shade pass.
+    pub(super) fn sums(&self) -> &wgpu::Buffer {
+        &self.accum
     }
 
     /// Frames so far (as read back, a frame or more late) whose tile lists
@@ -409,23 +365,6 @@ impl ComputeSplats {
             pass.set_pipeline(&self.lone_attributes);
             pass.dispatch_workgroups_indirect(&self.dispatch, 32);
         });
-        let resolve_group = bind_in_order(
-            device,
-            "compute resolve bind group",
-            &self.resolve_layout,
-            [
-                frame.as_entire_binding(),
-                self.depth_bits.as_entire_binding(),
-                self.accum.as_entire_binding(),
-            ],
-        );
-        let colour = [cleared(&t.accum_view, wgpu::Color::TRANSPARENT)];
-        let depth = depth_attachment(&t.depth_view, wgpu::LoadOp::Load);
-        render_pass(encoder, profiler, "resolve", &colour, Some(depth), |pass| {
-            pass.set_pipeline(&self.resolve);
-            pass.set_bind_group(0, &resolve_group, &[]);
-            pass.draw(0..3, 0..1);
-        });
         let mut state = self.readback.lock().unwrap_or_else(|e| e.into_inner());
         if *state == Readback::Idle {
             encoder.copy_buffer_to_buffer(&self.dispatch, 12, &self.totals, 0, 8);
@@ -520,7 +459,7 @@ fn size_buffers(
             (HEAD + 4 * tiles + 2) * 4,
             U::STORAGE | U::COPY_DST,
         ),
-        buffer("compute splat depth", pixels * 4, U::STORAGE),
-        buffer("compute splat sums", pixels * 16, U::STORAGE),
+        buffer("compute splat depth", pixels * 4, U::STORAGE | U::COPY_SRC),
+        buffer("compute splat sums", pixels * 16, U::STORAGE | U::COPY_SRC),
     )
 }

@@ -26,7 +26,7 @@ use crate::camera::Camera;
 use crate::context::GpuContext;
 use crate::error::{RenderError, Result};
 use crate::geometry::{Backdrop, SceneGeometry};
-use crate::readback::{Accumulation, read_texture};
+use crate::readback::{Accumulation, read_buffer, read_texture};
 use crate::shading::Shading;
 use crate::splat::{GpuSplat, Splat};
 use crate::textures::Environment;
@@ -41,12 +41,11 @@ use targets::{Surroundings, Targets, check_size};
 
 const MIN_SPLAT_CAPACITY: usize = 1024;
 
-/// How the visibility and attribute passes draw the splats.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+/// How the visibility and attribute passes draw the splats. A new
+/// renderer takes [`SplatPath::for_device`] of its adapter.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SplatPath {
-    /// The raster hardware: each splat a quad, depth-tested and blended
-    /// (the default).
-    #[default]
+    /// The raster hardware: each splat a quad, depth-tested and blended.
     Raster,
     /// Compute shaders: splats binned to 8×8-pixel screen tiles, each tile's
     /// pixels tested against its splats in workgroup memory, past the raster
@@ -56,6 +55,18 @@ pub enum SplatPath {
 }
 
 impl SplatPath {
+    /// The faster path on an adapter of `device_type`, as measured (BENCHMARKS.md, "Compute
+    /// splatting beside raster splatting"): compute on a GPU, where it took
+    /// 2.2–4.5× less GPU time than raster at 20k–1M surfels on an NVIDIA
+    /// H200; raster on a CPU adapter (lavapipe, llvmpipe), where compute
+    /// was slower at 20k and 100k surfels and within 10 % at 1M.
+    pub fn for_device(device_type: wgpu::DeviceType) -> Self {
+        match device_type {
+            wgpu::DeviceType::Cpu => SplatPath::Raster,
+            _ => SplatPath::Compute,
+        }
+    }
+
     /// Its name on the command line: `raster` or `compute`.
     pub fn name(self) -> &'static str {
         match self {
@@ -152,7 +163,7 @@ impl SplatRenderer {
         let splats = create_splat_buffer(device, MIN_SPLAT_CAPACITY);
         let targets = Targets::new(device, width, height, accum_format);
         let around = Surroundings::new(ctx, env);
-        Ok(Self {
+        let mut renderer = Self {
             accum_format,
             scene: ScenePass::new(device, &frame, &around),
             splat_passes: SplatPasses::new(device, accum_format, &frame, &splats, &targets),
@@ -169,7 +180,16 @@ impl SplatRenderer {
             targets,
             path: SplatPath::Raster,
             compute: None,
-        })
+        };
+        // The adapter's faster path, where its memory fits this size
+        // (the raster path otherwise, which needs none).
+        let preferred = SplatPath::for_device(ctx.adapter.get_info().device_type);
+        if preferred == SplatPath::Compute
+            && let Err(e) = renderer.set_splat_path(ctx, preferred)
+        {
+            log::info!("{e}: splats drawn by the raster path");
+        }
+        Ok(renderer)
     }
 
     /// The splat path in use.
@@ -215,17 +235,23 @@ impl SplatRenderer {
         }
         let size = self.size();
         let splats = self.splat_buffer_len();
-        match &mut self.compute {
-            Some(c) => c.reserve(&ctx.device, size, splats),
-            None => {
-                self.compute = Some(ComputeSplats::new(
-                    &ctx.device,
-                    self.accum_format,
-                    size,
-                    splats,
-                ));
+        let compute = match &mut self.compute {
+            Some(c) => {
+                c.reserve(&ctx.device, size, splats);
+                c
             }
-        }
+            None => self
+                .compute
+                .insert(ComputeSplats::new(&ctx.device, size, splats)),
+        };
+        self.shade.bind_buffers(
+            &ctx.device,
+            &self.frame,
+            &self.targets,
+            &self.around,
+            compute.sums(),
+            compute.depth_bits(),
+        );
     }
 
     /// Frames drawn by the compute path whose tile lists outgrew their
@@ -550,7 +576,8 @@ impl SplatRenderer {
                     .record_attribute(encoder, profiler, t, &draw);
             }
         }
-        self.shade.record(encoder, profiler, t);
+        let from_buffers = self.compute_drawn().is_some();
+        self.shade.record(encoder, profiler, t, from_buffers);
         Ok(())
     }
 
@@ -596,12 +623,23 @@ impl SplatRenderer {
             .ok_or_else(|| RenderError::Readback("image size mismatch".into()))
     }
 
-    /// Reads the accumulation target (Σ wᵢ nᵢ, Σ wᵢ) of the last render.
+    /// Reads the accumulation target (Σ wᵢ nᵢ, Σ wᵢ) of the last render;
+    /// on the compute path, its sums (in f32, whatever
+    /// [`accumulation_format`](Self::accumulation_format) is).
     ///
     /// # Errors
     /// [`RenderError::Readback`].
     pub fn read_accumulation(&self, ctx: &GpuContext) -> Result<Accumulation> {
         let t = &self.targets;
+        if let Some(compute) = self.compute_drawn() {
+            let bytes = read_buffer(ctx, compute.sums())?;
+            return Accumulation::from_bytes(
+                t.width,
+                t.height,
+                wgpu::TextureFormat::Rgba32Float,
+                &bytes,
+            );
+        }
         let texel = self.accum_format.block_copy_size(None).unwrap_or(16);
         let bytes = read_texture(ctx, &t.accum, wgpu::TextureAspect::All, texel)?;
         Accumulation::from_bytes(t.width, t.height, self.accum_format, &bytes)
@@ -613,8 +651,18 @@ impl SplatRenderer {
     /// # Errors
     /// [`RenderError::Readback`].
     pub fn read_depth(&self, ctx: &GpuContext) -> Result<Vec<f32>> {
-        let bytes = read_texture(ctx, &self.targets.depth, wgpu::TextureAspect::DepthOnly, 4)?;
+        let bytes = match self.compute_drawn() {
+            Some(compute) => read_buffer(ctx, compute.depth_bits())?,
+            None => read_texture(ctx, &self.targets.depth, wgpu::TextureAspect::DepthOnly, 4)?,
+        };
         Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    /// The compute passes, where they draw the splats.
+    fn compute_drawn(&self) -> Option<&ComputeSplats> {
+        self.compute
+            .as_ref()
+            .filter(|_| self.path == SplatPath::Compute)
     }
 }
 
@@ -683,5 +731,19 @@ mod layout_tests {
             }
         )
         .unwrap();
+    }
+}
+
+#[cfg(test)]
+mod path_tests {
+    use super::SplatPath;
+
+    #[test]
+    fn gpus_splat_in_compute_and_software_adapters_by_raster() {
+        use wgpu::DeviceType as D;
+        assert_eq!(SplatPath::for_device(D::Cpu), SplatPath::Raster);
+        for gpu in [D::DiscreteGpu, D::IntegratedGpu, D::VirtualGpu, D::Other] {
+            assert_eq!(SplatPath::for_device(gpu), SplatPath::Compute);
+        }
     }
 }

@@ -1,7 +1,8 @@
 // Per-pixel normalisation and deferred shading as a compute pass (eq. 38-40).
+// `sums_at` and `depth_at` (the visibility pass's sums and depth) come from
+// shade_targets.wgsl (the raster path) or shade_buffers.wgsl (the compute
+// path), with bindings 1 and 2.
 
-@group(0) @binding(1) var accum_tex: texture_2d<f32>;
-@group(0) @binding(2) var depth_tex: texture_depth_2d;
 @group(0) @binding(3) var env_tex: texture_2d<f32>;
 @group(0) @binding(4) var env_sampler: sampler;
 // The scene pass's image: backdrop and geometry, what the fluid refracts.
@@ -28,7 +29,7 @@ fn thickness(px: vec2<i32>, xy: vec2<f32>) -> f32 {
     if frame.flags.z < 0.5 || back <= 0.0 {
         return 0.0;
     }
-    let front = ray_distance(xy, textureLoad(depth_tex, px, 0)) - frame.params.x;
+    let front = ray_distance(xy, depth_at(px)) - frame.params.x;
     return max(ray_distance(xy, back) - front, 0.0);
 }
 
@@ -41,7 +42,7 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
     let px = vec2<i32>(id.xy);
     let xy = vec2<f32>(id.xy) + 0.5;
     let uv = xy * frame.viewport.zw;
-    let a = textureLoad(accum_tex, px, 0);
+    let a = sums_at(px);
     let mode = u32(frame.params.w);
     let dir = world_ray(xy);
 
@@ -65,7 +66,7 @@ fn cs_shade(@builtin(global_invocation_id) id: vec3<u32>) {
                 colour = vec3<f32>(min(a.w / frame.params.z, 1.0));
             }
             case 3u: {
-                let d = textureLoad(depth_tex, px, 0);
+                let d = depth_at(px);
                 let near = frame.ray.z;
                 let far = frame.ray.w;
                 let linear = near * far / (far - d * (far - near));
