@@ -6,8 +6,12 @@
 //! in a rayon pool of that many threads, with the speed-up over one thread.
 //!
 //! ```text
-//! cargo run --release --example scaling [-- --frames F] [--max-threads N]
+//! cargo run --release --example scaling [-- --frames F] [--max-threads N] [--sweep]
 //! ```
+//!
+//! `--sweep` instead times PBF frames at about 5k, 10k, 20k and 40k
+//! particles and DFSPH at 10k for every even thread count up to the
+//! cores: where a scene stops gaining from more threads.
 //!
 //! Each row starts from the scene's first frame and times `--frames` frames
 //! (default 20) after two untimed ones; the extraction is timed five times
@@ -59,13 +63,14 @@ fn extraction(particles: &Particles, h: f32) -> Result<f64, Error> {
 }
 
 fn main() -> Result<(), Error> {
-    let (mut count, mut max_threads) = (20usize, usize::MAX);
+    let (mut count, mut max_threads, mut sweep) = (20usize, usize::MAX, false);
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
         match arg.as_str() {
             "--frames" => count = value("--frames")?.parse()?,
             "--max-threads" => max_threads = value("--max-threads")?.parse()?,
+            "--sweep" => sweep = true,
             other => return Err(format!("unknown argument `{other}`").into()),
         }
     }
@@ -73,35 +78,63 @@ fn main() -> Result<(), Error> {
         return Err("--frames must be at least 1".into());
     }
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let threads: Vec<usize> = [1, 2, 4, 8, 16]
+    let counts: Vec<usize> = if sweep {
+        [1, 2].into_iter().chain((4..=64).step_by(2)).collect()
+    } else {
+        vec![1, 2, 4, 8, 16]
+    };
+    let threads: Vec<usize> = counts
         .into_iter()
         .filter(|&n| n <= cores.min(max_threads))
         .collect();
     let pbf = |spacing| Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Pbf);
-    let cases = [
+    let dfsph = |spacing| Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Dfsph);
+    let cases = if sweep {
+        vec![
+            ("PBF frame, 5k", pbf(0.0126), false),
+            ("PBF frame, 10k", pbf(0.01), false),
+            ("PBF frame, 20k", pbf(0.0079), false),
+            ("PBF frame, 40k", pbf(0.0063), false),
+            ("DFSPH frame, 10k", dfsph(0.01), false),
+        ]
+    } else {
+        scaling_cases(pbf, dfsph)
+    };
+    run(&cases, &threads, count)
+}
+
+/// The default rows: PBF at 10k and 100k (each with the extraction of its
+/// last state) and DFSPH at 10k.
+fn scaling_cases(
+    pbf: impl Fn(f32) -> Scene,
+    dfsph: impl Fn(f32) -> Scene,
+) -> Vec<(&'static str, Scene, bool)> {
+    vec![
         ("PBF frame, 10k", pbf(0.01), true),
         ("PBF frame, 100k", pbf(0.00455), true),
-        (
-            "DFSPH frame, 10k",
-            Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Dfsph),
-            false,
-        ),
-    ];
+        ("DFSPH frame, 10k", dfsph(0.01), false),
+    ]
+}
+
+/// Times `cases` (name, scene, whether to time its extraction too) at
+/// every thread count of `threads`, `count` frames each, and prints the
+/// table.
+fn run(cases: &[(&str, Scene, bool)], threads: &[usize], count: usize) -> Result<(), Error> {
     println!(
         "slab dam break, {count} frames of 1/60 s after 2 untimed; median ms (speed-up over 1 thread)"
     );
     print!("{:<34}", "");
-    for n in &threads {
+    for n in threads {
         print!("{:>18}", format!("{n} threads"));
     }
     println!();
-    for (name, scene, extract) in &cases {
+    for (name, scene, extract) in cases {
         let particles = scene.particles()?.len();
         let mut rows = vec![(format!("{name} ({particles})"), Vec::new())];
         if *extract {
             rows.push(("anisotropic extraction of it".to_string(), Vec::new()));
         }
-        for &n in &threads {
+        for &n in threads {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
             let (frame, world) = pool.install(|| frames(scene, count))?;
             rows[0].1.push(frame);

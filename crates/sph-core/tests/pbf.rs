@@ -362,6 +362,53 @@ fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     }
 }
 
+/// A scene smaller than the caller's pool gains from steps on
+/// `useful_threads` of them, and gives the same results as on any count.
+#[test]
+fn a_small_scene_steps_on_the_threads_it_gains_from() {
+    use sph_core::processor::{Context, Processor};
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Records the threads of the pool the step's processors run in.
+    struct PoolSize(Arc<AtomicUsize>);
+    impl Processor for PoolSize {
+        fn name(&self) -> &str {
+            "pool size"
+        }
+        fn process(&mut self, _: &mut Particles, _: &mut Context) -> sph_core::error::Result<()> {
+            self.0
+                .store(rayon::current_num_threads(), Ordering::Relaxed);
+            Ok(())
+        }
+    }
+
+    let scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Pbf);
+    let want = sph_core::useful_threads(scene.particles().unwrap().len());
+    assert_eq!(want, 8);
+    let run = |threads| {
+        let seen = Arc::new(AtomicUsize::new(0));
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let positions = pool.install(|| {
+            let mut world = scene.build_world().unwrap();
+            world.program_mut().push(PoolSize(seen.clone()));
+            for _ in 0..3 {
+                world.advance(1.0 / 60.0).unwrap();
+            }
+            world.step().unwrap();
+            world.particles.positions().to_vec()
+        });
+        (seen.load(Ordering::Relaxed), positions)
+    };
+    let (narrow, narrowed) = run(12);
+    let (all, whole) = run(3);
+    assert_eq!((narrow, all), (want, 3));
+    assert_eq!(narrowed, whole);
+}
+
 /// `scene` under PBF with XSPH, and with the implicit viscosity.
 fn with_both_viscosities(scene: Scene) -> [Scene; 2] {
     let xsph = scene.with_solver(SolverKind::Pbf);

@@ -39,7 +39,7 @@ pub use stations::{
     Sink, nozzle_corners, nozzle_points,
 };
 pub use wcsph::{DensityPressure, Forces};
-pub use world::{FrameReport, World};
+pub use world::{FrameReport, World, useful_threads};
 
 use crate::boundary::Boundary;
 use crate::error::{Error, Result};

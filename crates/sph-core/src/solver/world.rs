@@ -23,6 +23,22 @@ pub struct World {
     recycled_grid: Option<crate::NeighbourGrid>,
     /// Last step's neighbour lists, rebuilt in place.
     recycled_lists: Option<crate::NeighbourLists>,
+    /// A pool of [`useful_threads`] threads, for a scene too small to gain
+    /// from all of the caller's: made when first needed, kept while the
+    /// count stays.
+    narrow_pool: Option<rayon::ThreadPool>,
+}
+
+/// The most threads a step of `particles` particles gains from: 8, or one
+/// per 3,000 particles where that is more. Measured on a 16-core Xeon
+/// (`examples/scaling.rs --sweep`, BENCHMARKS.md "Threads"): PBF frames of
+/// 4k–20k particles and DFSPH's of 10k were fastest at 6–12 threads and
+/// 15–90 % slower at 16 (each of a substep's passes is a fork-join whose
+/// cost grows with the threads), 37k gained up to 12–14 threads and 100k
+/// up to 16. A [`World`] steps in a pool of this many threads when the
+/// caller's has more; its results are the same for any thread count.
+pub fn useful_threads(particles: usize) -> usize {
+    (particles / 3_000).max(8)
 }
 
 /// What one call of [`World::advance`] did.
@@ -138,6 +154,7 @@ impl World {
             step: 0,
             recycled_grid: None,
             recycled_lists: None,
+            narrow_pool: None,
         })
     }
 
@@ -208,11 +225,33 @@ impl World {
 
     /// Takes one step of the stable length; returns it.
     pub fn step(&mut self) -> Result<f32> {
-        on_pool(|| {
+        let pool = self.take_pool();
+        let stepped = on_pool(pool.as_ref(), || {
             let dt = self.checked_stable_dt()?;
             self.step_by(dt)?;
             Ok(dt)
-        })
+        });
+        self.narrow_pool = pool;
+        stepped
+    }
+
+    /// The pool to step in: [`useful_threads`] threads where the caller's
+    /// pool has more, else none (the caller's).
+    fn take_pool(&mut self) -> Option<rayon::ThreadPool> {
+        let want = useful_threads(self.particles.len());
+        if rayon::current_num_threads() <= want {
+            return None;
+        }
+        match self.narrow_pool.take() {
+            Some(pool) if pool.current_num_threads() == want => Some(pool),
+            // A pool that cannot be made leaves the step on the caller's,
+            // with the same results.
+            _ => rayon::ThreadPoolBuilder::new()
+                .num_threads(want)
+                .thread_name(|i| format!("sph-step-{i}"))
+                .build()
+                .ok(),
+        }
     }
 
     /// [`stable_dt`](Self::stable_dt), or the blow-up error when it is NaN or
@@ -234,7 +273,10 @@ impl World {
     /// would be longer than its `max_dt`.
     pub fn advance(&mut self, frame_dt: f32) -> Result<FrameReport> {
         positive("frame_dt", frame_dt)?;
-        on_pool(|| self.advance_by(frame_dt))
+        let pool = self.take_pool();
+        let report = on_pool(pool.as_ref(), || self.advance_by(frame_dt));
+        self.narrow_pool = pool;
+        report
     }
 
     /// [`Self::advance`], on a thread of rayon's pool.
@@ -390,12 +432,16 @@ impl std::fmt::Debug for World {
     }
 }
 
-/// Runs `f` on a thread of rayon's pool (this one, when it is one). The
-/// processors' parallel passes then split their work with `join` from
-/// inside the pool, instead of handing each pass to the pool and putting the
-/// calling thread to sleep until it is done: PBF's 10k substep took 10 %
-/// less time on two cores (`docs/benchmark-notes.md`, "PBF's pair sums in
-/// AVX2 lanes"). The work and its order are the same either way.
-fn on_pool<R: Send>(f: impl FnOnce() -> R + Send) -> R {
-    rayon::scope(|_| f())
+/// Runs `f` on a thread of `pool`, or of rayon's current pool (this one,
+/// when it is one). The processors' parallel passes then split their work
+/// with `join` from inside the pool, instead of handing each pass to the
+/// pool and putting the calling thread to sleep until it is done: PBF's 10k
+/// substep took 10 % less time on two cores (`docs/benchmark-notes.md`,
+/// "PBF's pair sums in AVX2 lanes"). The work and its order are the same
+/// either way.
+fn on_pool<R: Send>(pool: Option<&rayon::ThreadPool>, f: impl FnOnce() -> R + Send) -> R {
+    match pool {
+        Some(pool) => pool.install(f),
+        None => rayon::scope(|_| f()),
+    }
 }
