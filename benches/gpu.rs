@@ -11,7 +11,9 @@
 //!   (thesis mode, isotropic: `gpu`; anisotropic: `gpu_anisotropic`; the
 //!   demo's default, covered mode on the anisotropic field: `gpu_demo`)
 //!   reading the solver's buffers and the render in one submission, and
-//!   nothing leaves the GPU;
+//!   nothing leaves the GPU; the splats drawn by the adapter's path
+//!   (`SplatPath::for_device`), and `gpu_demo_raster` the demo's frame by
+//!   the raster path where that is another;
 //! - `wcsph_step`: one step of the thesis's WCSPH (`World::step` vs
 //!   `GpuSolver::step`, waiting for the device) — one step, not a frame: a
 //!   1/60 s frame of the dam break takes 50–100 of them;
@@ -41,7 +43,9 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use sph_core::{Scene, SolverKind, World};
 use sph_gpu::{GpuExtractor, GpuParticles, GpuPbf, GpuSolver};
 use splat_render::wgpu_profiler::{GpuProfiler, GpuProfilerSettings};
-use splat_render::{Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, wgpu};
+use splat_render::{
+    Camera, Environment, GpuContext, Shading, Splat, SplatPath, SplatRenderer, wgpu,
+};
 use surfel_extract::{ExtractParams, Extractor, extract};
 
 /// A 3D dam break of side `a` (m) at 1 cm spacing after one CPU step, and a
@@ -324,11 +328,24 @@ fn pbf_frames(c: &mut Criterion, ctx: &GpuContext, label: &str, a: f32) {
     }
     let mut anisotropic = gpu_extractor(ctx, &gpu, &thesis.anisotropic());
     let mut demo = gpu_extractor(ctx, &gpu, &covered.anisotropic());
-    for (name, extractor) in [
-        ("gpu", &mut extractor),
-        ("gpu_anisotropic", &mut anisotropic),
-        ("gpu_demo", &mut demo),
+    let adapters_path = renderer.splat_path();
+    for (name, path) in [
+        ("gpu", adapters_path),
+        ("gpu_anisotropic", adapters_path),
+        ("gpu_demo", adapters_path),
+        // The demo's frame with the raster splat path, beside the adapter's
+        // (compute on a GPU, `SplatPath::for_device`).
+        ("gpu_demo_raster", SplatPath::Raster),
     ] {
+        if name == "gpu_demo_raster" && path == adapters_path {
+            continue;
+        }
+        let extractor = match name {
+            "gpu" => &mut extractor,
+            "gpu_anisotropic" => &mut anisotropic,
+            _ => &mut demo,
+        };
+        renderer.set_splat_path(ctx, path).expect("splat path");
         renderer
             .use_gpu_splats(
                 ctx,
