@@ -24,16 +24,107 @@
 //!
 //! `--solver-toml` is the solver's own table (`[solver.pbf]` or
 //! `[solver.dfsph]`); `--spacing` sets the resolution (5 mm by default, h =
-//! 2 spacings). Only WCSPH applies σ so far (issue 42): under PBF and DFSPH
-//! the drop keeps its shape.
+//! 2 spacings); `--mu` the viscosity (0.01 Pa·s by default). Only WCSPH
+//! applies σ so far (issue 42): under PBF and DFSPH the drop keeps its
+//! shape, and σ is left out of their fluid (they refuse it).
+//!
+//! `--akinci GAMMA` adds a prototype of Akinci et al. 2013's cohesion and
+//! curvature forces with coefficient γ as a custom processor (after PBF's
+//! `viscosity` station, or DFSPH's `forces`), for the measurements of
+//! `docs/benchmark-notes.md`, "Surface tension for PBF and DFSPH": not a
+//! solver feature, and γ is not σ.
 
+use rayon::prelude::*;
 use sph_core::glam::Vec3;
+use sph_core::kernels::{Kernel, Poly6};
+use sph_core::processor::{Context, Processor};
 use sph_core::{Aabb, Boundary, FluidParams, Particles, Solver, SolverKind, TimeStepping, World};
+
+/// Akinci et al. 2013's surface forces, a = −γ Σ_j K_ij (m_j C(r) r̂ +
+/// n_i − n_j) with K_ij = 2ρ0/(ρ_i + ρ_j) and n_i = h Σ_j (m_j/ρ_j) ∇W_ij,
+/// added to the velocities as Δt a, over the step's neighbour lists at the
+/// current positions (as SPlisHSPlasH's `SurfaceTension_Akinci2013`).
+struct Akinci {
+    gamma: f32,
+    rho0: f32,
+    poly6: Poly6,
+}
+
+impl Akinci {
+    /// Akinci's cohesion spline C(r) of support h.
+    fn cohesion(&self, r: f32) -> f32 {
+        let h = self.poly6.h();
+        let k = 32.0 / (std::f32::consts::PI * h.powi(9));
+        if r > h || r <= 0.0 {
+            0.0
+        } else if 2.0 * r > h {
+            k * (h - r).powi(3) * r.powi(3)
+        } else {
+            k * (2.0 * (h - r).powi(3) * r.powi(3) - h.powi(6) / 64.0)
+        }
+    }
+}
+
+impl Processor for Akinci {
+    fn name(&self) -> &str {
+        "akinci"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> sph_core::Result<()> {
+        let lists = ctx.neighbours.as_ref().ok_or(sph_core::Error::Pipeline {
+            processor: "akinci",
+            reason: "needs the step's neighbour lists",
+        })?;
+        let h = self.poly6.h();
+        let (x, m, rho) = (
+            particles.positions(),
+            particles.masses(),
+            particles.densities(),
+        );
+        // Particle i's neighbours within h now: (j, x_i − x_j, r²).
+        let near = |i: usize| {
+            lists.of(i).iter().filter_map(move |&j| {
+                let j = j as usize;
+                let d = x[i] - x[j];
+                let r2 = d.length_squared();
+                (r2 < h * h && r2 > 0.0).then_some((j, d, r2))
+            })
+        };
+        let normals: Vec<Vec3> = (0..x.len())
+            .into_par_iter()
+            .map(|i| {
+                h * near(i)
+                    .map(|(j, d, r2)| m[j] / rho[j] * self.poly6.gradient_r2(d, r2))
+                    .sum::<Vec3>()
+            })
+            .collect();
+        let dt = ctx.dt;
+        let dv: Vec<Vec3> = (0..x.len())
+            .into_par_iter()
+            .map(|i| {
+                let a: Vec3 = near(i)
+                    .map(|(j, d, r2)| {
+                        let r = r2.sqrt();
+                        let k = 2.0 * self.rho0 / (rho[i] + rho[j]);
+                        -self.gamma
+                            * k
+                            * (m[j] * self.cohesion(r) * d / r + normals[i] - normals[j])
+                    })
+                    .sum();
+                dt * a
+            })
+            .collect();
+        for (v, dv) in particles.fields_mut().velocities.iter_mut().zip(dv) {
+            *v += dv;
+        }
+        Ok(())
+    }
+}
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kind = SolverKind::Wcsph;
     let (mut seconds, mut ellipsoid, mut eps) = (4.0f64, false, 0.1f32);
     let (mut spacing, mut sigma, mut table) = (0.005f32, 0.0728f32, String::new());
+    let (mut mu, mut akinci) = (0.01f32, None);
     let mut args = std::env::args().skip(1);
     let mut positional = 0;
     while let Some(arg) = args.next() {
@@ -50,6 +141,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--spacing" => spacing = value("--spacing")?.parse()?,
             "--sigma" => sigma = value("--sigma")?.parse()?,
             "--solver-toml" => table = value("--solver-toml")?,
+            "--mu" => mu = value("--mu")?.parse()?,
+            "--akinci" => akinci = Some(value("--akinci")?.parse::<f32>()?),
             _ if positional == 0 => {
                 kind = SolverKind::from_name(&arg).ok_or(format!("unknown solver `{arg}`"))?;
                 positional += 1;
@@ -57,10 +150,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             _ => seconds = arg.parse()?,
         }
     }
-    let mu = 0.01f32;
     let params = FluidParams {
         gravity: Vec3::ZERO,
-        surface_tension: sigma,
+        surface_tension: if kind == SolverKind::Wcsph {
+            sigma
+        } else {
+            0.0
+        },
         viscosity: mu,
         ..FluidParams::water(2.0 * spacing)
     };
@@ -115,6 +211,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let boundary = Boundary::new(Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)));
     let mut world =
         World::with_solver(particles, params, boundary, TimeStepping::default(), solver)?;
+    if let Some(gamma) = akinci {
+        let forces = Akinci {
+            gamma,
+            rho0: params.rest_density,
+            poly6: Poly6::new(params.h)?,
+        };
+        let after = match kind {
+            SolverKind::Pbf => "viscosity",
+            _ => "forces",
+        };
+        if !world.program_mut().insert_after(after, forces) {
+            return Err(format!("no `{after}` station to put Akinci's forces after").into());
+        }
+    }
     println!(
         "{kind}: {count} particles at {spacing} m, R = {radius:.4} m, σ = {sigma} N/m, μ = {mu} Pa·s; \
          Rayleigh's l = 2 period {rayleigh:.3} s, Lamb's damping {lamb:.3} 1/s, Laplace's 2σ/R {laplace:.2} Pa"
