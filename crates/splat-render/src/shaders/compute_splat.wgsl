@@ -15,8 +15,8 @@
 // and grows it for the next frame), the frame is still drawn whole: a splat
 // that did not fit in one of its tiles' lists is flagged, skipped there,
 // and listed apart; every tile then also runs over that list in chunks.
-// A full-screen pass (compute_resolve.wgsl) turns them into the depth and
-// accumulation targets the shade pass reads.
+// The depth and sums stay in their buffers, which the shade pass reads
+// (shade_buffers.wgsl).
 
 const TILE: u32 = 8u;
 const CHUNK: u32 = 64u;
