@@ -13,7 +13,8 @@
 //!   reading the solver's buffers and the render in one submission, and
 //!   nothing leaves the GPU; the splats drawn by the adapter's path
 //!   (`SplatPath::for_device`), and `gpu_demo_raster` the demo's frame by
-//!   the raster path where that is another;
+//!   the raster path where that is another (each row continues the dam
+//!   break where the last left it: a later state, not like for like);
 //! - `wcsph_step`: one step of the thesis's WCSPH (`World::step` vs
 //!   `GpuSolver::step`, waiting for the device) — one step, not a frame: a
 //!   1/60 s frame of the dam break takes 50–100 of them;

@@ -37,6 +37,8 @@ fn step(c: &mut Criterion) {
                 .build()
                 .expect("thread pool");
             let mut w = dam_break(a);
+            // The step on every thread of the pool, past `useful_threads`.
+            w.use_every_thread(true);
             let id = BenchmarkId::new(format!("{label}/threads"), t);
             group.bench_function(id, |b| {
                 b.iter(|| pool.install(|| black_box(w.step().expect("stable"))))

@@ -6,12 +6,17 @@
 //! in a rayon pool of that many threads, with the speed-up over one thread.
 //!
 //! ```text
-//! cargo run --release --example scaling [-- --frames F] [--max-threads N] [--sweep]
+//! cargo run --release --example scaling [-- --frames F] [--max-threads N] [--sweep] [--every-thread]
 //! ```
 //!
 //! `--sweep` instead times PBF frames at about 5k, 10k, 20k and 40k
 //! particles and DFSPH at 10k for every even thread count up to the
 //! cores: where a scene stops gaining from more threads.
+//!
+//! A `World` steps on at most `sph_core::useful_threads(n)` of the pool's
+//! threads (max(8, n/3000)), so the default table shows what a user gets;
+//! `--every-thread` (and `--sweep`) lifts that cap to time the step on
+//! every thread of each pool.
 //!
 //! Each row starts from the scene's first frame and times `--frames` frames
 //! (default 20) after two untimed ones; the extraction is timed five times
@@ -33,8 +38,9 @@ fn median(v: &mut [f64]) -> f64 {
 
 /// Milliseconds per frame (median of `frames`, after two untimed ones) of
 /// `scene` in the current pool, and the world it ends in.
-fn frames(scene: &Scene, frames: usize) -> Result<(f64, World), Error> {
+fn frames(scene: &Scene, frames: usize, every: bool) -> Result<(f64, World), Error> {
     let mut world = scene.build_world()?;
+    world.use_every_thread(every);
     for _ in 0..2 {
         world.advance(1.0 / 60.0)?;
     }
@@ -63,14 +69,15 @@ fn extraction(particles: &Particles, h: f32) -> Result<f64, Error> {
 }
 
 fn main() -> Result<(), Error> {
-    let (mut count, mut max_threads, mut sweep) = (20usize, usize::MAX, false);
+    let (mut count, mut max_threads, mut sweep, mut every) = (20usize, usize::MAX, false, false);
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
         match arg.as_str() {
             "--frames" => count = value("--frames")?.parse()?,
             "--max-threads" => max_threads = value("--max-threads")?.parse()?,
-            "--sweep" => sweep = true,
+            "--sweep" => (sweep, every) = (true, true),
+            "--every-thread" => every = true,
             other => return Err(format!("unknown argument `{other}`").into()),
         }
     }
@@ -100,7 +107,7 @@ fn main() -> Result<(), Error> {
     } else {
         scaling_cases(pbf, dfsph)
     };
-    run(&cases, &threads, count)
+    run(&cases, &threads, count, every)
 }
 
 /// The default rows: PBF at 10k and 100k (each with the extraction of its
@@ -118,10 +125,20 @@ fn scaling_cases(
 
 /// Times `cases` (name, scene, whether to time its extraction too) at
 /// every thread count of `threads`, `count` frames each, and prints the
-/// table.
-fn run(cases: &[(&str, Scene, bool)], threads: &[usize], count: usize) -> Result<(), Error> {
+/// table; with `every`, the steps use every thread of each pool.
+fn run(
+    cases: &[(&str, Scene, bool)],
+    threads: &[usize],
+    count: usize,
+    every: bool,
+) -> Result<(), Error> {
     println!(
-        "slab dam break, {count} frames of 1/60 s after 2 untimed; median ms (speed-up over 1 thread)"
+        "slab dam break, {count} frames of 1/60 s after 2 untimed; median ms (speed-up over 1 thread); {}",
+        if every {
+            "steps on every thread of the pool"
+        } else {
+            "steps on at most useful_threads(n) of them"
+        }
     );
     print!("{:<34}", "");
     for n in threads {
@@ -136,7 +153,7 @@ fn run(cases: &[(&str, Scene, bool)], threads: &[usize], count: usize) -> Result
         }
         for &n in threads {
             let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build()?;
-            let (frame, world) = pool.install(|| frames(scene, count))?;
+            let (frame, world) = pool.install(|| frames(scene, count, every))?;
             rows[0].1.push(frame);
             if *extract {
                 let (particles, h) = (&world.particles, world.params().h);

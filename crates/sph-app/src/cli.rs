@@ -94,6 +94,8 @@ pub struct Args {
     pub export_surfels: Option<ExportFormat>,
 
     /// Worker threads for simulation and extraction (default: all cores).
+    /// The simulation steps on at most max(8, particles / 3000) of them,
+    /// the most it gains from (`sph_core::useful_threads`).
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..))]
     pub threads: Option<u16>,
 

@@ -252,8 +252,18 @@ impl App {
             config.format = plain;
         }
         surface.configure(&ctx.device, &config);
-        let renderer =
+        let mut renderer =
             SplatRenderer::new(&ctx, config.width, config.height, &crate::environment())?;
+        // A path forced by --splats from the first frame (the adapter's
+        // choice otherwise); what the compute path cannot draw is an error.
+        if let Some(compute) = self.settings.compute_splats {
+            let path = if compute {
+                SplatPath::Compute
+            } else {
+                SplatPath::Raster
+            };
+            renderer.set_splat_path(&ctx, path)?;
+        }
         let egui_state = egui_winit::State::new(
             self.egui.clone(),
             egui::ViewportId::ROOT,

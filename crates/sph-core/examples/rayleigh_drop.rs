@@ -211,6 +211,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let boundary = Boundary::new(Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)));
     let mut world =
         World::with_solver(particles, params, boundary, TimeStepping::default(), solver)?;
+    if akinci.is_some() && kind == SolverKind::Wcsph {
+        return Err(
+            "--akinci needs PBF or DFSPH (their neighbour lists); WCSPH applies σ itself".into(),
+        );
+    }
     if let Some(gamma) = akinci {
         let forces = Akinci {
             gamma,
@@ -226,8 +231,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     println!(
-        "{kind}: {count} particles at {spacing} m, R = {radius:.4} m, σ = {sigma} N/m, μ = {mu} Pa·s; \
-         Rayleigh's l = 2 period {rayleigh:.3} s, Lamb's damping {lamb:.3} 1/s, Laplace's 2σ/R {laplace:.2} Pa"
+        "{kind}: {count} particles at {spacing} m, R = {radius:.4} m, σ = {sigma} N/m ({}), μ = {mu} Pa·s; \
+         Rayleigh's l = 2 period {rayleigh:.3} s, Lamb's damping {lamb:.3} 1/s, Laplace's 2σ/R {laplace:.2} Pa",
+        match (kind, akinci) {
+            (SolverKind::Wcsph, _) => "applied by WCSPH".to_string(),
+            (_, Some(gamma)) => format!("not applied; Akinci's forces with γ = {gamma}"),
+            (_, None) => "not applied".to_string(),
+        }
     );
     // The extent along x: twice the rms distance from the centre along x
     // over √(1/5), the ratio of a sphere's, so a sphere reads 2R; the

@@ -363,7 +363,8 @@ fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
 }
 
 /// A scene smaller than the caller's pool gains from steps on
-/// `useful_threads` of them, and gives the same results as on any count.
+/// `useful_threads` of them (every one with `use_every_thread`), and gives
+/// the same results as on any count.
 #[test]
 fn a_small_scene_steps_on_the_threads_it_gains_from() {
     use sph_core::processor::{Context, Processor};
@@ -386,7 +387,7 @@ fn a_small_scene_steps_on_the_threads_it_gains_from() {
     let scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Pbf);
     let want = sph_core::useful_threads(scene.particles().unwrap().len());
     assert_eq!(want, 8);
-    let run = |threads| {
+    let run = |threads, every| {
         let seen = Arc::new(AtomicUsize::new(0));
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -394,6 +395,7 @@ fn a_small_scene_steps_on_the_threads_it_gains_from() {
             .unwrap();
         let positions = pool.install(|| {
             let mut world = scene.build_world().unwrap();
+            world.use_every_thread(every);
             world.program_mut().push(PoolSize(seen.clone()));
             for _ in 0..3 {
                 world.advance(1.0 / 60.0).unwrap();
@@ -403,10 +405,12 @@ fn a_small_scene_steps_on_the_threads_it_gains_from() {
         });
         (seen.load(Ordering::Relaxed), positions)
     };
-    let (narrow, narrowed) = run(12);
-    let (all, whole) = run(3);
-    assert_eq!((narrow, all), (want, 3));
+    let (narrow, narrowed) = run(12, false);
+    let (every, wide) = run(12, true);
+    let (all, whole) = run(3, false);
+    assert_eq!((narrow, every, all), (want, 12, 3));
     assert_eq!(narrowed, whole);
+    assert_eq!(wide, whole);
 }
 
 /// `scene` under PBF with XSPH, and with the implicit viscosity.

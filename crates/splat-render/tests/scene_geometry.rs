@@ -9,7 +9,7 @@ use image::{Rgba, RgbaImage};
 use splat_render::shading::transmittance;
 use splat_render::{
     Backdrop, Camera, Environment, GpuContext, Material, Mesh, Object, SceneGeometry, Shading,
-    Splat, SplatRenderer, View,
+    Splat, SplatPath, SplatRenderer, View,
 };
 
 const W: u32 = 160;
@@ -42,6 +42,7 @@ fn box_object(min: Vec3, max: Vec3, colour: Vec3) -> Object {
 
 fn renderer(ctx: &GpuContext, env: &Environment, geometry: &SceneGeometry) -> SplatRenderer {
     let mut r = SplatRenderer::new(ctx, W, H, env).unwrap();
+    r.set_splat_path(ctx, SplatPath::Raster).unwrap();
     r.set_geometry(ctx, geometry).unwrap();
     r
 }

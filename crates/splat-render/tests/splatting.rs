@@ -4,8 +4,8 @@
 
 use glam::{Vec2, Vec3};
 use splat_render::{
-    Accumulation, Camera, Environment, GpuContext, Shading, Splat, SplatRenderer, View, alpha_mask,
-    wgpu,
+    Accumulation, Camera, Environment, GpuContext, Shading, Splat, SplatPath, SplatRenderer, View,
+    alpha_mask, wgpu,
 };
 
 const W: u32 = 160;
@@ -18,6 +18,9 @@ fn render(
     shading: &Shading,
 ) -> (SplatRenderer, Accumulation) {
     let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+    // The thesis's passes on the raster hardware (a GPU adapter's own
+    // choice is compute; `compute_path_matches_the_raster_path` compares).
+    r.set_splat_path(ctx, SplatPath::Raster).unwrap();
     r.upload(ctx, splats).unwrap();
     r.render(ctx, camera, shading).unwrap();
     let acc = r.read_accumulation(ctx).unwrap();
@@ -516,7 +519,6 @@ fn profiled_render_times_its_passes_and_draws_the_same() {
 /// path leaves out.)
 #[test]
 fn compute_path_matches_the_raster_path() {
-    use splat_render::SplatPath;
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
@@ -566,6 +568,7 @@ fn compute_path_matches_the_raster_path() {
             ..Default::default()
         };
         let mut r = SplatRenderer::new(ctx, W, H, &Environment::procedural()).unwrap();
+        r.set_splat_path(ctx, SplatPath::Raster).unwrap();
         r.upload(ctx, &splats).unwrap();
         r.render(ctx, &cam, &shading).unwrap();
         let (raster, raster_depth) = (
@@ -640,7 +643,6 @@ fn compute_path_matches_the_raster_path() {
 /// to compute before a large upload draws it without overflowing them.
 #[test]
 fn compute_lists_grow_with_the_uploads() {
-    use splat_render::SplatPath;
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
@@ -672,7 +674,6 @@ fn compute_lists_grow_with_the_uploads() {
 /// remade, and the picture matches the raster path's at the new size.
 #[test]
 fn compute_path_follows_resizes() {
-    use splat_render::SplatPath;
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };
@@ -712,7 +713,6 @@ fn compute_path_follows_resizes() {
 /// only on submit.
 #[test]
 fn compute_path_takes_two_encodes_before_a_submit() {
-    use splat_render::SplatPath;
     let Some(ctx) = GpuContext::headless_or_skip() else {
         return;
     };

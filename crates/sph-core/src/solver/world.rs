@@ -25,8 +25,11 @@ pub struct World {
     recycled_lists: Option<crate::NeighbourLists>,
     /// A pool of [`useful_threads`] threads, for a scene too small to gain
     /// from all of the caller's: made when first needed, kept while the
-    /// count stays.
+    /// count stays within two threads of it.
     narrow_pool: Option<rayon::ThreadPool>,
+    /// Whether steps use every thread of the caller's pool
+    /// ([`World::use_every_thread`]).
+    every_thread: bool,
 }
 
 /// The most threads a step of `particles` particles gains from: 8, or one
@@ -155,6 +158,7 @@ impl World {
             recycled_grid: None,
             recycled_lists: None,
             narrow_pool: None,
+            every_thread: false,
         })
     }
 
@@ -231,19 +235,36 @@ impl World {
             self.step_by(dt)?;
             Ok(dt)
         });
-        self.narrow_pool = pool;
+        self.narrow_pool = pool.or(self.narrow_pool.take());
         stepped
     }
 
-    /// The pool to step in: [`useful_threads`] threads where the caller's
-    /// pool has more, else none (the caller's).
+    /// Lets steps use every thread of the caller's pool (`true`), or at
+    /// most [`useful_threads`] of them (`false`, the default): for
+    /// measuring how a step scales past what it gains from. The results
+    /// are the same either way.
+    pub fn use_every_thread(&mut self, every: bool) {
+        self.every_thread = every;
+    }
+
+    /// The pool to step in, taken out of `narrow_pool`: about
+    /// [`useful_threads`] threads where the caller's pool has more, else
+    /// none (the caller's; a kept pool stays kept).
     fn take_pool(&mut self) -> Option<rayon::ThreadPool> {
         let want = useful_threads(self.particles.len());
-        if rayon::current_num_threads() <= want {
+        let caller = rayon::current_num_threads();
+        if self.every_thread || caller <= want {
             return None;
         }
         match self.narrow_pool.take() {
-            Some(pool) if pool.current_num_threads() == want => Some(pool),
+            // Within two threads of the count: a scene whose count hovers
+            // about a multiple of 3,000 particles does not remake it.
+            Some(pool)
+                if pool.current_num_threads().abs_diff(want) <= 2
+                    && pool.current_num_threads() < caller =>
+            {
+                Some(pool)
+            }
             // A pool that cannot be made leaves the step on the caller's,
             // with the same results.
             _ => rayon::ThreadPoolBuilder::new()
@@ -275,7 +296,7 @@ impl World {
         positive("frame_dt", frame_dt)?;
         let pool = self.take_pool();
         let report = on_pool(pool.as_ref(), || self.advance_by(frame_dt));
-        self.narrow_pool = pool;
+        self.narrow_pool = pool.or(self.narrow_pool.take());
         report
     }
 

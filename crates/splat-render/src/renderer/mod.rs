@@ -129,13 +129,22 @@ pub struct SplatRenderer {
     around: Surroundings,
     targets: Targets,
     path: SplatPath,
+    /// Whether `path` is the adapter's choice rather than the caller's: a
+    /// chosen compute path gives way to raster where it cannot draw (a
+    /// size or splat count past its memory, draw arguments it cannot read).
+    chosen: bool,
     /// The compute splat passes, made when [`SplatPath::Compute`] is first
     /// chosen.
     compute: Option<ComputeSplats>,
 }
 
 impl SplatRenderer {
-    /// A renderer drawing `width`×`height` images with the given environment.
+    /// A renderer drawing `width`×`height` images with the given
+    /// environment, by [`SplatPath::for_device`] of its adapter: compute on
+    /// a GPU, where the compute path's memory fits. That chosen path gives
+    /// way to raster, with a log line, where it later cannot draw (a size or
+    /// splat count past its memory, GPU draw arguments it cannot read);
+    /// [`set_splat_path`](Self::set_splat_path) fixes a path instead.
     ///
     /// # Errors
     /// [`RenderError::InvalidSize`] for a zero or oversized side,
@@ -179,15 +188,17 @@ impl SplatRenderer {
             around,
             targets,
             path: SplatPath::Raster,
+            chosen: false,
             compute: None,
         };
         // The adapter's faster path, where its memory fits this size
         // (the raster path otherwise, which needs none).
         let preferred = SplatPath::for_device(ctx.adapter.get_info().device_type);
-        if preferred == SplatPath::Compute
-            && let Err(e) = renderer.set_splat_path(ctx, preferred)
-        {
-            log::info!("{e}: splats drawn by the raster path");
+        if preferred == SplatPath::Compute {
+            match renderer.set_splat_path(ctx, preferred) {
+                Ok(()) => renderer.chosen = true,
+                Err(e) => log::info!("{e}: splats drawn by the raster path"),
+            }
         }
         Ok(renderer)
     }
@@ -197,7 +208,11 @@ impl SplatRenderer {
         self.path
     }
 
-    /// Draws the splats by `path` from the next frame on.
+    /// Draws the splats by `path` from the next frame on, and keeps it: a
+    /// path set here reports what it cannot draw as an error, where the
+    /// adapter's own choice (see [`SplatRenderer::new`]) gives way to
+    /// raster. Setting [`SplatPath::Raster`] frees the compute path's
+    /// memory.
     ///
     /// # Errors
     /// [`RenderError::InvalidSource`] for [`SplatPath::Compute`] while
@@ -214,8 +229,34 @@ impl SplatRenderer {
             compute::check_fits(&ctx.device, self.size(), self.splat_buffer_len())?;
         }
         self.path = path;
+        self.chosen = false;
+        if path == SplatPath::Raster {
+            self.release_compute();
+        }
         self.reserve_compute(ctx);
         Ok(())
+    }
+
+    /// `check` of the compute path's needs: where it fails on a path the
+    /// adapter chose, the raster path takes over (the error is logged);
+    /// on a path the caller chose, the error.
+    fn compute_or_raster(&mut self, check: Result<()>) -> Result<()> {
+        match check {
+            Err(e) if self.chosen => {
+                log::info!("{e}: splats drawn by the raster path from now on");
+                self.path = SplatPath::Raster;
+                self.chosen = false;
+                self.release_compute();
+                Ok(())
+            }
+            other => other,
+        }
+    }
+
+    /// Frees the compute path's memory.
+    fn release_compute(&mut self) {
+        self.compute = None;
+        self.shade.release_buffers();
     }
 
     /// Splats the bound splat buffer holds.
@@ -295,7 +336,8 @@ impl SplatRenderer {
     pub fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
         check_size(ctx, width, height)?;
         if self.path == SplatPath::Compute {
-            compute::check_fits(&ctx.device, (width, height), self.splat_buffer_len())?;
+            let fits = compute::check_fits(&ctx.device, (width, height), self.splat_buffer_len());
+            self.compute_or_raster(fits)?;
         }
         if (width, height) != self.size() {
             self.targets = Targets::new(&ctx.device, width, height, self.accum_format);
@@ -370,8 +412,10 @@ impl SplatRenderer {
         }
         if self.path == SplatPath::Compute && gpu.len() > self.splat_capacity {
             let capacity = u32::try_from(gpu.len().next_power_of_two()).unwrap_or(u32::MAX);
-            compute::check_fits(&ctx.device, self.size(), capacity)?;
+            let fits = compute::check_fits(&ctx.device, self.size(), capacity);
+            self.compute_or_raster(fits)?;
         }
+        let gpu = &self.staging;
         if self.gpu_source.take().is_some() {
             self.splat_passes
                 .bind(&ctx.device, &self.frame, &self.splats);
@@ -431,9 +475,10 @@ impl SplatRenderer {
             ));
         }
         if self.path == SplatPath::Compute {
-            check_args_readable(draw_args)?;
             let count = u32::try_from(splats.size() / per).unwrap_or(u32::MAX);
-            compute::check_fits(&ctx.device, self.size(), count)?;
+            let usable = check_args_readable(draw_args)
+                .and_then(|()| compute::check_fits(&ctx.device, self.size(), count));
+            self.compute_or_raster(usable)?;
         }
         // Called every frame with the same buffers: bind them only when they change.
         if self.gpu_source.as_ref().is_none_or(|g| g.splats != *splats) {
@@ -745,5 +790,47 @@ mod path_tests {
         for gpu in [D::DiscreteGpu, D::IntegratedGpu, D::VirtualGpu, D::Other] {
             assert_eq!(SplatPath::for_device(gpu), SplatPath::Compute);
         }
+    }
+}
+
+#[cfg(test)]
+mod fallback_tests {
+    use super::{SplatPath, SplatRenderer};
+    use crate::{Environment, GpuContext};
+
+    /// A compute path the adapter chose gives way to raster where it cannot
+    /// read the draw arguments; one the caller set reports the error.
+    #[test]
+    fn a_chosen_compute_path_gives_way_and_a_set_one_reports() {
+        let Some(ctx) = GpuContext::headless_or_skip() else {
+            return;
+        };
+        let buffer = |size, usage| {
+            ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: None,
+                size,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        use wgpu::BufferUsages as U;
+        let (splats, args) = (buffer(64, U::STORAGE), buffer(16, U::INDIRECT));
+        let mut r = SplatRenderer::new(ctx, 32, 32, &Environment::procedural()).unwrap();
+        // As on a GPU adapter: the compute path, chosen.
+        r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+        r.chosen = true;
+        r.use_gpu_splats(ctx, &splats, &args).unwrap();
+        assert_eq!(r.splat_path(), SplatPath::Raster);
+        assert!(r.compute.is_none() && !r.chosen);
+
+        // Asked for by the caller, it is refused with the same reason.
+        let err = r.set_splat_path(ctx, SplatPath::Compute).unwrap_err();
+        assert!(err.to_string().contains("storage buffer"), "{err}");
+        assert_eq!(r.splat_path(), SplatPath::Raster);
+        let mut r = SplatRenderer::new(ctx, 32, 32, &Environment::procedural()).unwrap();
+        r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+        let err = r.use_gpu_splats(ctx, &splats, &args).unwrap_err();
+        assert!(err.to_string().contains("storage buffer"), "{err}");
+        assert_eq!(r.splat_path(), SplatPath::Compute);
     }
 }

@@ -84,6 +84,11 @@ impl ShadePass {
         sums: &wgpu::Buffer,
         depth: &wgpu::Buffer,
     ) {
+        if let Some((_, s, d)) = &self.buffers
+            && (s, d) == (sums, depth)
+        {
+            return;
+        }
         let from = SumsFrom::Buffers { sums, depth };
         let variant = match self.buffers.take() {
             Some((mut v, ..)) => {
@@ -93,6 +98,11 @@ impl ShadePass {
             None => Variant::new(device, frame, targets, around, from),
         };
         self.buffers = Some((variant, sums.clone(), depth.clone()));
+    }
+
+    /// Lets go of the compute path's buffers, with their pipeline.
+    pub(super) fn release_buffers(&mut self) {
+        self.buffers = None;
     }
 
     /// Records the pass, 8 × 8 pixels a workgroup, reading the compute
