@@ -86,7 +86,7 @@ pub enum RenderError {
         "the compute splat path's {what} need {bytes} bytes, more than this device's storage binding limit of {max} bytes: lower the resolution or use --splats raster"
     )]
     ComputeLimit {
-        /// Which buffer: "pixel sums" or "splat rectangles".
+        /// Which buffer: "pixel sums", "splat rectangles" or "tile lists".
         what: &'static str,
         /// Bytes it needs.
         bytes: u64,

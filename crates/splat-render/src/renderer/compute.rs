@@ -95,6 +95,10 @@ pub(super) struct ComputeSplats {
     mapped: std::sync::Arc<AtomicU32>,
     /// Frames whose lists did not fit (drawn by the all-tiles fallback).
     overflows: AtomicU32,
+    /// The most list entries one binding holds on this device.
+    entry_limit: u32,
+    /// The list entries the last frame read back needed (0 before one).
+    needed: AtomicU32,
 }
 
 impl ComputeSplats {
@@ -158,7 +162,8 @@ impl ComputeSplats {
             })
         };
         let (tiles, depth_bits, accum) = size_buffers(device, width, height);
-        let capacity = initial_entries(splat_capacity, width, height).min(max_entries(device));
+        let entry_limit = max_entries(device);
+        let capacity = initial_entries(splat_capacity, width, height).min(entry_limit);
         Self {
             clear: pipeline("cs_clear", &plain),
             bin: pipeline("cs_bin", &plain),
@@ -192,6 +197,8 @@ impl ComputeSplats {
             readback: Mutex::new(Readback::Idle),
             mapped: Default::default(),
             overflows: AtomicU32::new(0),
+            entry_limit,
+            needed: AtomicU32::new(0),
         }
     }
 
@@ -214,11 +221,27 @@ impl ComputeSplats {
         // The lists' first guess for this many splats (the readback grows
         // them further when a frame needs more).
         let entries = self.entries.get_mut().unwrap_or_else(|e| e.into_inner());
-        let capacity = initial_entries(self.splat_capacity, width, height).min(max_entries(device));
+        let capacity = initial_entries(self.splat_capacity, width, height).min(self.entry_limit);
         if capacity > entries.capacity {
             entries.buffer = entries_buffer(device, capacity);
             entries.capacity = capacity;
         }
+    }
+
+    /// The list entries a frame needed, as last read back, when that is
+    /// past what one binding holds on this device (such frames draw the
+    /// splats that do not fit through the all-tiles list, slowly).
+    /// As bytes needed and bytes held.
+    pub(super) fn past_limit(&self) -> Option<(u64, u64)> {
+        let needed = self.needed.load(Ordering::Relaxed);
+        (needed > self.entry_limit)
+            .then(|| (u64::from(needed) * 4, u64::from(self.entry_limit) * 4))
+    }
+
+    /// Lowers the entry limit, to test what happens past it.
+    #[cfg(test)]
+    pub(super) fn limit_entries(&mut self, limit: u32) {
+        self.entry_limit = limit;
     }
 
     /// The visible depth per pixel, row-major: f32 bits, the scene's depth
@@ -251,13 +274,14 @@ impl ComputeSplats {
                     if let Ok(view) = self.totals.get_mapped_range(..) {
                         let words: &[u32] = bytemuck::cast_slice(&view[..8]);
                         let mut entries = self.entries.lock().unwrap_or_else(|e| e.into_inner());
+                        self.needed.store(words[0], Ordering::Relaxed);
                         if words[0] > entries.capacity {
                             self.overflows.fetch_add(1, Ordering::Relaxed);
                             // Past the binding limit the overflow list
                             // draws the rest, every frame.
                             let capacity = (words[0].checked_next_power_of_two())
                                 .unwrap_or(u32::MAX)
-                                .min(max_entries(device));
+                                .min(self.entry_limit);
                             if capacity > entries.capacity {
                                 entries.buffer = entries_buffer(device, capacity);
                                 entries.capacity = capacity;

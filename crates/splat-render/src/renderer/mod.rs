@@ -253,6 +253,22 @@ impl SplatRenderer {
         }
     }
 
+    /// A chosen compute path whose last frames needed more tile-list
+    /// entries than one binding holds (every such frame draws the rest
+    /// through the slow all-tiles list) gives way to raster.
+    fn give_way_past_the_lists_limit(&mut self) {
+        if let Some((bytes, max)) = self.compute.as_ref().and_then(ComputeSplats::past_limit) {
+            let past = RenderError::ComputeLimit {
+                what: "tile lists",
+                bytes,
+                max,
+            };
+            // Only an error for a path the caller set, and that one keeps
+            // drawing: nothing to report here.
+            let _ = self.compute_or_raster(Err(past));
+        }
+    }
+
     /// Frees the compute path's memory.
     fn release_compute(&mut self) {
         self.compute = None;
@@ -434,6 +450,7 @@ impl SplatRenderer {
                 .write_buffer(&self.splats, 0, bytemuck::cast_slice(gpu));
         }
         self.splat_count = gpu.len() as u32;
+        self.give_way_past_the_lists_limit();
         self.reserve_compute(ctx);
         Ok(())
     }
@@ -489,6 +506,7 @@ impl SplatRenderer {
             draw_args: draw_args.clone(),
         });
         self.splat_count = 0;
+        self.give_way_past_the_lists_limit();
         self.reserve_compute(ctx);
         Ok(())
     }
@@ -795,8 +813,10 @@ mod path_tests {
 
 #[cfg(test)]
 mod fallback_tests {
+    use glam::Vec3;
+
     use super::{SplatPath, SplatRenderer};
-    use crate::{Environment, GpuContext};
+    use crate::{Camera, Environment, GpuContext, Shading, Splat};
 
     /// A compute path the adapter chose gives way to raster where it cannot
     /// read the draw arguments; one the caller set reports the error.
@@ -832,5 +852,32 @@ mod fallback_tests {
         let err = r.use_gpu_splats(ctx, &splats, &args).unwrap_err();
         assert!(err.to_string().contains("storage buffer"), "{err}");
         assert_eq!(r.splat_path(), SplatPath::Compute);
+    }
+
+    /// A chosen compute path whose frames need more tile-list entries than
+    /// one binding holds (the limit lowered here) gives way to raster.
+    #[test]
+    fn a_chosen_compute_path_gives_way_past_the_lists_limit() {
+        let Some(ctx) = GpuContext::headless_or_skip() else {
+            return;
+        };
+        let mut r = SplatRenderer::new(ctx, 32, 32, &Environment::procedural()).unwrap();
+        r.set_splat_path(ctx, SplatPath::Compute).unwrap();
+        r.chosen = true;
+        r.compute.as_mut().unwrap().limit_entries(64);
+        let big: Vec<Splat> = (0..100)
+            .map(|i| Splat::new(Vec3::new(0.0, 0.0, -0.001 * i as f32), Vec3::Z, 2.0))
+            .collect();
+        let camera = Camera::looking_at(Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO);
+        for _ in 0..2 {
+            r.upload(ctx, &big).unwrap();
+            assert_eq!(r.splat_path(), SplatPath::Compute);
+            r.render(ctx, &camera, &Shading::default()).unwrap();
+            ctx.device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .unwrap();
+        }
+        r.upload(ctx, &big).unwrap();
+        assert_eq!(r.splat_path(), SplatPath::Raster);
     }
 }

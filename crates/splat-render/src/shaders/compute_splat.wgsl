@@ -19,6 +19,10 @@
 // (shade_buffers.wgsl).
 
 const TILE: u32 = 8u;
+// The list sums saturate here: a frame whose lists would pass 2^31 entries
+// (far past any binding's capacity) reads back CAP, and its cursors, which
+// start at most at CAP and grow by at most the splat count, never wrap.
+const CAP: u32 = 0x80000000u;
 const CHUNK: u32 = 64u;
 // Largest workgroup count per dispatch dimension.
 const ROW: u32 = 65535u;
@@ -148,6 +152,11 @@ var<workgroup> partial: array<vec2<u32>, 256>;
 // One workgroup: each tile's first entry and first work item (exclusive
 // prefix sums of the counts and of ceil(count / CHUNK)), the cursors, the
 // totals and the work items' dispatch.
+// a + b, or CAP where that reaches it (a and b at most CAP).
+fn sat_add(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    return select(a + b, vec2<u32>(CAP), b >= vec2<u32>(CAP) - a);
+}
+
 @compute @workgroup_size(256)
 fn cs_scan(@builtin(local_invocation_index) li: u32) {
     let t = tile_count();
@@ -157,7 +166,7 @@ fn cs_scan(@builtin(local_invocation_index) li: u32) {
     var sum = vec2<u32>(0u);
     for (var k = first; k < last; k++) {
         let c = atomicLoad(&tiles[counts_at() + k]);
-        sum += vec2<u32>(c, (c + CHUNK - 1u) / CHUNK);
+        sum = sat_add(sum, vec2<u32>(c, (c + CHUNK - 1u) / CHUNK));
     }
     partial[li] = sum;
     workgroupBarrier();
@@ -168,7 +177,7 @@ fn cs_scan(@builtin(local_invocation_index) li: u32) {
             add = partial[li - step];
         }
         workgroupBarrier();
-        partial[li] += add;
+        partial[li] = sat_add(partial[li], add);
         workgroupBarrier();
     }
     var run = vec2<u32>(0u);
@@ -180,7 +189,7 @@ fn cs_scan(@builtin(local_invocation_index) li: u32) {
         atomicStore(&tiles[starts_at() + k], run.x);
         atomicStore(&tiles[cursors_at() + k], run.x);
         atomicStore(&tiles[items_at() + k], run.y);
-        run += vec2<u32>(c, (c + CHUNK - 1u) / CHUNK);
+        run = sat_add(run, vec2<u32>(c, (c + CHUNK - 1u) / CHUNK));
     }
     if li == 255u {
         let total = partial[255];
@@ -189,8 +198,11 @@ fn cs_scan(@builtin(local_invocation_index) li: u32) {
         let items = total.y;
         atomicStore(&tiles[0], total.x);
         atomicStore(&tiles[1], items);
-        dispatch[0] = min(items, ROW);
-        dispatch[1] = (items + ROW - 1u) / ROW;
+        // Work items past the capacity's load nothing: at most a chunk
+        // per CHUNK entries, plus one partial chunk per tile, do work.
+        let working = min(items, (setup.z + CHUNK - 1u) / CHUNK + t);
+        dispatch[0] = min(working, ROW);
+        dispatch[1] = (working + ROW - 1u) / ROW;
         dispatch[2] = 1u;
         dispatch[3] = total.x;
         dispatch[4] = items;
@@ -230,10 +242,20 @@ fn lone_chunks() -> u32 {
     return (atomicLoad(&tiles[2]) + CHUNK - 1u) / CHUNK;
 }
 
-// The overflow's work items: every tile times the chunks of its list.
+// The overflow's work items: every tile times the chunks of its list, at
+// most a dispatch's ROW × ROW (past it, far beyond any real frame, the
+// last tiles miss the overflowed splats).
+fn lone_items() -> u32 {
+    let chunks = lone_chunks();
+    if chunks > 0u && tile_count() > ROW * ROW / chunks {
+        return ROW * ROW;
+    }
+    return tile_count() * chunks;
+}
+
 @compute @workgroup_size(1)
 fn cs_lone_dispatch() {
-    let items = tile_count() * lone_chunks();
+    let items = lone_items();
     dispatch[8] = min(items, ROW);
     dispatch[9] = (items + ROW - 1u) / ROW;
     dispatch[10] = 1u;
@@ -266,7 +288,7 @@ fn load_item(item: u32, li: u32, lone: bool, skip_alone: bool) -> vec3<u32> {
         var alone = 0u;
         if lone {
             let chunks = lone_chunks();
-            if item < tile_count() * chunks {
+            if item < lone_items() {
                 tile = item / chunks;
                 base = (item % chunks) * CHUNK;
                 count = min(CHUNK, atomicLoad(&tiles[2]) - base);
