@@ -45,16 +45,17 @@ use crate::error::{Error, Result, check_h};
 mod chunks;
 mod layout;
 mod lists;
-mod pairs;
 mod scan;
 mod simd;
 mod sums;
 pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_lanes};
 pub use lists::NeighbourLists;
-pub(crate) use pairs::{Centre, ForceKernels, ForceSums, SlotFluid};
 use scan::Scan;
 pub use simd::{Simd, simd_level};
 pub use sums::{Poly6Sums, SecondMoment};
+/// For tests elsewhere in the crate: the scan's hit buffer and a test cloud.
+#[cfg(test)]
+pub(crate) use {scan::HIT_CAPACITY, sums::tests::cloud};
 
 /// The most particles a grid holds: slots are 32-bit, one value reserved.
 pub const MAX_PARTICLES: usize = u32::MAX as usize - 1;

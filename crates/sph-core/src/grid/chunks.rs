@@ -1,6 +1,7 @@
 //! A neighbourhood's hits in chunks of 16 lanes, for sums written as plain
 //! lane loops by the grid's users (the anisotropic surface field of
-//! `surfel-extract`, say) as the grid's own force sums are ([`super::pairs`]).
+//! `surfel-extract`, say), and the hits alone in the same chunks for sums that
+//! gather their own data (`Neighbourhood::hit_chunks`).
 //!
 //! Hit m of a neighbourhood (in slot order, row by row) goes to lane m mod 16
 //! of its chunk. The scan's fills end at counts that depend on the vector
@@ -10,9 +11,10 @@
 //! [`reduce_lanes`] gives bitwise the same sums on every CPU and for any
 //! number of threads (Rust contracts nothing into fused multiply-adds).
 //!
-//! The force sums keep their own loop over the same chunks: driven by this
-//! iterator, the 100k WCSPH step measured 5–8 % slower
-//! (`docs/benchmark-notes.md`, "Anisotropic sums in slot order").
+//! The WCSPH force sums use `hit_chunks`: driven by [`Chunks`],
+//! which also gathers each lane's offset, the 100k WCSPH step measured
+//! 5–8 % slower (`docs/benchmark-notes.md`, "Anisotropic sums in slot
+//! order").
 
 use glam::Vec3;
 
@@ -48,6 +50,47 @@ pub fn reduce_lanes(lanes: &[f32; CHUNK_LANES]) -> f32 {
 }
 
 impl Neighbourhood<'_> {
+    /// The neighbourhood's hits (slots, see
+    /// [`super::NeighbourGrid::order`]) in chunks of [`CHUNK_LANES`], hit m
+    /// at index m mod 16 of its chunk, only the last chunk partial: the
+    /// lighter loop under [`Neighbourhood::chunks`], for sums that gather
+    /// their own per-slot data (the WCSPH force sums, in
+    /// `solver/force_sums.rs`). Drive it with `while let Some(fill) =
+    /// hits.next_fill()` and `for chunk in fill.chunks(CHUNK_LANES)`, the
+    /// body in place: a closure may be left out of line, compiled without
+    /// the caller's target features.
+    #[inline(always)]
+    pub(crate) fn hit_chunks(&self) -> HitChunks<'_> {
+        let [xs, ys, zs] = &self.grid.layout.coords;
+        HitChunks {
+            scan: scan::Scan::new(self.centre, self.grid.h2, [xs, ys, zs], &self.rows),
+            hits: [0; scan::HIT_CAPACITY],
+            n: 0,
+            whole: 0,
+            done: false,
+        }
+    }
+
+    /// The grid's coordinates by slot (x, y, z; padded past the last slot),
+    /// the values its scan tests.
+    #[inline(always)]
+    pub(crate) fn slot_coords(&self) -> [&[f32]; 3] {
+        let [xs, ys, zs] = &self.grid.layout.coords;
+        [xs, ys, zs]
+    }
+
+    /// The grid's h and h².
+    #[inline(always)]
+    pub(crate) fn radius(&self) -> (f32, f32) {
+        (self.grid.h, self.grid.h2)
+    }
+
+    /// Slots in the grid.
+    #[inline(always)]
+    pub(crate) fn slots(&self) -> usize {
+        self.grid.len()
+    }
+
     /// The neighbours (within h of the centre, the centre particle itself
     /// included for a particle's neighbourhood) in chunks of [`CHUNK_LANES`],
     /// hit m in lane m mod 16; only the last chunk may be partial.
@@ -69,6 +112,40 @@ impl Neighbourhood<'_> {
             next: 0,
             done: false,
         }
+    }
+}
+
+/// The chunks of [`Neighbourhood::hit_chunks`]. The scan's fills end at
+/// path-dependent counts, so a fill's last partial chunk is carried to the
+/// front of the buffer and completed by the next fill.
+pub(crate) struct HitChunks<'a> {
+    scan: scan::Scan<'a>,
+    hits: [u32; scan::HIT_CAPACITY],
+    /// Hits in the buffer, and the end of its whole chunks.
+    n: usize,
+    whole: usize,
+    done: bool,
+}
+
+impl HitChunks<'_> {
+    /// The hits of the scan's next fill that make whole chunks (all of
+    /// them at the last fill), the partial chunk before them carried in;
+    /// `None` after the last. Split the slice with `chunks(CHUNK_LANES)`.
+    #[inline(always)]
+    pub(crate) fn next_fill(&mut self) -> Option<&[u32]> {
+        if self.done {
+            return None;
+        }
+        let carried = self.n - self.whole;
+        self.hits.copy_within(self.whole..self.n, 0);
+        self.n = self.scan.fill(&mut self.hits, carried);
+        self.done = self.scan.done();
+        self.whole = if self.done {
+            self.n
+        } else {
+            self.n - self.n % CHUNK_LANES
+        };
+        Some(&self.hits[..self.whole])
     }
 }
 

@@ -26,7 +26,7 @@ pub(super) const PADDING: usize = 7;
 /// Hit buffer size of the scans that keep a buffer for many neighbourhoods
 /// or carry chunks across fills; a fill stops while at least one 16-lane
 /// chunk still fits, whatever the buffer's size.
-pub(super) const HIT_CAPACITY: usize = 256;
+pub(crate) const HIT_CAPACITY: usize = 256;
 
 /// Hit buffer size of a one-off scan ([`super::Neighbourhood::for_each_slot`]):
 /// a neighbourhood of h holds a few dozen hits, and each query zeroes its

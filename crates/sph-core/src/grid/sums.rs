@@ -425,7 +425,7 @@ pub(super) mod tests {
     use crate::NeighbourGrid;
 
     /// A jittered cloud with a dense core and a few strays, deterministic.
-    pub(in crate::grid) fn cloud() -> Vec<Vec3> {
+    pub(crate) fn cloud() -> Vec<Vec3> {
         let mut state = 0x2545_F491u32;
         let mut next = move || {
             state ^= state << 13;

@@ -22,6 +22,7 @@
 
 pub mod dfsph;
 mod f32x8;
+mod force_sums;
 mod lanes;
 pub mod params;
 pub mod pbf;

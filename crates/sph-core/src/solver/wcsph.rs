@@ -9,11 +9,11 @@
 
 use rayon::prelude::*;
 
+use super::force_sums::{Centre, ForceKernels, ForceSums, SlotFluid, force_sums};
 use super::params::{FluidParams, PressureKernel};
 use super::stations::{Boundaries, BuildGrid, Integrate, grid};
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::Result;
-use crate::grid::{Centre, ForceKernels, ForceSums, SlotFluid};
 use crate::kernels::Kernels;
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
@@ -173,7 +173,7 @@ impl Processor for Forces {
                 viscosity: a_v,
                 normal: n,
                 laplacian: lap_c,
-            } = nb.force_sums(centre, &kernels, &fluid);
+            } = force_sums(&nb, centre, &kernels, &fluid);
             b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
                 // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
                 a_p += pi * prm.rest_density * wall.plane_density(d) * normal;

@@ -1,20 +1,20 @@
-//! The SPH force sums over a particle's neighbours (eq. 15, 17, 19–20) in 16
-//! lanes: hit m of a neighbourhood goes to lane m mod 16, and the lanes are
-//! reduced by the same fixed tree as [`super::sums`]. The per-lane code is
-//! plain Rust compiled three times — for AVX-512 (where the compiler
-//! vectorises the 16 lanes), for AVX2 and without target features — with the
-//! same operations in the same order (Rust contracts nothing into FMAs), so
-//! every CPU gets bitwise the same forces.
+//! WCSPH's force sums over a particle's neighbours (eq. 15, 17, 19–20) in
+//! 16 lanes: hit m of a neighbourhood goes to lane m mod 16
+//! (`Neighbourhood::hit_chunks`), and the lanes are reduced by the
+//! grid's fixed tree ([`reduce_lanes`]). The per-lane code is plain Rust
+//! compiled three times — for AVX-512 (where the compiler vectorises the 16
+//! lanes), for AVX2 and without target features — with the same operations
+//! in the same order (Rust contracts nothing into FMAs), so every CPU gets
+//! bitwise the same forces.
 
 use glam::Vec3;
 
+use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, reduce_lanes as reduce};
 #[cfg(target_arch = "x86_64")]
-use super::simd::{Simd, simd_level};
-use super::sums::{LANES, reduce};
-use super::{Neighbourhood, scan};
+use crate::grid::{Simd, simd_level};
 
 /// Per-particle data of the force sums, in slot order (see
-/// [`super::NeighbourGrid::to_slot_order`]).
+/// [`crate::NeighbourGrid::to_slot_order`]).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct SlotFluid<'a> {
     /// Velocity components.
@@ -69,8 +69,8 @@ struct Lanes {
     laplacian: [f32; LANES],
 }
 
-/// Defines `$name`: [`Neighbourhood::force_sums_lanes`] compiled with the
-/// target features `$features` (the same code, vectorised for them).
+/// Defines `$name`: [`force_sums_lanes`] compiled with the target
+/// features `$features` (the same code, vectorised for them).
 macro_rules! force_sums_with {
     ($name:ident, $features:literal) => {
         /// # Safety
@@ -78,154 +78,139 @@ macro_rules! force_sums_with {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = $features)]
         unsafe fn $name(
-            &self,
+            nb: &Neighbourhood<'_>,
             centre: Centre,
             kernels: &ForceKernels,
             fluid: &SlotFluid<'_>,
         ) -> ForceSums {
-            self.force_sums_lanes(centre, kernels, fluid)
+            force_sums_lanes(nb, centre, kernels, fluid)
         }
     };
 }
 
-impl Neighbourhood<'_> {
-    /// The force sums of this neighbourhood's `centre`. The centre itself
-    /// adds to `normal` and `laplacian` only (its pressure and viscosity
-    /// terms are exact zeros).
-    ///
-    /// Panics if a slice of `fluid` is shorter than the grid.
-    #[inline]
-    pub(crate) fn force_sums(
-        &self,
-        centre: Centre,
-        kernels: &ForceKernels,
-        fluid: &SlotFluid<'_>,
-    ) -> ForceSums {
-        let n = self.grid.len();
-        assert!(
-            [fluid.volume, fluid.mass, fluid.pressure]
-                .iter()
-                .chain(&fluid.v)
-                .all(|s| s.len() >= n),
-            "one value per slot"
-        );
-        #[cfg(target_arch = "x86_64")]
-        match simd_level() {
-            // SAFETY: `simd_level` never exceeds what the CPU supports.
-            Simd::Avx512 => unsafe {
-                return self.force_sums_avx512(centre, kernels, fluid);
-            },
-            // SAFETY: as above.
-            Simd::Avx2 => unsafe {
-                return self.force_sums_avx2(centre, kernels, fluid);
-            },
-            Simd::Baseline => {}
-        }
-        self.force_sums_lanes(centre, kernels, fluid)
+/// The force sums of the neighbourhood `nb`'s `centre`. The centre itself
+/// adds to `normal` and `laplacian` only (its pressure and viscosity terms
+/// are exact zeros).
+///
+/// Panics if a slice of `fluid` is shorter than the grid.
+#[inline]
+pub(crate) fn force_sums(
+    nb: &Neighbourhood<'_>,
+    centre: Centre,
+    kernels: &ForceKernels,
+    fluid: &SlotFluid<'_>,
+) -> ForceSums {
+    let n = nb.slots();
+    assert!(
+        [fluid.volume, fluid.mass, fluid.pressure]
+            .iter()
+            .chain(&fluid.v)
+            .all(|s| s.len() >= n),
+        "one value per slot"
+    );
+    #[cfg(target_arch = "x86_64")]
+    match simd_level() {
+        // SAFETY: `simd_level` never exceeds what the CPU supports.
+        Simd::Avx512 => unsafe {
+            return force_sums_avx512(nb, centre, kernels, fluid);
+        },
+        // SAFETY: as above.
+        Simd::Avx2 => unsafe {
+            return force_sums_avx2(nb, centre, kernels, fluid);
+        },
+        Simd::Baseline => {}
     }
+    force_sums_lanes(nb, centre, kernels, fluid)
+}
 
-    force_sums_with!(force_sums_avx2, "avx2");
-    force_sums_with!(force_sums_avx512, "avx512f,avx2");
+force_sums_with!(force_sums_avx2, "avx2");
+force_sums_with!(force_sums_avx512, "avx512f,avx2");
 
-    /// The force sums with hit m of the neighbourhood (in slot order, row by
-    /// row) in lane m mod 16. The scan's fills end at path-dependent counts,
-    /// so a fill's last partial chunk is carried to the front of the buffer
-    /// and completed by the next fill: only the neighbourhood's last chunk is
-    /// partial, on every path.
-    #[inline(always)]
-    fn force_sums_lanes(
-        &self,
-        centre: Centre,
-        kernels: &ForceKernels,
-        fluid: &SlotFluid<'_>,
-    ) -> ForceSums {
-        let [xs, ys, zs] = &self.grid.layout.coords;
-        let mut l = Lanes::new();
-        let mut scan = scan::Scan::new(self.centre, self.grid.h2, [xs, ys, zs], &self.rows);
-        let mut hits = [0u32; scan::HIT_CAPACITY];
-        let mut carried = 0;
-        loop {
-            let n = scan.fill(&mut hits, carried);
-            let done = scan.done();
-            let whole = if done { n } else { n - n % LANES };
-            for chunk in hits[..whole].chunks(LANES) {
-                self.add_chunk(&mut l, chunk, centre, kernels, fluid);
-            }
-            if done {
-                break;
-            }
-            hits.copy_within(whole..n, 0);
-            carried = n - whole;
+/// The force sums with hit m of the neighbourhood (in slot order, row by
+/// row) in lane m mod 16.
+#[inline(always)]
+fn force_sums_lanes(
+    nb: &Neighbourhood<'_>,
+    centre: Centre,
+    kernels: &ForceKernels,
+    fluid: &SlotFluid<'_>,
+) -> ForceSums {
+    let mut l = Lanes::new();
+    let mut hits = nb.hit_chunks();
+    while let Some(fill) = hits.next_fill() {
+        for chunk in fill.chunks(LANES) {
+            add_chunk(nb, &mut l, chunk, centre, kernels, fluid);
         }
-        l.finish()
     }
+    l.finish()
+}
 
-    /// Adds up to 16 hits (slots), hit k to lane k, to the lanes.
-    #[inline(always)]
-    fn add_chunk(
-        &self,
-        l: &mut Lanes,
-        chunk: &[u32],
-        centre: Centre,
-        kernels: &ForceKernels,
-        fluid: &SlotFluid<'_>,
-    ) {
-        let [xs, ys, zs] = &self.grid.layout.coords;
-        let (c, h2, h) = (self.centre, self.grid.h2, self.grid.h);
-        let three_h2 = 3.0 * h2;
-        // Lanes past the hits repeat the chunk's first hit with weight 0: its
-        // values are finite (it lies within h), and finite values times 0 add
-        // exact zeros.
-        let mut slot = [chunk[0]; LANES];
-        let mut weight = [0.0f32; LANES];
-        slot[..chunk.len()].copy_from_slice(chunk);
-        weight[..chunk.len()].fill(1.0);
-        // Gather the lanes' data, then compute on whole arrays: the second
-        // loop has no indexing by slot, so the compiler vectorises it.
-        let mut g = [[0.0f32; LANES]; 9];
-        for k in 0..LANES {
-            let s = slot[k] as usize;
-            // SAFETY: hits are slots of the grid; coords have a value per slot
-            // (and padding), and `force_sums` checked the fluid's slices.
-            unsafe {
-                g[0][k] = *xs.get_unchecked(s);
-                g[1][k] = *ys.get_unchecked(s);
-                g[2][k] = *zs.get_unchecked(s);
-                g[3][k] = *fluid.volume.get_unchecked(s);
-                g[4][k] = *fluid.mass.get_unchecked(s);
-                g[5][k] = *fluid.pressure.get_unchecked(s);
-                g[6][k] = *fluid.v[0].get_unchecked(s);
-                g[7][k] = *fluid.v[1].get_unchecked(s);
-                g[8][k] = *fluid.v[2].get_unchecked(s);
-            }
+/// Adds up to 16 hits (slots), hit k to lane k, to the lanes.
+#[inline(always)]
+fn add_chunk(
+    nb: &Neighbourhood<'_>,
+    l: &mut Lanes,
+    chunk: &[u32],
+    centre: Centre,
+    kernels: &ForceKernels,
+    fluid: &SlotFluid<'_>,
+) {
+    let [xs, ys, zs] = nb.slot_coords();
+    let c = nb.centre();
+    let (h, h2) = nb.radius();
+    let three_h2 = 3.0 * h2;
+    // Lanes past the hits repeat the chunk's first hit with weight 0: its
+    // values are finite (it lies within h), and finite values times 0 add
+    // exact zeros.
+    let mut slot = [chunk[0]; LANES];
+    let mut weight = [0.0f32; LANES];
+    slot[..chunk.len()].copy_from_slice(chunk);
+    weight[..chunk.len()].fill(1.0);
+    // Gather the lanes' data, then compute on whole arrays: the second
+    // loop has no indexing by slot, so the compiler vectorises it.
+    let mut g = [[0.0f32; LANES]; 9];
+    for k in 0..LANES {
+        let s = slot[k] as usize;
+        // SAFETY: hits are slots of the grid; coords have a value per slot
+        // (and padding), and `force_sums` checked the fluid's slices.
+        unsafe {
+            g[0][k] = *xs.get_unchecked(s);
+            g[1][k] = *ys.get_unchecked(s);
+            g[2][k] = *zs.get_unchecked(s);
+            g[3][k] = *fluid.volume.get_unchecked(s);
+            g[4][k] = *fluid.mass.get_unchecked(s);
+            g[5][k] = *fluid.pressure.get_unchecked(s);
+            g[6][k] = *fluid.v[0].get_unchecked(s);
+            g[7][k] = *fluid.v[1].get_unchecked(s);
+            g[8][k] = *fluid.v[2].get_unchecked(s);
         }
-        for k in 0..LANES {
-            let (vol, m, pr) = (weight[k] * g[3][k], weight[k] * g[4][k], g[5][k]);
-            // The scan's arithmetic, so r² is the value it tested.
-            let d = [c.x - g[0][k], c.y - g[1][k], c.z - g[2][k]];
-            let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            let t = h2 - r2;
-            let g6 = -kernels.poly6_grad * t * t;
-            let len = r2.sqrt();
-            let gp = match kernels.spiky_grad {
-                None => g6,
-                Some(spiky) => {
-                    let e = h - len;
-                    let q = -spiky * e * e / len;
-                    if len > 0.0 { q } else { 0.0 }
-                }
-            };
-            let fp = m * (centre.pressure + pr) * gp;
-            let fv = vol * (kernels.visc_lap * (h - len));
-            let v_i = centre.velocity;
-            let dv = [g[6][k] - v_i.x, g[7][k] - v_i.y, g[8][k] - v_i.z];
-            for a in 0..3 {
-                l.normal[a][k] += vol * (g6 * d[a]);
-                l.pressure[a][k] -= fp * d[a];
-                l.viscosity[a][k] += fv * dv[a];
+    }
+    for k in 0..LANES {
+        let (vol, m, pr) = (weight[k] * g[3][k], weight[k] * g[4][k], g[5][k]);
+        // The scan's arithmetic, so r² is the value it tested.
+        let d = [c.x - g[0][k], c.y - g[1][k], c.z - g[2][k]];
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let t = h2 - r2;
+        let g6 = -kernels.poly6_grad * t * t;
+        let len = r2.sqrt();
+        let gp = match kernels.spiky_grad {
+            None => g6,
+            Some(spiky) => {
+                let e = h - len;
+                let q = -spiky * e * e / len;
+                if len > 0.0 { q } else { 0.0 }
             }
-            l.laplacian[k] += vol * (kernels.poly6_grad * t * (7.0 * r2 - three_h2));
+        };
+        let fp = m * (centre.pressure + pr) * gp;
+        let fv = vol * (kernels.visc_lap * (h - len));
+        let v_i = centre.velocity;
+        let dv = [g[6][k] - v_i.x, g[7][k] - v_i.y, g[8][k] - v_i.z];
+        for a in 0..3 {
+            l.normal[a][k] += vol * (g6 * d[a]);
+            l.pressure[a][k] -= fp * d[a];
+            l.viscosity[a][k] += fv * dv[a];
         }
+        l.laplacian[k] += vol * (kernels.poly6_grad * t * (7.0 * r2 - three_h2));
     }
 }
 
@@ -255,7 +240,7 @@ impl Lanes {
 mod tests {
     use super::*;
     use crate::NeighbourGrid;
-    use crate::grid::sums::tests::cloud;
+    use crate::grid::cloud;
     use crate::kernels::{Kernel, Poly6, Spiky, Viscosity};
 
     /// The sums term by term with the kernels' own functions, and the scale
@@ -381,14 +366,14 @@ mod tests {
                 nb.for_each_slot(|k, _, _| hits.push(k as u32));
                 let mut lanes = Lanes::new();
                 for chunk in hits.chunks(LANES) {
-                    nb.add_chunk(&mut lanes, chunk, fluid.centre(i), &kernels, &by_slot);
+                    add_chunk(&nb, &mut lanes, chunk, fluid.centre(i), &kernels, &by_slot);
                 }
-                let got = nb.force_sums(fluid.centre(i), &kernels, &by_slot);
+                let got = force_sums(&nb, fluid.centre(i), &kernels, &by_slot);
                 assert_eq!(got, lanes.finish(), "particle {i}, {} hits", hits.len());
                 most = most.max(hits.len());
             }
         }
-        assert!(most > 2 * scan::HIT_CAPACITY, "{most} hits at most");
+        assert!(most > 2 * crate::grid::HIT_CAPACITY, "{most} hits at most");
     }
 
     /// The sums agree with term-by-term sums to rounding for both pressure
@@ -410,7 +395,7 @@ mod tests {
                 let nb = grid.neighbourhood(i);
                 let (want, scale) = brute(&x, v, vol, m, pr, i, spiky, h);
                 let centre = data.centre(i);
-                let got = nb.force_sums(centre, &kernels, &fluid);
+                let got = force_sums(&nb, centre, &kernels, &fluid);
                 let tol = |s: f32| 1e-5 * s + 1e-30;
                 let close = |a: Vec3, b: Vec3, s: f32| (a - b).abs().max_element() <= tol(s);
                 assert!(
@@ -430,18 +415,18 @@ mod tests {
                     "{got:?} vs {want:?}"
                 );
                 found += nb.count();
-                let plain = nb.force_sums_lanes(centre, &kernels, &fluid);
+                let plain = force_sums_lanes(&nb, centre, &kernels, &fluid);
                 assert_eq!(got, plain, "the path this CPU runs");
                 #[cfg(target_arch = "x86_64")]
                 {
                     if Simd::detect() >= Simd::Avx2 {
                         // SAFETY: AVX2 was detected.
-                        let avx2 = unsafe { nb.force_sums_avx2(centre, &kernels, &fluid) };
+                        let avx2 = unsafe { force_sums_avx2(&nb, centre, &kernels, &fluid) };
                         assert_eq!(avx2, plain, "AVX2");
                     }
                     if Simd::detect() >= Simd::Avx512 {
                         // SAFETY: AVX-512F and AVX2 were detected.
-                        let avx512 = unsafe { nb.force_sums_avx512(centre, &kernels, &fluid) };
+                        let avx512 = unsafe { force_sums_avx512(&nb, centre, &kernels, &fluid) };
                         assert_eq!(avx512, plain, "AVX-512");
                     }
                 }
