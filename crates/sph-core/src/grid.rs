@@ -172,7 +172,8 @@ impl NeighbourGrid {
         }
         let cell = |p: Vec3| cell_of(p, inv_cell).unwrap_or(BAD_CELL);
 
-        let layout = layout::Layout::new(positions, cell, reuse);
+        let bounds = (n > 0).then_some((lo, hi));
+        let layout = layout::Layout::new(positions, bounds, cell, reuse);
         let indexed: &[Cell] = if layout.is_dense() {
             &[]
         } else {

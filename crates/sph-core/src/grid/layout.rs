@@ -60,13 +60,11 @@ struct Bounds {
 }
 
 impl Bounds {
-    /// The box of the cells of `positions`, which are in range. `cell` must be
-    /// monotonic along each axis (a floor is).
-    fn of(positions: &[Vec3], cell: impl Fn(Vec3) -> Cell) -> Option<Self> {
-        let (lo, hi) = positions
-            .par_iter()
-            .map(|&p| (p, p))
-            .reduce_with(|a, b| (a.0.min(b.0), a.1.max(b.1)))?;
+    /// The box of the cells of points whose bounding box is `bounds` (none
+    /// for no points), all in range. `cell` must be monotonic along each
+    /// axis (a floor is).
+    fn of(bounds: Option<(Vec3, Vec3)>, cell: impl Fn(Vec3) -> Cell) -> Option<Self> {
+        let (lo, hi) = bounds?;
         let (lo, hi) = (cell(lo), cell(hi));
         let dims = [0, 1, 2].map(|a| (hi[a] as i64 - lo[a] as i64) as u64 + 1);
         Some(Self { lo, dims })
@@ -135,12 +133,18 @@ impl Bounds {
 
 impl Layout {
     /// The layout of particles at `positions` (finite, their cells in range),
-    /// `cell(p)` being the cell of position `p`.
+    /// whose bounding box is `bounds` (`None` when there are none), `cell(p)`
+    /// being the cell of position `p`.
     ///
     /// `reuse` is an old layout whose buffers are refilled (a default one for a
     /// first build).
-    pub fn new(positions: &[Vec3], cell: impl Fn(Vec3) -> Cell + Sync, reuse: Self) -> Self {
-        let Some(bounds) = Bounds::of(positions, &cell) else {
+    pub fn new(
+        positions: &[Vec3],
+        bounds: Option<(Vec3, Vec3)>,
+        cell: impl Fn(Vec3) -> Cell + Sync,
+        reuse: Self,
+    ) -> Self {
+        let Some(bounds) = Bounds::of(bounds, &cell) else {
             return Self::sparse(&[], positions, Vec::new());
         };
         let n = positions.len() as u64;
@@ -525,7 +529,9 @@ mod tests {
             .map(|c| Vec3::new(c[0] as f32, c[1] as f32, c[2] as f32) + 0.5)
             .collect();
         let cell = |p: Vec3| p.floor().as_ivec3().to_array();
-        let bounds = Bounds::of(&positions, cell).unwrap();
+        let lo = positions.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+        let hi = positions.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
+        let bounds = Bounds::of(Some((lo, hi)), cell).unwrap();
         let total = bounds.total().unwrap();
         // Four threads: the scatter runs in four chunks (n ≥ 3 · 2¹²).
         let pool = rayon::ThreadPoolBuilder::new()
