@@ -30,7 +30,9 @@
 //!
 //! `--akinci GAMMA` adds a prototype of Akinci et al. 2013's cohesion and
 //! curvature forces with coefficient γ as a custom processor (after PBF's
-//! `viscosity` station, or DFSPH's `forces`), for the measurements of
+//! `viscosity` station, or DFSPH's `forces`), and prints the inner
+//! pressure with those forces' virial added (the mechanical pressure), for
+//! the measurements of
 //! `docs/benchmark-notes.md`, "Surface tension for PBF and DFSPH": not a
 //! solver feature, and γ is not σ.
 
@@ -48,6 +50,10 @@ struct Akinci {
     gamma: f32,
     rho0: f32,
     poly6: Poly6,
+    /// Each particle's share of the forces' virial pressure,
+    /// (ρ_i/6) Σ_j (x_i − x_j)·a_ij, at the last step: with the solver's
+    /// pressure, the mechanical pressure Laplace's law is about.
+    virial: std::sync::Arc<std::sync::Mutex<Vec<f32>>>,
 }
 
 impl Akinci {
@@ -98,24 +104,26 @@ impl Processor for Akinci {
             })
             .collect();
         let dt = ctx.dt;
-        let dv: Vec<Vec3> = (0..x.len())
+        let (dv, virial): (Vec<Vec3>, Vec<f32>) = (0..x.len())
             .into_par_iter()
             .map(|i| {
-                let a: Vec3 = near(i)
+                let (a, w) = near(i)
                     .map(|(j, d, r2)| {
                         let r = r2.sqrt();
                         let k = 2.0 * self.rho0 / (rho[i] + rho[j]);
-                        -self.gamma
+                        let a = -self.gamma
                             * k
-                            * (m[j] * self.cohesion(r) * d / r + normals[i] - normals[j])
+                            * (m[j] * self.cohesion(r) * d / r + normals[i] - normals[j]);
+                        (a, d.dot(a))
                     })
-                    .sum();
-                dt * a
+                    .fold((Vec3::ZERO, 0.0), |s, t| (s.0 + t.0, s.1 + t.1));
+                (dt * a, rho[i] / 6.0 * w)
             })
-            .collect();
+            .unzip();
         for (v, dv) in particles.fields_mut().velocities.iter_mut().zip(dv) {
             *v += dv;
         }
+        *self.virial.lock().unwrap_or_else(|e| e.into_inner()) = virial;
         Ok(())
     }
 }
@@ -216,11 +224,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--akinci needs PBF or DFSPH (their neighbour lists); WCSPH applies σ itself".into(),
         );
     }
+    let virial = std::sync::Arc::new(std::sync::Mutex::new(Vec::<f32>::new()));
     if let Some(gamma) = akinci {
         let forces = Akinci {
             gamma,
             rho0: params.rest_density,
             poly6: Poly6::new(params.h)?,
+            virial: virial.clone(),
         };
         let after = match kind {
             SolverKind::Pbf => "viscosity",
@@ -252,12 +262,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let far = (p.positions().iter())
             .filter(|x| f64::from((**x - c).length()) > 3.0 * radius)
             .count();
-        let inner: Vec<f64> = (p.positions().iter().zip(p.pressures()))
-            .filter(|(x, _)| f64::from((**x - c).length()) < 0.5 * radius)
-            .map(|(_, &p)| f64::from(p))
+        let virial = virial.lock().unwrap_or_else(|e| e.into_inner());
+        let inner: Vec<(f64, f64)> = (p.positions().iter().zip(p.pressures()))
+            .enumerate()
+            .filter(|(_, (x, _))| f64::from((**x - c).length()) < 0.5 * radius)
+            .map(|(i, (_, &p))| (f64::from(p), virial.get(i).map_or(0.0, |&w| f64::from(w))))
             .collect();
-        let pressure = inner.iter().sum::<f64>() / inner.len().max(1) as f64;
-        (2.0 * (5.0 * var).sqrt(), far, pressure)
+        let count = inner.len().max(1) as f64;
+        let pressure = inner.iter().map(|q| q.0).sum::<f64>() / count;
+        let mechanical = inner.iter().map(|q| q.0 + q.1).sum::<f64>() / count;
+        (2.0 * (5.0 * var).sqrt(), far, (pressure, mechanical))
     };
     let frame = 1.0 / 60.0;
     let start = measure(&world.particles);
@@ -304,10 +318,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         println!("fewer than three extrema in {seconds} s: no period to measure");
     }
-    let pressure = pressures.iter().sum::<f64>() / pressures.len().max(1) as f64;
+    let mean = |f: fn(&(f64, f64)) -> f64| {
+        pressures.iter().map(f).sum::<f64>() / pressures.len().max(1) as f64
+    };
+    let pressure = mean(|p| p.0);
     println!(
         "pressure within R/2 over the last second {pressure:.3} Pa; Laplace {laplace:.3} Pa; ratio {:.3}",
         pressure / laplace
     );
+    if akinci.is_some() {
+        let mechanical = mean(|p| p.1);
+        println!(
+            "with the Akinci forces' virial {mechanical:.3} Pa; ratio to Laplace {:.3}",
+            mechanical / laplace
+        );
+    }
     Ok(())
 }
