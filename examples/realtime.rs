@@ -31,8 +31,12 @@
 //!
 //! ```text
 //! cargo run --release --example realtime [-- --seconds S] [--solvers wcsph,pbf,dfsph,salva,pbf-gpu] [--max-particles N]
-//!     [--pbf substeps=2,iterations=4]
+//!     [--pbf substeps=2,iterations=4] [--sigma N_PER_M]
 //! ```
+//!
+//! `--sigma` gives the fluid a surface tension (WCSPH's colour-field force,
+//! PBF's Akinci forces; DFSPH and `pbf-gpu` refuse it), to time what it
+//! costs.
 
 use std::time::Instant;
 
@@ -80,16 +84,26 @@ impl Row {
     }
 }
 
+/// What the command line changes in every row's scene.
+#[derive(Debug, Clone, Copy, Default)]
+struct Options {
+    /// `--pbf`: PBF's parameters instead of the scene's.
+    pbf: Option<PbfParams>,
+    /// `--sigma`: the fluid's surface tension (N/m; 0 in the scene).
+    sigma: f32,
+}
+
 fn run(
     kind: SolverKind,
     spacing: f32,
     seconds: f64,
-    pbf: Option<&PbfParams>,
+    options: &Options,
 ) -> Result<Row, Box<dyn std::error::Error>> {
     let mut scene = Scene::dam_break(0.25, 0.08, spacing).with_solver(kind);
-    if let Some(pbf) = pbf {
-        scene.solver.pbf = Some(*pbf);
+    if let Some(pbf) = options.pbf {
+        scene.solver.pbf = Some(pbf);
     }
+    scene.fluid.surface_tension = options.sigma;
     let mut world = scene.build_world()?;
     let mut extractor = Extractor::new();
     let params = ExtractParams {
@@ -338,15 +352,18 @@ impl Runner {
         gpu: Option<&splat_render::GpuContext>,
         spacing: f32,
         seconds: f64,
-        pbf: Option<&PbfParams>,
+        options: &Options,
     ) -> Result<Row, Box<dyn std::error::Error>> {
         match self {
-            Runner::Ours(kind) => run(kind, spacing, seconds, pbf),
+            Runner::Ours(kind) => run(kind, spacing, seconds, options),
+            Runner::GpuPbf if options.sigma > 0.0 => {
+                Err("pbf-gpu does not apply --sigma (the GPU's PBF refuses σ)".into())
+            }
             Runner::GpuPbf => run_gpu_pbf(
                 gpu.ok_or("pbf-gpu needs a GPU adapter")?,
                 spacing,
                 seconds,
-                pbf,
+                options.pbf.as_ref(),
             ),
             Runner::Salva => run_salva(spacing, seconds),
         }
@@ -376,7 +393,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut solvers: Vec<Runner> = SolverKind::ALL.into_iter().map(Runner::Ours).collect();
     solvers.push(Runner::Salva);
     let mut max_particles = usize::MAX;
-    let mut pbf = None;
+    let mut options = Options::default();
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = || args.next().ok_or(format!("{arg} needs a value"));
@@ -398,8 +415,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             // PBF parameters as `key=value` pairs, e.g. `substeps=3,iterations=4`.
             "--pbf" => {
                 let table = value()?.replace(',', "\n");
-                pbf = Some(toml::from_str::<PbfParams>(&table)?);
+                options.pbf = Some(toml::from_str::<PbfParams>(&table)?);
             }
+            "--sigma" => options.sigma = value()?.parse()?,
             "--bench" => {} // cargo bench passes it
             other => return Err(format!("unknown argument {other}").into()),
         }
@@ -441,7 +459,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             if count > max_particles || !kind.spacings().contains(&spacing) {
                 continue;
             }
-            let r = kind.run(gpu.as_ref(), spacing, seconds, pbf.as_ref())?;
+            let r = kind.run(gpu.as_ref(), spacing, seconds, &options)?;
             let per = |s: f64| s / seconds;
             println!(
                 "{:<6} {:>9} {:>12.3} {:>14.3} {:>9.1} {:>11.1} {:>8.1} {:>10.3} {:>10.2} {:>8}",
@@ -472,7 +490,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut best: Option<Row> = None;
         for _ in 0..7 {
             let mid = (lo * hi).sqrt();
-            let r = kind.run(gpu.as_ref(), mid, seconds, pbf.as_ref())?;
+            let r = kind.run(gpu.as_ref(), mid, seconds, &options)?;
             if r.sim_s <= seconds {
                 hi = mid;
                 if best.as_ref().is_none_or(|b| r.particles > b.particles) {

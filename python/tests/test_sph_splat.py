@@ -132,8 +132,13 @@ def test_bad_input_raises_naming_the_argument(tmp_path):
     broken.write_text(text.replace("h = 0.04", "h = -0.04", 1))
     with pytest.raises(ValueError, match="fluid.h"):
         ss.World(str(broken))
+    # A surface tension DFSPH does not apply (WCSPH and PBF do).
     sigma = tmp_path / "sigma.toml"
-    sigma.write_text(text.replace("surface_tension = 0.0", "surface_tension = 0.07", 1))
+    sigma.write_text(
+        text.replace("surface_tension = 0.0", "surface_tension = 0.07", 1).replace(
+            'kind = "pbf"', 'kind = "dfsph"', 1
+        )
+    )
     with pytest.raises(ValueError, match="fluid.surface_tension"):
         ss.World(str(sigma))
 

@@ -24,9 +24,10 @@
 //!
 //! `--solver-toml` is the solver's own table (`[solver.pbf]` or
 //! `[solver.dfsph]`); `--spacing` sets the resolution (5 mm by default, h =
-//! 2 spacings); `--mu` the viscosity (0.01 Pa·s by default). Only WCSPH
-//! applies σ so far (issue 42): under PBF and DFSPH the drop keeps its
-//! shape, and σ is left out of their fluid (they refuse it).
+//! 2 spacings); `--mu` the viscosity (0.01 Pa·s by default). WCSPH applies
+//! σ by the thesis's colour-field force, PBF by Akinci et al.'s forces
+//! (`sph_core::solver::surface_tension`); DFSPH refuses it, so under DFSPH
+//! σ is left out of the fluid and the drop keeps its shape.
 //!
 //! `--akinci GAMMA` adds a prototype of Akinci et al. 2013's cohesion and
 //! curvature forces with coefficient γ as a custom processor (after PBF's
@@ -36,94 +37,30 @@
 //! `docs/benchmark-notes.md`, "Surface tension for PBF and DFSPH": not a
 //! solver feature, and γ is not σ.
 
-use rayon::prelude::*;
+use std::sync::{Arc, Mutex};
+
 use sph_core::glam::Vec3;
-use sph_core::kernels::{Kernel, Poly6};
 use sph_core::processor::{Context, Processor};
+use sph_core::solver::surface_tension::SurfaceTension;
 use sph_core::{Aabb, Boundary, FluidParams, Particles, Solver, SolverKind, TimeStepping, World};
 
-/// Akinci et al. 2013's surface forces, a = −γ Σ_j K_ij (m_j C(r) r̂ +
-/// n_i − n_j) with K_ij = 2ρ0/(ρ_i + ρ_j) and n_i = h Σ_j (m_j/ρ_j) ∇W_ij,
-/// added to the velocities as Δt a, over the step's neighbour lists at the
-/// current positions (as SPlisHSPlasH's `SurfaceTension_Akinci2013`).
-struct Akinci {
-    gamma: f32,
-    rho0: f32,
-    poly6: Poly6,
-    /// Each particle's share of the forces' virial pressure,
-    /// (ρ_i/6) Σ_j (x_i − x_j)·a_ij, at the last step: with the solver's
-    /// pressure, the mechanical pressure Laplace's law is about.
-    virial: std::sync::Arc<std::sync::Mutex<Vec<f32>>>,
+/// PBF's surface tension station (Akinci et al. 2013's forces), its
+/// virial pressure per particle copied out after each step for the
+/// measurement.
+struct Measured {
+    inner: SurfaceTension,
+    virial: Arc<Mutex<Vec<f32>>>,
 }
 
-impl Akinci {
-    /// Akinci's cohesion spline C(r) of support h.
-    fn cohesion(&self, r: f32) -> f32 {
-        let h = self.poly6.h();
-        let k = 32.0 / (std::f32::consts::PI * h.powi(9));
-        if r > h || r <= 0.0 {
-            0.0
-        } else if 2.0 * r > h {
-            k * (h - r).powi(3) * r.powi(3)
-        } else {
-            k * (2.0 * (h - r).powi(3) * r.powi(3) - h.powi(6) / 64.0)
-        }
-    }
-}
-
-impl Processor for Akinci {
+impl Processor for Measured {
     fn name(&self) -> &str {
-        "akinci"
+        self.inner.name()
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> sph_core::Result<()> {
-        let lists = ctx.neighbours.as_ref().ok_or(sph_core::Error::Pipeline {
-            processor: "akinci",
-            reason: "needs the step's neighbour lists",
-        })?;
-        let h = self.poly6.h();
-        let (x, m, rho) = (
-            particles.positions(),
-            particles.masses(),
-            particles.densities(),
-        );
-        // Particle i's neighbours within h now: (j, x_i − x_j, r²).
-        let near = |i: usize| {
-            lists.of(i).iter().filter_map(move |&j| {
-                let j = j as usize;
-                let d = x[i] - x[j];
-                let r2 = d.length_squared();
-                (r2 < h * h && r2 > 0.0).then_some((j, d, r2))
-            })
-        };
-        let normals: Vec<Vec3> = (0..x.len())
-            .into_par_iter()
-            .map(|i| {
-                h * near(i)
-                    .map(|(j, d, r2)| m[j] / rho[j] * self.poly6.gradient_r2(d, r2))
-                    .sum::<Vec3>()
-            })
-            .collect();
-        let dt = ctx.dt;
-        let (dv, virial): (Vec<Vec3>, Vec<f32>) = (0..x.len())
-            .into_par_iter()
-            .map(|i| {
-                let (a, w) = near(i)
-                    .map(|(j, d, r2)| {
-                        let r = r2.sqrt();
-                        let k = 2.0 * self.rho0 / (rho[i] + rho[j]);
-                        let a = -self.gamma
-                            * k
-                            * (m[j] * self.cohesion(r) * d / r + normals[i] - normals[j]);
-                        (a, d.dot(a))
-                    })
-                    .fold((Vec3::ZERO, 0.0), |s, t| (s.0 + t.0, s.1 + t.1));
-                (dt * a, rho[i] / 6.0 * w)
-            })
-            .unzip();
-        for (v, dv) in particles.fields_mut().velocities.iter_mut().zip(dv) {
-            *v += dv;
-        }
-        *self.virial.lock().unwrap_or_else(|e| e.into_inner()) = virial;
+        self.inner.process(particles, ctx)?;
+        let mut virial = self.virial.lock().unwrap_or_else(|e| e.into_inner());
+        virial.clear();
+        virial.extend_from_slice(self.inner.virial());
         Ok(())
     }
 }
@@ -160,10 +97,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let params = FluidParams {
         gravity: Vec3::ZERO,
-        surface_tension: if kind == SolverKind::Wcsph {
-            sigma
-        } else {
-            0.0
+        // DFSPH refuses σ; `--akinci` replaces PBF's own σ.
+        surface_tension: match (kind, akinci) {
+            (SolverKind::Wcsph, _) | (SolverKind::Pbf, None) => sigma,
+            _ => 0.0,
         },
         viscosity: mu,
         ..FluidParams::water(2.0 * spacing)
@@ -224,19 +161,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--akinci needs PBF or DFSPH (their neighbour lists); WCSPH applies σ itself".into(),
         );
     }
-    let virial = std::sync::Arc::new(std::sync::Mutex::new(Vec::<f32>::new()));
-    if let Some(gamma) = akinci {
-        let forces = Akinci {
-            gamma,
-            rho0: params.rest_density,
-            poly6: Poly6::new(params.h)?,
+    // The forces' virial, for the mechanical pressure: PBF's own station,
+    // or Akinci's forces with `--akinci`'s γ, in a wrapper that copies it.
+    let virial = Arc::new(Mutex::new(Vec::<f32>::new()));
+    let station = match (kind, akinci) {
+        (_, Some(gamma)) => Some(SurfaceTension::with_gamma(&params, gamma)?),
+        (SolverKind::Pbf, None) if sigma > 0.0 => Some(SurfaceTension::new(&params)?),
+        _ => None,
+    };
+    if let Some(inner) = station {
+        let measured = Measured {
+            inner,
             virial: virial.clone(),
         };
+        let program = world.program_mut();
+        program.remove("surface tension");
         let after = match kind {
             SolverKind::Pbf => "viscosity",
             _ => "forces",
         };
-        if !world.program_mut().insert_after(after, forces) {
+        if !program.insert_after(after, measured) {
             return Err(format!("no `{after}` station to put Akinci's forces after").into());
         }
     }
@@ -246,6 +190,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         match (kind, akinci) {
             (SolverKind::Wcsph, _) => "applied by WCSPH".to_string(),
             (_, Some(gamma)) => format!("not applied; Akinci's forces with γ = {gamma}"),
+            (SolverKind::Pbf, None) => "applied by PBF: Akinci's forces".to_string(),
             (_, None) => "not applied".to_string(),
         }
     );
@@ -326,7 +271,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "pressure within R/2 over the last second {pressure:.3} Pa; Laplace {laplace:.3} Pa; ratio {:.3}",
         pressure / laplace
     );
-    if akinci.is_some() {
+    if !virial.lock().unwrap_or_else(|e| e.into_inner()).is_empty() {
         let mechanical = mean(|p| p.1);
         println!(
             "with the Akinci forces' virial {mechanical:.3} Pa; ratio to Laplace {:.3}",

@@ -58,7 +58,7 @@ fn message(text: &str) -> String {
 }
 
 /// A surface tension the chosen solver does not apply is an error naming
-/// the field and the solver, for DFSPH as for PBF; WCSPH runs it.
+/// the field and the solver (DFSPH); WCSPH and PBF run it.
 #[test]
 fn surface_tension_is_refused_by_the_solvers_that_do_not_apply_it() {
     let text = with("surface_tension = 0.0", "surface_tension = 0.0728");
@@ -68,9 +68,17 @@ fn surface_tension_is_refused_by_the_solvers_that_do_not_apply_it() {
         err.contains("fluid.surface_tension") && err.contains("DFSPH"),
         "{err}"
     );
-    let wcsph = text.replacen("kind = \"pbf\"", "kind = \"wcsph\"", 1);
-    let mut world = Scene::from_toml(&wcsph).unwrap().build_world().unwrap();
-    world.advance(1.0 / 60.0).unwrap();
+    for kind in ["wcsph", "pbf"] {
+        let scene = text.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
+        let mut world = Scene::from_toml(&scene).unwrap().build_world().unwrap();
+        world.advance(1.0 / 60.0).unwrap();
+        let names: Vec<_> = world.program_mut().names().collect();
+        assert_eq!(
+            names.contains(&"surface tension"),
+            kind == "pbf",
+            "{kind}: {names:?}"
+        );
+    }
     // The library says the same to a world built without a scene.
     let mut params = sph_core::FluidParams::water(0.04);
     params.surface_tension = 0.05;
@@ -78,23 +86,18 @@ fn surface_tension_is_refused_by_the_solvers_that_do_not_apply_it() {
         sph_core::glam::Vec3::ZERO,
         sph_core::glam::Vec3::ONE,
     ));
-    let solver = sph_core::Solver::Pbf(Default::default());
+    let solver = sph_core::Solver::Dfsph(Default::default());
     let err = solver.program(params, boundary).unwrap_err().to_string();
     assert!(
-        err.contains("surface_tension") && err.contains("PBF"),
+        err.contains("surface_tension") && err.contains("DFSPH"),
         "{err}"
     );
 }
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 26] = [
-        // σ is applied by WCSPH alone: under PBF it is refused, not dropped.
-        (
-            "surface_tension = 0.0",
-            "surface_tension = 0.0728",
-            &["fluid.surface_tension", "0.0728", "not applied by PBF"],
-        ),
+    // (A σ the solver does not apply: `surface_tension_is_refused_by_…`.)
+    let cases: [(&str, &str, &[&str]); 25] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",

@@ -216,9 +216,8 @@ impl GpuPbf {
     ///
     /// # Errors
     /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
-    /// rejects, and for a surface tension PBF does not apply (its reason);
-    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"`, which runs only
-    /// on the CPU; [`GpuError::DeviceLimit`] for more particles than one
+    /// rejects; [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` or a
+    /// surface tension σ > 0, which run only on the CPU; [`GpuError::DeviceLimit`] for more particles than one
     /// dispatch or storage binding of this device holds.
     pub fn new(
         device: &wgpu::Device,
@@ -235,6 +234,12 @@ impl GpuPbf {
         Solver::Pbf(*pbf)
             .check_applies(fluid)
             .map_err(GpuError::Params)?;
+        if fluid.surface_tension > 0.0 {
+            return Err(GpuError::Invalid(
+                "fluid.surface_tension > 0 runs only on the CPU's PBF (Akinci et al.'s forces): \
+                 simulate on the CPU, or set it to 0",
+            ));
+        }
         if pbf.viscosity == PbfViscosity::Implicit {
             return Err(GpuError::Invalid(
                 "solver.pbf.viscosity = \"implicit\" runs only on the CPU: use \"xsph\" on the GPU",

@@ -27,6 +27,7 @@ mod lanes;
 pub mod params;
 pub mod pbf;
 pub mod stations;
+pub mod surface_tension;
 pub mod viscosity;
 mod walls;
 pub mod wcsph;
@@ -126,21 +127,19 @@ impl Solver {
     /// Checks that the solver applies every parameter of `params` that is
     /// set: a fluid parameter the solver would drop is refused, naming the
     /// field, instead of running a fluid other than the one asked for.
-    /// Today that is a surface tension σ > 0 under PBF or DFSPH, which only
-    /// WCSPH applies (the thesis's colour-field force).
+    /// Today that is a surface tension σ > 0 under DFSPH, which only WCSPH
+    /// (the thesis's colour-field force) and PBF (Akinci et al.'s forces,
+    /// [`surface_tension`]) apply.
     ///
     /// # Errors
     /// [`Error::InvalidParameter`] naming `surface_tension`.
     pub fn check_applies(&self, params: &FluidParams) -> Result<()> {
         let reason = match self {
             Solver::Wcsph => return Ok(()),
-            Solver::Pbf(_) => {
-                "N/m is not applied by PBF: only WCSPH applies surface tension so far; \
-                 set it to 0, or choose kind = \"wcsph\""
-            }
+            Solver::Pbf(_) => return Ok(()),
             Solver::Dfsph(_) => {
-                "N/m is not applied by DFSPH: only WCSPH applies surface tension so far; \
-                 set it to 0, or choose kind = \"wcsph\""
+                "N/m is not applied by DFSPH: only WCSPH and PBF apply surface tension so far; \
+                 set it to 0, or choose kind = \"pbf\" or \"wcsph\""
             }
         };
         if params.surface_tension > 0.0 {

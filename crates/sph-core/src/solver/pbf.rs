@@ -59,7 +59,10 @@
 //!   Pa·s, solved implicitly after the velocity update (Weiler et al. 2018,
 //!   [`super::viscosity`], with no-slip walls), which makes a PBF fluid of
 //!   a given μ flow as that fluid does (`tests/viscosity.rs`: duct flow).
-//!   The stiffness and surface tension of [`FluidParams`] are WCSPH's.
+//!   The stiffness of [`FluidParams`] is WCSPH's.
+//! - **Surface tension** σ > 0 adds Akinci et al. 2013's cohesion and
+//!   curvature forces after the viscosity station
+//!   ([`super::surface_tension`], with its measured accuracy).
 //! - **Guard.** The predicted displacement per substep is limited to
 //!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
 //!   every clamped particle is counted in [`crate::StepCounters::clamped`].
@@ -80,6 +83,7 @@ use super::f32x8::{F32x8, LaneMap, par_map};
 use super::lanes::{DensitySums, LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
+use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::Walls;
 
@@ -382,7 +386,8 @@ impl PbfParams {
 }
 
 /// The PBF program: forces → predict → grid → neighbours → density →
-/// viscosity (vorticity and XSPH) → implicit viscosity (with
+/// viscosity (vorticity and XSPH) → surface tension (where σ > 0,
+/// [`SurfaceTension`]) → implicit viscosity (with
 /// [`PbfViscosity::Implicit`]) → boundaries.
 ///
 /// # Errors
@@ -400,6 +405,9 @@ pub fn program(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Resul
         .push(FindNeighbours::new(params.h))
         .push(SolveDensity::with_model(model.clone()))
         .push(VorticityXsph::with_model(model));
+    if params.surface_tension > 0.0 {
+        program.push(SurfaceTension::new(&params)?);
+    }
     if pbf.viscosity == PbfViscosity::Implicit {
         program.push(ImplicitViscosity::new(
             &params,
