@@ -47,6 +47,7 @@ pub struct SurfaceTension {
     rest_density: f32,
     poly6: Poly6,
     normals: Vec<Vec3>,
+    dv: Vec<Vec3>,
     virial: Vec<f32>,
 }
 
@@ -75,6 +76,7 @@ impl SurfaceTension {
             rest_density: params.rest_density,
             poly6: Poly6::new(params.h)?,
             normals: Vec::new(),
+            dv: Vec::new(),
             virial: Vec::new(),
         })
     }
@@ -85,24 +87,18 @@ impl SurfaceTension {
     pub fn virial(&self) -> &[f32] {
         &self.virial
     }
+}
 
-    /// The paper's γ this σ gives.
-    pub fn gamma(&self) -> f32 {
-        self.gamma
-    }
-
-    /// Akinci's cohesion spline C(r) of support h.
-    fn cohesion(&self, r: f32) -> f32 {
-        let h = self.poly6.h();
-        let k = 32.0 / (std::f32::consts::PI * h.powi(9));
-        let outer = (h - r).powi(3) * r.powi(3);
-        if r > h || r <= 0.0 {
-            0.0
-        } else if 2.0 * r > h {
-            k * outer
-        } else {
-            k * (2.0 * outer - h.powi(6) / 64.0)
-        }
+/// Akinci's cohesion spline C(r) of support h.
+fn cohesion(r: f32, h: f32) -> f32 {
+    let k = 32.0 / (std::f32::consts::PI * h.powi(9));
+    let outer = (h - r).powi(3) * r.powi(3);
+    if r > h || r <= 0.0 {
+        0.0
+    } else if 2.0 * r > h {
+        k * outer
+    } else {
+        k * (2.0 * outer - h.powi(6) / 64.0)
     }
 }
 
@@ -139,27 +135,27 @@ impl Processor for SurfaceTension {
             .collect_into_vec(&mut self.normals);
         let (normals, dt) = (&self.normals, ctx.dt);
         let (gamma, rest_density) = (self.gamma, self.rest_density);
-        let cohesion = |r| self.cohesion(r);
-        // Ordered: the velocity changes and virials in particle order.
-        let (dv, virial): (Vec<Vec3>, Vec<f32>) = (0..x.len())
+        // The velocity changes and virials, in particle order, into the
+        // kept buffers.
+        (0..x.len())
             .into_par_iter()
             .map(|i| {
                 let (a, w) = near(i)
                     .map(|(j, d, r2)| {
                         let r = r2.sqrt();
                         let k = 2.0 * rest_density / (rho[i] + rho[j]);
-                        let a = -gamma * k * (m[j] * cohesion(r) * d / r + normals[i] - normals[j]);
+                        let a =
+                            -gamma * k * (m[j] * cohesion(r, h) * d / r + normals[i] - normals[j]);
                         (a, d.dot(a))
                     })
                     .fold((Vec3::ZERO, 0.0), |s, t| (s.0 + t.0, s.1 + t.1));
                 (dt * a, rho[i] / 6.0 * w)
             })
-            .unzip();
+            .unzip_into_vecs(&mut self.dv, &mut self.virial);
         let f = particles.fields_mut();
         (f.velocities.par_iter_mut())
-            .zip(dv.par_iter())
+            .zip(self.dv.par_iter())
             .for_each(|(v, dv)| *v += *dv);
-        self.virial = virial;
         Ok(())
     }
 }
@@ -244,7 +240,7 @@ mod tests {
                             let k = 2.0 * params.rest_density / (rho[i] + rho[j]);
                             -station.gamma
                                 * k
-                                * (m[j] * station.cohesion(r) * d / r + normals[i] - normals[j])
+                                * (m[j] * cohesion(r, h) * d / r + normals[i] - normals[j])
                         })
                         .sum::<Vec3>()
                 })
@@ -279,17 +275,17 @@ mod tests {
     /// and largest at h/2 (the paper's figure).
     #[test]
     fn the_cohesion_spline_has_the_papers_shape() {
-        let s = SurfaceTension::new(&FluidParams::water(1.0)).unwrap();
-        let (below, above) = (s.cohesion(0.5 - 1e-4), s.cohesion(0.5 + 1e-4));
+        let cohesion_h1 = |r| cohesion(r, 1.0);
+        let (below, above) = (cohesion_h1(0.5 - 1e-4), cohesion_h1(0.5 + 1e-4));
         assert!(
             (below - above).abs() < 1e-3 * above.abs(),
             "{below} {above}"
         );
-        assert!(s.cohesion(1.0).abs() < 1e-9);
-        assert!(s.cohesion(0.05) < 0.0);
+        assert!(cohesion_h1(1.0).abs() < 1e-9);
+        assert!(cohesion_h1(0.05) < 0.0);
         let peak = (1..100)
             .map(|k| k as f32 / 100.0)
-            .max_by(|a, b| s.cohesion(*a).total_cmp(&s.cohesion(*b)))
+            .max_by(|a, b| cohesion_h1(*a).total_cmp(&cohesion_h1(*b)))
             .unwrap();
         assert!((0.49..=0.51).contains(&peak), "{peak}");
     }

@@ -229,14 +229,11 @@ impl World {
 
     /// Takes one step of the stable length; returns it.
     pub fn step(&mut self) -> Result<f32> {
-        let pool = self.take_pool();
-        let stepped = on_pool(pool.as_ref(), || {
-            let dt = self.checked_stable_dt()?;
-            self.step_by(dt)?;
+        self.on_pool(|world| {
+            let dt = world.checked_stable_dt()?;
+            world.step_by(dt)?;
             Ok(dt)
-        });
-        self.narrow_pool = pool.or(self.narrow_pool.take());
-        stepped
+        })
     }
 
     /// Lets steps use every thread of the caller's pool (`true`), or at
@@ -245,6 +242,26 @@ impl World {
     /// are the same either way.
     pub fn use_every_thread(&mut self, every: bool) {
         self.every_thread = every;
+    }
+
+    /// Runs `f` on a thread of the pool to step in ([`Self::take_pool`]),
+    /// or of rayon's current pool (this one, when it is one), and keeps the
+    /// narrow pool for the next step. The processors' parallel passes then
+    /// split their work with `join` from inside the pool, instead of
+    /// handing each pass to the pool and putting the calling thread to
+    /// sleep until it is done: PBF's 10k substep took 10 % less time on two
+    /// cores (`docs/benchmark-notes.md`, "PBF's pair sums in AVX2 lanes").
+    /// The work and its order are the same either way.
+    fn on_pool<R: Send>(&mut self, f: impl FnOnce(&mut Self) -> R + Send) -> R {
+        let pool = self.take_pool();
+        let result = match &pool {
+            Some(pool) => pool.install(|| f(self)),
+            None => rayon::scope(|_| f(self)),
+        };
+        if pool.is_some() {
+            self.narrow_pool = pool;
+        }
+        result
     }
 
     /// The pool to step in, taken out of `narrow_pool`: about
@@ -294,10 +311,7 @@ impl World {
     /// would be longer than its `max_dt`.
     pub fn advance(&mut self, frame_dt: f32) -> Result<FrameReport> {
         positive("frame_dt", frame_dt)?;
-        let pool = self.take_pool();
-        let report = on_pool(pool.as_ref(), || self.advance_by(frame_dt));
-        self.narrow_pool = pool.or(self.narrow_pool.take());
-        report
+        self.on_pool(|world| world.advance_by(frame_dt))
     }
 
     /// [`Self::advance`], on a thread of rayon's pool.
@@ -450,19 +464,5 @@ impl std::fmt::Debug for World {
             .field("solver", &self.solver)
             .field("program", &self.program)
             .finish()
-    }
-}
-
-/// Runs `f` on a thread of `pool`, or of rayon's current pool (this one,
-/// when it is one). The processors' parallel passes then split their work
-/// with `join` from inside the pool, instead of handing each pass to the
-/// pool and putting the calling thread to sleep until it is done: PBF's 10k
-/// substep took 10 % less time on two cores (`docs/benchmark-notes.md`,
-/// "PBF's pair sums in AVX2 lanes"). The work and its order are the same
-/// either way.
-fn on_pool<R: Send>(pool: Option<&rayon::ThreadPool>, f: impl FnOnce() -> R + Send) -> R {
-    match pool {
-        Some(pool) => pool.install(f),
-        None => rayon::scope(|_| f()),
     }
 }
