@@ -325,15 +325,6 @@ impl App {
     /// (PBF or WCSPH) is switched off, with its note, for DFSPH.
     fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
         self.pipeline.scene.solver.kind = kind;
-        let fluid = &mut self.pipeline.scene.fluid;
-        if kind == SolverKind::Dfsph && fluid.surface_tension > 0.0 {
-            // The solver would refuse it (`Solver::check_applies`): said, not dropped.
-            println!(
-                "σ = {} N/m set to 0: {kind} does not apply surface tension",
-                fluid.surface_tension
-            );
-            fluid.surface_tension = 0.0;
-        }
         if kind == SolverKind::Dfsph && self.pipeline.gpu.is_some() {
             let refusal = self
                 .pipeline
@@ -619,11 +610,7 @@ impl App {
                 ui.collapsing("fluid", |ui| {
                     changed |= ui.add(egui::Slider::new(&mut fluid.stiffness, 100.0..=20_000.0).logarithmic(true).text("k (m²/s²)")).changed();
                     changed |= ui.add(egui::Slider::new(&mut fluid.viscosity, 0.0..=5.0).text("μ (Pa·s)")).changed();
-                    if solver != SolverKind::Dfsph {
-                        changed |= ui.add(egui::Slider::new(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)")).changed();
-                    } else {
-                        ui.label("σ: DFSPH does not apply surface tension yet");
-                    }
+                    changed |= ui.add(egui::Slider::new(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)")).changed();
                     changed |= ui.add(egui::Slider::new(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)")).changed();
                 });
                 ui.collapsing("extraction", |ui| {

@@ -25,13 +25,12 @@
 //! `--solver-toml` is the solver's own table (`[solver.pbf]` or
 //! `[solver.dfsph]`); `--spacing` sets the resolution (5 mm by default, h =
 //! 2 spacings); `--mu` the viscosity (0.01 Pa·s by default). WCSPH applies
-//! σ by the thesis's colour-field force, PBF by Akinci et al.'s forces
-//! (`sph_core::solver::surface_tension`); DFSPH refuses it, so under DFSPH
-//! σ is left out of the fluid and the drop keeps its shape.
+//! σ by the thesis's colour-field force, PBF and DFSPH by Akinci et al.'s
+//! forces (`sph_core::solver::surface_tension`).
 //!
 //! `--akinci GAMMA` adds a prototype of Akinci et al. 2013's cohesion and
-//! curvature forces with coefficient γ as a custom processor (after PBF's
-//! `viscosity` station, or DFSPH's `forces`), and prints the inner
+//! curvature forces with coefficient γ in place of the solver's own σ
+//! (after PBF's `viscosity` station, or DFSPH's `forces`), and prints the inner
 //! pressure with those forces' virial added (the mechanical pressure), for
 //! the measurements of
 //! `docs/benchmark-notes.md`, "Surface tension for PBF and DFSPH": not a
@@ -41,7 +40,7 @@ use std::sync::{Arc, Mutex};
 
 use sph_core::glam::Vec3;
 use sph_core::processor::{Context, Processor};
-use sph_core::solver::surface_tension::SurfaceTension;
+use sph_core::solver::surface_tension::{SurfaceTension, Update};
 use sph_core::{Aabb, Boundary, FluidParams, Particles, Solver, SolverKind, TimeStepping, World};
 
 /// PBF's surface tension station (Akinci et al. 2013's forces), its
@@ -97,9 +96,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let params = FluidParams {
         gravity: Vec3::ZERO,
-        // DFSPH refuses σ; `--akinci` replaces PBF's own σ.
+        // `--akinci` replaces PBF's and DFSPH's own σ.
         surface_tension: match (kind, akinci) {
-            (SolverKind::Wcsph, _) | (SolverKind::Pbf, None) => sigma,
+            (SolverKind::Wcsph, _) | (_, None) => sigma,
             _ => 0.0,
         },
         viscosity: mu,
@@ -164,9 +163,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The forces' virial, for the mechanical pressure: PBF's own station,
     // or Akinci's forces with `--akinci`'s γ, in a wrapper that copies it.
     let virial = Arc::new(Mutex::new(Vec::<f32>::new()));
+    let (update, after) = match kind {
+        SolverKind::Pbf => (Update::Velocities, "viscosity"),
+        _ => (Update::Accelerations, "forces"),
+    };
     let station = match (kind, akinci) {
-        (_, Some(gamma)) => Some(SurfaceTension::with_gamma(&params, gamma)?),
-        (SolverKind::Pbf, None) if sigma > 0.0 => Some(SurfaceTension::new(&params)?),
+        (_, Some(gamma)) => Some(SurfaceTension::with_gamma(&params, gamma, update)?),
+        (SolverKind::Wcsph, None) => None,
+        (_, None) if sigma > 0.0 => Some(SurfaceTension::new(&params, update)?),
         _ => None,
     };
     if let Some(inner) = station {
@@ -176,10 +180,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let program = world.program_mut();
         program.remove("surface tension");
-        let after = match kind {
-            SolverKind::Pbf => "viscosity",
-            _ => "forces",
-        };
         if !program.insert_after(after, measured) {
             return Err(format!("no `{after}` station to put Akinci's forces after").into());
         }
@@ -190,8 +190,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         match (kind, akinci) {
             (SolverKind::Wcsph, _) => "applied by WCSPH".to_string(),
             (_, Some(gamma)) => format!("not applied; Akinci's forces with γ = {gamma}"),
-            (SolverKind::Pbf, None) => "applied by PBF: Akinci's forces".to_string(),
-            (_, None) => "not applied".to_string(),
+            (_, None) => format!("applied by {kind}: Akinci's forces"),
         }
     );
     // The extent along x: twice the rms distance from the centre along x

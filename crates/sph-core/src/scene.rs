@@ -526,8 +526,6 @@ impl Scene {
         // bad ones.
         (self.pbf_params().validate()).map_err(in_table("solver"))?;
         (self.dfsph_params().validate()).map_err(in_table("solver"))?;
-        // The chosen solver applies every fluid parameter set.
-        (self.solver().check_applies(&self.fluid_params())).map_err(in_table("fluid"))?;
         self.render.validate()?;
         if self.max_particles > MAX_PARTICLES {
             return Err(invalid(

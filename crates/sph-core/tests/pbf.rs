@@ -20,7 +20,7 @@ fn noise(seed: &mut u64) -> f32 {
 }
 
 /// `particles` in a domain far larger than they reach, run by PBF, with
-/// the fluid's surface tension off (PBF refuses a σ it does not apply).
+/// the fluid's surface tension off.
 fn unbounded(particles: Particles, params: FluidParams, pbf: PbfParams) -> World {
     let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
     World::with_solver(
@@ -839,67 +839,11 @@ fn processors_see_only_this_steps_neighbour_lists() {
 /// is held to it. Measured: 1.068, 0.945 and 0.986 of Rayleigh's.
 #[test]
 fn a_drop_oscillates_at_rayleighs_period() {
-    let mut ratios: Vec<f64> = [1.08f32, 1.10, 1.12].map(drop_period).to_vec();
+    let pbf = Solver::Pbf(PbfParams::default());
+    let mut ratios: Vec<f64> = [1.08f32, 1.10, 1.12]
+        .map(|stretch| common::drop_period(pbf, 0.005, stretch, 6.0))
+        .to_vec();
     ratios.sort_by(f64::total_cmp);
     println!("period / Rayleigh's: {ratios:.3?}");
     assert!((ratios[1] - 1.0).abs() <= 0.1, "{ratios:?}");
-}
-
-/// The l = 2 period of a water drop stretched by `stretch` along x, over
-/// Rayleigh's.
-fn drop_period(stretch: f32) -> f64 {
-    let spacing = 0.005f32;
-    let params = FluidParams {
-        gravity: Vec3::ZERO,
-        surface_tension: 0.0728,
-        viscosity: 0.01,
-        ..FluidParams::water(2.0 * spacing)
-    };
-    let solver = Solver::Pbf(PbfParams::default());
-    let mass = solver.particle_mass(&params, spacing).unwrap();
-    let radius = (3.0 * (16.0 * spacing).powi(3) / (4.0 * std::f32::consts::PI)).cbrt();
-    let scale = Vec3::new(stretch, stretch.powf(-0.5), stretch.powf(-0.5));
-    let mut particles = Particles::new();
-    let n = (radius / spacing).ceil() as i32 + 1;
-    for k in -n..n {
-        for j in -n..n {
-            for i in -n..n {
-                let x = (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * spacing;
-                if x.length() <= radius {
-                    particles.push(x * scale, Vec3::ZERO, mass);
-                }
-            }
-        }
-    }
-    assert_eq!(particles.len(), 4032);
-    let r = f64::from((3.0 * 4032.0 * spacing.powi(3) / (4.0 * std::f32::consts::PI)).cbrt());
-    let rayleigh = 2.0 * std::f64::consts::PI / (8.0 * 0.0728 / (1000.0 * r.powi(3))).sqrt();
-    let boundary = Boundary::new(Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)));
-    let mut world =
-        World::with_solver(particles, params, boundary, TimeStepping::default(), solver).unwrap();
-    // The extent along x (2√5 × the rms offset: 2R for a sphere) per frame,
-    // and its turns at least 1 % of 2R from the last.
-    let extent = |p: &Particles| {
-        let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
-        let var = (p.positions().iter())
-            .map(|x| f64::from((x.x - c.x).powi(2)))
-            .sum::<f64>()
-            / p.len() as f64;
-        2.0 * (5.0 * var).sqrt()
-    };
-    let mut series = vec![(0.0, extent(&world.particles))];
-    while world.time() < 6.0 - 1e-9 {
-        world.advance(1.0 / 60.0).unwrap();
-        series.push((world.time(), extent(&world.particles)));
-    }
-    let (mut turns, mut last) = (Vec::new(), series[0].1);
-    for w in series.windows(3) {
-        let (a, b, c) = (w[0].1, w[1].1, w[2].1);
-        if ((b > a && b >= c) || (b < a && b <= c)) && (b - last).abs() > 0.02 * r {
-            turns.push(w[1].0);
-            last = b;
-        }
-    }
-    assert!(turns.len() >= 3, "stretch {stretch}: turns at {turns:?}");
-    2.0 * (turns[turns.len() - 1] - turns[0]) / (turns.len() - 1) as f64 / rayleigh
 }

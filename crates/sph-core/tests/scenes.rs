@@ -57,47 +57,34 @@ fn message(text: &str) -> String {
     Scene::from_toml(text).unwrap_err().to_string()
 }
 
-/// A surface tension the chosen solver does not apply is an error naming
-/// the field and the solver (DFSPH); WCSPH and PBF run it.
+/// Every solver applies a scene's surface tension: WCSPH by the thesis's
+/// colour-field force inside its force sums, PBF and DFSPH by a `surface
+/// tension` station (Akinci et al.'s forces), which a scene without σ
+/// leaves out.
 #[test]
-fn surface_tension_is_refused_by_the_solvers_that_do_not_apply_it() {
-    let text = with("surface_tension = 0.0", "surface_tension = 0.0728");
-    let dfsph = text.replacen("kind = \"pbf\"", "kind = \"dfsph\"", 1);
-    let err = message(&dfsph);
-    assert!(
-        err.contains("fluid.surface_tension") && err.contains("DFSPH"),
-        "{err}"
-    );
-    for kind in ["wcsph", "pbf"] {
-        let scene = text.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
-        let mut world = Scene::from_toml(&scene).unwrap().build_world().unwrap();
-        world.advance(1.0 / 60.0).unwrap();
-        let names: Vec<_> = world.program_mut().names().collect();
-        assert_eq!(
-            names.contains(&"surface tension"),
-            kind == "pbf",
-            "{kind}: {names:?}"
+fn every_solver_applies_surface_tension() {
+    for sigma in ["0.0", "0.0728"] {
+        let text = with(
+            "surface_tension = 0.0",
+            &format!("surface_tension = {sigma}"),
         );
+        for kind in ["wcsph", "pbf", "dfsph"] {
+            let scene = text.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
+            let mut world = Scene::from_toml(&scene).unwrap().build_world().unwrap();
+            world.advance(1.0 / 60.0).unwrap();
+            let names: Vec<_> = world.program_mut().names().collect();
+            assert_eq!(
+                names.contains(&"surface tension"),
+                kind != "wcsph" && sigma != "0.0",
+                "{kind}, σ = {sigma}: {names:?}"
+            );
+        }
     }
-    // The library says the same to a world built without a scene.
-    let mut params = sph_core::FluidParams::water(0.04);
-    params.surface_tension = 0.05;
-    let boundary = sph_core::Boundary::new(sph_core::Aabb::new(
-        sph_core::glam::Vec3::ZERO,
-        sph_core::glam::Vec3::ONE,
-    ));
-    let solver = sph_core::Solver::Dfsph(Default::default());
-    let err = solver.program(params, boundary).unwrap_err().to_string();
-    assert!(
-        err.contains("surface_tension") && err.contains("DFSPH"),
-        "{err}"
-    );
 }
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    // (A σ the solver does not apply: `surface_tension_is_refused_by_…`.)
-    let cases: [(&str, &str, &[&str]); 25] = [
+    let cases: [(&str, &str, &[&str]); 27] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -122,6 +109,16 @@ fn malformed_scenes_name_the_field_and_reason() {
         ("spacing = 0.02\n", "", &["missing field", "spacing"]),
         ("h = 0.04", "h = -0.04", &["fluid.h", "> 0"]),
         ("h = 0.04", "h = nan", &["fluid.h", "finite"]),
+        (
+            "surface_tension = 0.0",
+            "surface_tension = -0.07",
+            &["fluid.surface_tension", ">= 0"],
+        ),
+        (
+            "surface_tension = 0.0",
+            "surface_tension = nan",
+            &["fluid.surface_tension", "finite"],
+        ),
         (
             "spacing = 0.02",
             "spacing = 0.05",

@@ -29,7 +29,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
-use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
+use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6};
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
@@ -231,9 +231,6 @@ impl GpuPbf {
         fluid.validate().map_err(GpuError::Params)?;
         pbf.validate().map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
-        Solver::Pbf(*pbf)
-            .check_applies(fluid)
-            .map_err(GpuError::Params)?;
         if fluid.surface_tension > 0.0 {
             return Err(GpuError::Invalid(
                 "fluid.surface_tension > 0 runs only on the CPU's PBF (Akinci et al.'s forces): \

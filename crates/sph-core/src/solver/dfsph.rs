@@ -14,7 +14,7 @@
 //! | find neighbours | `grid`, `neighbours` | [`BuildGrid`], [`FindNeighbours`] |
 //! | compute ρ_i, α_i | `factors` | [`Factors`] |
 //! | correct the divergence error (Algorithm 2) | `divergence` | [`DivergenceSolve`] |
-//! | non-pressure forces | `forces`, `viscosity` | [`BodyForces`], [`ImplicitViscosity`] |
+//! | non-pressure forces | `forces`, `surface tension`, `viscosity` | [`BodyForces`], [`SurfaceTension`], [`ImplicitViscosity`] |
 //! | Δt by the CFL condition | (the [`crate::World`]'s clock) | [`DfsphParams::cfl`] |
 //! | v* ← v + Δt a; correct the density error (Algorithm 3) | `density` | [`DensitySolve`] |
 //! | x ← x + Δt v* | `advect`, `boundaries` | [`Advect`], [`Boundaries`] |
@@ -80,8 +80,11 @@
 //!   twice the hydrostatic pressure.
 //! - **Viscosity** is implicit (Weiler et al. 2018,
 //!   [`super::viscosity`]) with [`FluidParams::viscosity`] μ in Pa·s and
-//!   no-slip walls, so no viscosity limits the step. Surface tension is not
-//!   applied.
+//!   no-slip walls, so no viscosity limits the step.
+//! - **Surface tension** σ > 0 adds Akinci et al. 2013's cohesion and
+//!   curvature accelerations after the body forces
+//!   ([`super::surface_tension`], the same forces and σ-to-γ scale as
+//!   PBF's, with their measured accuracy).
 
 use std::sync::{Arc, Mutex};
 
@@ -92,6 +95,7 @@ use super::f32x8::{F32x8, LaneMap, LaneRowMap, par_map, par_map_rows};
 use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
+use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::Walls;
 use crate::boundary::{Boundary, WallKernel};
@@ -247,7 +251,8 @@ impl DfsphParams {
 }
 
 /// The DFSPH program: grid → neighbours → factors → divergence → forces →
-/// viscosity → density → advect → boundaries.
+/// (surface tension, where σ > 0) → viscosity → density → advect →
+/// boundaries.
 ///
 /// # Errors
 /// Parameters or a boundary that do not validate.
@@ -268,7 +273,11 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             shared.clone(),
             Target::Divergence,
         )))
-        .push(BodyForces::new(params.gravity))
+        .push(BodyForces::new(params.gravity));
+    if params.surface_tension > 0.0 {
+        program.push(SurfaceTension::new(&params, Update::Accelerations)?);
+    }
+    program
         .push(ImplicitViscosity::new(
             &params,
             boundary.clone(),

@@ -44,7 +44,7 @@ pub use wcsph::{DensityPressure, Forces};
 pub use world::{FrameReport, World, useful_threads};
 
 use crate::boundary::Boundary;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::processor::Program;
 
 /// Which solver advances a [`World`], with the parameters of its own.
@@ -124,34 +124,6 @@ impl Solver {
         }
     }
 
-    /// Checks that the solver applies every parameter of `params` that is
-    /// set: a fluid parameter the solver would drop is refused, naming the
-    /// field, instead of running a fluid other than the one asked for.
-    /// Today that is a surface tension σ > 0 under DFSPH, which only WCSPH
-    /// (the thesis's colour-field force) and PBF (Akinci et al.'s forces,
-    /// [`surface_tension`]) apply.
-    ///
-    /// # Errors
-    /// [`Error::InvalidParameter`] naming `surface_tension`.
-    pub fn check_applies(&self, params: &FluidParams) -> Result<()> {
-        let reason = match self {
-            Solver::Wcsph => return Ok(()),
-            Solver::Pbf(_) => return Ok(()),
-            Solver::Dfsph(_) => {
-                "N/m is not applied by DFSPH: only WCSPH and PBF apply surface tension so far; \
-                 set it to 0, or choose kind = \"pbf\" or \"wcsph\""
-            }
-        };
-        if params.surface_tension > 0.0 {
-            return Err(Error::InvalidParameter {
-                name: "surface_tension",
-                value: params.surface_tension.to_string(),
-                reason,
-            });
-        }
-        Ok(())
-    }
-
     /// The particle mass for fluid sampled on a cubic lattice of `spacing`
     /// that starts at rest density with the kernel this solver sums
     /// densities with: poly6 for WCSPH and PBF
@@ -171,10 +143,8 @@ impl Solver {
     /// The solver's program for this fluid and these walls.
     ///
     /// # Errors
-    /// Parameters or a boundary that do not validate, or a parameter the
-    /// solver does not apply ([`Solver::check_applies`]).
+    /// Parameters or a boundary that do not validate.
     pub fn program(&self, params: FluidParams, boundary: Boundary) -> Result<Program> {
-        self.check_applies(&params)?;
         match self {
             Solver::Wcsph => wcsph::program(params, boundary),
             Solver::Pbf(p) => pbf::program(params, *p, boundary),

@@ -406,7 +406,7 @@ pub fn program(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Resul
         .push(SolveDensity::with_model(model.clone()))
         .push(VorticityXsph::with_model(model));
     if params.surface_tension > 0.0 {
-        program.push(SurfaceTension::new(&params)?);
+        program.push(SurfaceTension::new(&params, Update::Velocities)?);
     }
     if pbf.viscosity == PbfViscosity::Implicit {
         program.push(ImplicitViscosity::new(

@@ -1,4 +1,4 @@
-//! Surface tension for PBF: the cohesion and curvature forces of Akinci,
+//! Surface tension for PBF and DFSPH: the cohesion and curvature forces of Akinci,
 //! Ihmsen, Akinci, Solenthaler and Teschner 2013 ("Versatile surface tension
 //! and adhesion for SPH fluids"), as SPlisHSPlasH writes them:
 //!
@@ -6,8 +6,12 @@
 //! K_ij = 2ρ0 / (ρ_i + ρ_j), n_i = h Σ_j (m_j/ρ_j) ∇W_poly6(x_i − x_j),
 //!
 //! with C Akinci's cohesion spline (attracting beyond h/2, repelling
-//! within), added to the velocities as Δt a after the viscosity station,
-//! over the substep's neighbour lists at the particles' current positions.
+//! within), over the step's neighbour lists at the particles' current
+//! positions. Under PBF they are added to the velocities as Δt a after the
+//! viscosity station ([`Update::Velocities`]); under DFSPH to the
+//! accelerations after the body forces, before the viscosity and density
+//! solves ([`Update::Accelerations`]), as SPlisHSPlasH orders its
+//! non-pressure forces.
 //! Both terms are pairwise, so momentum is conserved (for the equal masses
 //! a lattice-sampled fluid has: the curvature term goes with m_i).
 //!
@@ -21,15 +25,23 @@
 //!   of Laplace's 2σ/R;
 //! - h = 7 mm: 0.877–0.922 of the period, and 0.977–0.993 of Laplace's.
 //!
+//! The same forces at the same scale under DFSPH (`rayleigh_drop -- dfsph
+//! 6 --shape ellipsoid --eps E [--spacing 0.0035]`):
+//! - h = 7 mm: 0.91–0.99 of the period over stretches of 10–15 %, and a
+//!   mechanical pressure 0.47–0.50 of Laplace's;
+//! - h = 1 cm: 0.90–0.93 at 10 and 12 %, while at 8 and 15 % the swing is
+//!   damped out before a period ends; 0.77–0.80 of Laplace's.
+//!
 //! One drop's period moves by several per cent with rounding-level
-//! changes. The damping is far above Lamb's. DFSPH and the GPU's PBF do
-//! not take it yet.
+//! changes. The damping is far above Lamb's. The GPU's PBF does not take
+//! it yet.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use super::params::FluidParams;
 use super::stations::lists;
+pub use super::viscosity::Update;
 use crate::error::Result;
 use crate::kernels::{Kernel, Poly6};
 use crate::particles::Particles;
@@ -43,23 +55,25 @@ pub const AKINCI_SCALE: f32 = 13.0;
 /// The station: Akinci et al.'s forces for the fluid's σ.
 #[derive(Debug, Clone)]
 pub struct SurfaceTension {
+    update: Update,
     gamma: f32,
     rest_density: f32,
     poly6: Poly6,
     normals: Vec<Vec3>,
-    dv: Vec<Vec3>,
+    changes: Vec<Vec3>,
     virial: Vec<f32>,
 }
 
 impl SurfaceTension {
-    /// For `params`' σ, h and ρ0.
+    /// For `params`' σ, h and ρ0, acting on the velocities or the
+    /// accelerations as `update` says.
     ///
     /// # Errors
     /// Parameters that do not validate.
-    pub fn new(params: &FluidParams) -> Result<Self> {
+    pub fn new(params: &FluidParams, update: Update) -> Result<Self> {
         let h = params.h;
         let gamma = params.surface_tension / (AKINCI_SCALE * params.rest_density * h * h);
-        Self::with_gamma(params, gamma)
+        Self::with_gamma(params, gamma, update)
     }
 
     /// With the paper's coefficient γ itself (for measuring it), for
@@ -68,15 +82,16 @@ impl SurfaceTension {
     /// # Errors
     /// Parameters that do not validate, or a γ that is not finite and
     /// non-negative.
-    pub fn with_gamma(params: &FluidParams, gamma: f32) -> Result<Self> {
+    pub fn with_gamma(params: &FluidParams, gamma: f32, update: Update) -> Result<Self> {
         params.validate()?;
         crate::error::non_negative("gamma", gamma)?;
         Ok(Self {
+            update,
             gamma,
             rest_density: params.rest_density,
             poly6: Poly6::new(params.h)?,
             normals: Vec::new(),
-            dv: Vec::new(),
+            changes: Vec::new(),
             virial: Vec::new(),
         })
     }
@@ -133,7 +148,12 @@ impl Processor for SurfaceTension {
                     .fold(Vec3::ZERO, |s, t| s + t)
             })
             .collect_into_vec(&mut self.normals);
-        let (normals, dt) = (&self.normals, ctx.dt);
+        let normals = &self.normals;
+        // Velocity changes (Δt a) or accelerations, as the solver takes them.
+        let dt = match self.update {
+            Update::Velocities => ctx.dt,
+            Update::Accelerations => 1.0,
+        };
         let (gamma, rest_density) = (self.gamma, self.rest_density);
         // The velocity changes and virials, in particle order, into the
         // kept buffers.
@@ -151,11 +171,15 @@ impl Processor for SurfaceTension {
                     .fold((Vec3::ZERO, 0.0), |s, t| (s.0 + t.0, s.1 + t.1));
                 (dt * a, rho[i] / 6.0 * w)
             })
-            .unzip_into_vecs(&mut self.dv, &mut self.virial);
+            .unzip_into_vecs(&mut self.changes, &mut self.virial);
         let f = particles.fields_mut();
-        (f.velocities.par_iter_mut())
-            .zip(self.dv.par_iter())
-            .for_each(|(v, dv)| *v += *dv);
+        let target = match self.update {
+            Update::Velocities => f.velocities,
+            Update::Accelerations => f.accelerations,
+        };
+        (target.par_iter_mut())
+            .zip(self.changes.par_iter())
+            .for_each(|(v, c)| *v += *c);
         Ok(())
     }
 }
@@ -206,7 +230,7 @@ mod tests {
         particles.densities_mut().copy_from_slice(&rho);
         let mut ctx = Context::new(1e-3);
         ctx.neighbours = Some(lists);
-        let mut station = SurfaceTension::new(&params).unwrap();
+        let mut station = SurfaceTension::new(&params, Update::Velocities).unwrap();
         // The paper's sums written out term by term, in the lists' order.
         let reference: Vec<Vec3> = {
             let l = ctx.neighbours.as_ref().unwrap();
