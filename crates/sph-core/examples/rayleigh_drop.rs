@@ -8,17 +8,24 @@
 //!   along x);
 //! - `ellipsoid`: the lattice points of a sphere of that volume, stretched
 //!   by 1 + `--eps` (default 0.1) along x and shrunk by its square root
-//!   across: l = 2 at small amplitude, where Rayleigh's linear theory holds.
+//!   across: l = 2 at small amplitude, where Rayleigh's linear theory holds;
+//! - `cube`: a cube of 16³ particles, mostly l = 4 at large amplitude
+//!   (a sphere's lattice points perturbed by l = 4's cubic harmonic were
+//!   tried for small amplitudes, but the cubic lattice carries an l = 4
+//!   signal of its own that swamps them).
 //!
 //! Printed for the solver given (WCSPH by default): the extent along x
-//! against time (2√5 times the rms offset along x: 2R for a sphere), the
+//! against time (2√5 times the rms offset along x: 2R for a sphere; for
+//! the cube, the l = 4 signal instead: the fourth-moment extent
+//! ⟨(x·n)⁴⟩^¼ along the faces' normals over that along the body diagonals,
+//! 1 for a sphere, 0.912 for a cube), the
 //! particles escaped beyond 3R, the period from the extent's extrema against
 //! Rayleigh's, and the mean pressure of the particles within R/2 of the
 //! centre over the last second against Laplace's 2σ/R.
 //!
 //! ```text
 //! cargo run --release -p sph-core --example rayleigh_drop [-- SOLVER [SECONDS] \
-//!     [--shape box|ellipsoid] [--eps E] [--spacing S] [--sigma N_PER_M] \
+//!     [--shape box|ellipsoid|cube] [--eps E] [--spacing S] [--sigma N_PER_M] \
 //!     [--solver-toml 'viscosity = "implicit"']]
 //! ```
 //!
@@ -66,7 +73,7 @@ impl Processor for Measured {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kind = SolverKind::Wcsph;
-    let (mut seconds, mut ellipsoid, mut eps) = (4.0f64, false, 0.1f32);
+    let (mut seconds, mut shape, mut eps) = (4.0f64, "box".to_string(), 0.1f32);
     let (mut spacing, mut sigma, mut table) = (0.005f32, 0.0728f32, String::new());
     let (mut mu, mut akinci) = (0.01f32, None);
     let mut args = std::env::args().skip(1);
@@ -75,10 +82,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
         match arg.as_str() {
             "--shape" => {
-                ellipsoid = match value("--shape")?.as_str() {
-                    "box" => false,
-                    "ellipsoid" => true,
-                    other => return Err(format!("unknown shape `{other}`: box, ellipsoid").into()),
+                shape = value("--shape")?;
+                if !["box", "ellipsoid", "cube"].contains(&shape.as_str()) {
+                    return Err(format!("unknown shape `{shape}`: box, ellipsoid, cube").into());
                 }
             }
             "--eps" => eps = value("--eps")?.parse()?,
@@ -113,7 +119,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // The volume of 16³ particles: 4/3 π R³.
     let volume = (16.0 * spacing).powi(3);
     let mut particles = Particles::new();
-    if ellipsoid {
+    let cube = shape == "cube";
+    if shape == "ellipsoid" {
         let r = (3.0 * volume / (4.0 * std::f32::consts::PI)).cbrt();
         let n = (r / spacing).ceil() as i32 + 1;
         let stretch = Vec3::new(1.0 + eps, (1.0 + eps).powf(-0.5), (1.0 + eps).powf(-0.5));
@@ -129,10 +136,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     } else {
         let b = (volume / 2.0).cbrt();
-        let (nx, ny) = (
-            (2.0 * b / spacing).round() as i32,
-            (b / spacing).round() as i32,
-        );
+        let (nx, ny) = if cube {
+            (16, 16)
+        } else {
+            (
+                (2.0 * b / spacing).round() as i32,
+                (b / spacing).round() as i32,
+            )
+        };
         for k in 0..ny {
             for j in 0..ny {
                 for i in 0..nx {
@@ -147,7 +158,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let radius =
         (3.0 * count as f64 * f64::from(spacing).powi(3) / (4.0 * std::f64::consts::PI)).cbrt();
     let rho = f64::from(params.rest_density);
-    let (l, nu) = (2.0f64, f64::from(mu) / rho);
+    let (l, nu) = (if cube { 4.0f64 } else { 2.0 }, f64::from(mu) / rho);
     let omega = (l * (l - 1.0) * (l + 2.0) * f64::from(sigma) / (rho * radius.powi(3))).sqrt();
     let rayleigh = 2.0 * std::f64::consts::PI / omega;
     let lamb = (l - 1.0) * (2.0 * l + 1.0) * nu / (radius * radius);
@@ -186,7 +197,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     println!(
         "{kind}: {count} particles at {spacing} m, R = {radius:.4} m, σ = {sigma} N/m ({}), μ = {mu} Pa·s; \
-         Rayleigh's l = 2 period {rayleigh:.3} s, Lamb's damping {lamb:.3} 1/s, Laplace's 2σ/R {laplace:.2} Pa",
+         Rayleigh's l = {l} period {rayleigh:.3} s, Lamb's damping {lamb:.3} 1/s, Laplace's 2σ/R {laplace:.2} Pa",
         match (kind, akinci) {
             (SolverKind::Wcsph, _) => "applied by WCSPH".to_string(),
             (_, Some(gamma)) => format!("not applied; Akinci's forces with γ = {gamma}"),
@@ -215,7 +226,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let count = inner.len().max(1) as f64;
         let pressure = inner.iter().map(|q| q.0).sum::<f64>() / count;
         let mechanical = inner.iter().map(|q| q.0 + q.1).sum::<f64>() / count;
-        (2.0 * (5.0 * var).sqrt(), far, (pressure, mechanical))
+        let signal = if cube {
+            // The l = 4 signal: fourth-moment extents along the faces'
+            // normals over those along the body diagonals.
+            let extent = |n: Vec3| {
+                let m4 = (p.positions().iter())
+                    .map(|x| f64::from((*x - c).dot(n)).powi(4))
+                    .sum::<f64>()
+                    / p.len() as f64;
+                m4.powf(0.25)
+            };
+            let faces = [Vec3::X, Vec3::Y, Vec3::Z].map(extent).iter().sum::<f64>();
+            let diagonals = [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+                .map(|(a, b)| extent(Vec3::new(1.0, a, b).normalize()))
+                .iter()
+                .sum::<f64>();
+            (faces / 3.0) / (diagonals / 4.0)
+        } else {
+            2.0 * (5.0 * var).sqrt() / (2.0 * radius)
+        };
+        (signal, far, (pressure, mechanical))
     };
     let frame = 1.0 / 60.0;
     let start = measure(&world.particles);
@@ -232,22 +262,26 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     // Extrema of the extent (local maxima and minima), each a half period
-    // apart: a turn counts when it is at least 1 % of 2R from the last one
+    // apart: a turn counts when it is at least 1 % (of 2R) from the last one
     // (so a plateau's or a resting drop's wiggles do not).
     let mut extrema: Vec<(f64, f64)> = Vec::new();
     let mut last = start.0;
     for w in series.windows(3) {
         let (a, b, c) = (w[0].1, w[1].1, w[2].1);
         let turn = (b > a && b >= c) || (b < a && b <= c);
-        if turn && (b - last).abs() > 0.02 * radius {
+        if turn && (b - last).abs() > 0.01 {
             extrema.push(w[1]);
             last = b;
         }
     }
     for ((t, e), far) in series.iter().zip(&escaped).step_by(6) {
         println!(
-            "  t = {t:5.2} s  extent along x {e:.4} m ({:.3} of 2R), {far} particles beyond 3R",
-            e / (2.0 * radius)
+            "  t = {t:5.2} s  {} {e:.3}, {far} particles beyond 3R",
+            if cube {
+                "faces' over diagonals' extent"
+            } else {
+                "extent along x over 2R"
+            },
         );
     }
     println!("extrema (t, extent): {extrema:.3?}");
