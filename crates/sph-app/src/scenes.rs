@@ -1,4 +1,4 @@
-//! The built-in scenes (keys 1–7 in the window) and `--scene` resolution.
+//! The built-in scenes (keys 1–8 in the window) and `--scene` resolution.
 
 use std::path::Path;
 
@@ -32,7 +32,7 @@ pub fn resolve(scene: &str) -> Result<(String, Scene), AppError> {
 
 /// The `--list-scenes` text, with each scene's particle count at the start.
 pub fn listing() -> String {
-    let mut out = String::from("built-in scenes (--scene NAME, keys 1-7 in the window):\n");
+    let mut out = String::from("built-in scenes (--scene NAME, keys 1-8 in the window):\n");
     for (i, (name, what, make)) in BUILT_IN.iter().enumerate() {
         let scene = make();
         let count = match scene.particles() {
@@ -73,11 +73,11 @@ mod tests {
     /// DFSPH for the two with physical viscosities.
     #[test]
     fn built_ins_run_with_every_solver() {
-        for (k, (name, _, make)) in BUILT_IN.iter().enumerate() {
-            let default = if k < 5 {
-                SolverKind::Pbf
-            } else {
+        for (name, _, make) in BUILT_IN {
+            let default = if ["dam-break-water", "honey"].contains(&name) {
                 SolverKind::Dfsph
+            } else {
+                SolverKind::Pbf
             };
             assert_eq!(make().solver.kind, default, "{name}");
             for kind in SolverKind::ALL {

@@ -1,7 +1,7 @@
 //! Windowed mode: winit window, wgpu surface, splat renderer, egui panel.
 //!
 //! Controls: drag to rotate, scroll to zoom, right-drag to pan, Ctrl+drag to
-//! push the fluid; Space pause, N single step, R reset, 1–7 built-in scenes,
+//! push the fluid; Space pause, N single step, R reset, 1–8 built-in scenes,
 //! S screenshot, F cycle views, Esc quit.
 
 use std::sync::{Arc, RwLock};

@@ -158,7 +158,7 @@ fn list_scenes_names_the_built_ins() {
         "{text}"
     );
     // Each with its solver, the default marked.
-    assert_eq!(text.matches(" particles, pbf").count(), 5, "{text}");
+    assert_eq!(text.matches(" particles, pbf").count(), 6, "{text}");
     assert!(
         text.contains("5400 particles, pbf (the default)\n"),
         "{text}"

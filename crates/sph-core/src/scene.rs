@@ -832,18 +832,53 @@ impl Scene {
     }
 }
 
+impl Scene {
+    /// Two weightless cubes of water (side 13 spacings, 6.5 cm at 5 mm)
+    /// drifting towards each other at 5 cm/s each, a third of a side off
+    /// centre, in a box 0.36 × 0.2 × 0.2 m: surface tension (water's σ =
+    /// 0.0728 N/m) rounds each into a drop, and the drops merge into one
+    /// that spins and wobbles. Without σ nothing pulls them round or holds
+    /// them together. h = 2 × spacing, as the other scenes.
+    pub fn weightless_drops(spacing: f32) -> Self {
+        let (w, d) = (0.36, 0.2);
+        let mut s = Self::base("weightless drops", Vec3::new(w, d, d), spacing);
+        s.fluid.gravity = [0.0; 3];
+        s.fluid.viscosity = 1e-3;
+        s.fluid.surface_tension = 0.0728;
+        let side = 13.0 * spacing;
+        let offset = side / 3.0;
+        for (cx, cy, vx) in [
+            (0.3 * w, 0.5 * d + 0.5 * offset, 0.05),
+            (0.7 * w, 0.5 * d - 0.5 * offset, -0.05),
+        ] {
+            s.blocks.push(BlockSpec {
+                min: [cx - 0.5 * side, cy - 0.5 * side, 0.5 * d - 0.5 * side],
+                max: [cx + 0.5 * side, cy + 0.5 * side, 0.5 * d + 0.5 * side],
+                velocity: [vx, 0.0, 0.0],
+            });
+        }
+        s.render = RenderSpec {
+            camera: [0.5 * w, 0.6 * d, 0.5 * d + 0.32],
+            look_at: [0.5 * w, 0.5 * d, 0.5 * d],
+            fov_y: 45.0,
+        };
+        s
+    }
+}
+
 /// A built-in scene: name, description, constructor.
 pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 
-/// The demo's built-in scenes (`sph-app --scene NAME`, keys 1–7 in its
+/// The demo's built-in scenes (`sph-app --scene NAME`, keys 1–8 in its
 /// window; `sph_splat.World(NAME)` in Python), in key order: name,
 /// description, constructor ([`Scene::built_in`]). The first five run PBF, the
 /// real-time solver, with the parameters `Scene::pbf_params` derives (3
 /// iterations, and 3 substeps per 60 Hz frame, 5 for `dam-break-fine`, so
 /// that a fall through the fluid's height moves at most 0.6 h per substep);
-/// the last two DFSPH, the accurate one, with physical viscosities: water
-/// (1e-3 Pa·s) and honey (50 Pa·s). `--solver` runs any with another.
-pub const BUILT_IN: [BuiltIn; 7] = [
+/// the next two DFSPH, the accurate one, with physical viscosities: water
+/// (1e-3 Pa·s) and honey (50 Pa·s); `drops`, water's surface tension in
+/// zero gravity, PBF again. `--solver` runs any with another.
+pub const BUILT_IN: [BuiltIn; 8] = [
     ("dam-break", "thin-slab dam break", || {
         Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Pbf)
     }),
@@ -892,6 +927,11 @@ pub const BUILT_IN: [BuiltIn; 7] = [
         "honey",
         "a cube of honey (μ = 50 Pa·s) slumping, DFSPH",
         || Scene::honey(0.2, 0.02),
+    ),
+    (
+        "drops",
+        "two weightless cubes of water rounded and merged by surface tension",
+        || Scene::weightless_drops(0.005).with_solver(SolverKind::Pbf),
     ),
 ];
 
