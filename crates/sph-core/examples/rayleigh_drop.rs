@@ -26,8 +26,12 @@
 //! ```text
 //! cargo run --release -p sph-core --example rayleigh_drop [-- SOLVER [SECONDS] \
 //!     [--shape box|ellipsoid|cube] [--eps E] [--spacing S] [--sigma N_PER_M] \
+//!     [--model colour-field|akinci] [--mu PA_S] [--akinci GAMMA] \
 //!     [--solver-toml 'viscosity = "implicit"']]
 //! ```
+//!
+//! `--model colour-field|akinci` picks the force that applies σ (each
+//! solver's own by default; WCSPH takes either).
 //!
 //! `--solver-toml` is the solver's own table (`[solver.pbf]` or
 //! `[solver.dfsph]`); `--spacing` sets the resolution (5 mm by default, h =
@@ -48,7 +52,10 @@ use std::sync::{Arc, Mutex};
 use sph_core::glam::Vec3;
 use sph_core::processor::{Context, Processor};
 use sph_core::solver::surface_tension::{SurfaceTension, Update};
-use sph_core::{Aabb, Boundary, FluidParams, Particles, Solver, SolverKind, TimeStepping, World};
+use sph_core::{
+    Aabb, Boundary, FluidParams, Particles, Solver, SolverKind, SurfaceTensionModel, TimeStepping,
+    World,
+};
 
 /// PBF's surface tension station (Akinci et al. 2013's forces), its
 /// virial pressure per particle copied out after each step for the
@@ -75,7 +82,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kind = SolverKind::Wcsph;
     let (mut seconds, mut shape, mut eps) = (4.0f64, "box".to_string(), 0.1f32);
     let (mut spacing, mut sigma, mut table) = (0.005f32, 0.0728f32, String::new());
-    let (mut mu, mut akinci) = (0.01f32, None);
+    let (mut mu, mut akinci, mut model) = (0.01f32, None, None);
     let mut args = std::env::args().skip(1);
     let mut positional = 0;
     while let Some(arg) = args.next() {
@@ -93,6 +100,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--solver-toml" => table = value("--solver-toml")?,
             "--mu" => mu = value("--mu")?.parse()?,
             "--akinci" => akinci = Some(value("--akinci")?.parse::<f32>()?),
+            "--model" => {
+                model = Some(match value("--model")?.as_str() {
+                    "colour-field" => SurfaceTensionModel::ColourField,
+                    "akinci" => SurfaceTensionModel::Akinci,
+                    other => {
+                        return Err(format!("unknown model `{other}`: colour-field, akinci").into());
+                    }
+                })
+            }
             _ if positional == 0 => {
                 kind = SolverKind::from_name(&arg).ok_or(format!("unknown solver `{arg}`"))?;
                 positional += 1;
@@ -107,6 +123,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             (SolverKind::Wcsph, _) | (_, None) => sigma,
             _ => 0.0,
         },
+        surface_tension_model: model,
         viscosity: mu,
         ..FluidParams::water(2.0 * spacing)
     };
@@ -176,12 +193,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let virial = Arc::new(Mutex::new(Vec::<f32>::new()));
     let (update, after) = match kind {
         SolverKind::Pbf => (Update::Velocities, "viscosity"),
-        _ => (Update::Accelerations, "forces"),
+        SolverKind::Dfsph => (Update::Accelerations, "forces"),
+        SolverKind::Wcsph => (Update::Accelerations, "neighbours"),
     };
+    let colour_field = kind == SolverKind::Wcsph && model != Some(SurfaceTensionModel::Akinci);
     let station = match (kind, akinci) {
         (_, Some(gamma)) => Some(SurfaceTension::with_gamma(&params, gamma, update)?),
-        (SolverKind::Wcsph, None) => None,
-        (_, None) if sigma > 0.0 => Some(SurfaceTension::new(&params, update)?),
+        (_, None) if sigma > 0.0 && !colour_field => Some(SurfaceTension::new(&params, update)?),
         _ => None,
     };
     if let Some(inner) = station {
@@ -199,7 +217,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "{kind}: {count} particles at {spacing} m, R = {radius:.4} m, σ = {sigma} N/m ({}), μ = {mu} Pa·s; \
          Rayleigh's l = {l} period {rayleigh:.3} s, Lamb's damping {lamb:.3} 1/s, Laplace's 2σ/R {laplace:.2} Pa",
         match (kind, akinci) {
-            (SolverKind::Wcsph, _) => "applied by WCSPH".to_string(),
+            (SolverKind::Wcsph, _) if colour_field =>
+                "applied by WCSPH: the thesis's colour field".to_string(),
             (_, Some(gamma)) => format!("not applied; Akinci's forces with γ = {gamma}"),
             (_, None) => format!("applied by {kind}: Akinci's forces"),
         }

@@ -34,7 +34,7 @@ pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;
 pub use solver::{
     DfsphParams, FluidParams, FrameReport, PbfParams, PbfViscosity, PressureKernel, Solver,
-    SolverKind, TimeStepping, World, useful_threads,
+    SolverKind, SurfaceTensionModel, TimeStepping, World, useful_threads,
 };
 
 /// Re-export of the vector maths crate used in the public API.

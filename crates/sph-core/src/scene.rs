@@ -101,6 +101,11 @@ pub struct FluidSpec {
     pub viscosity: f32,
     /// Surface tension σ (N/m).
     pub surface_tension: f32,
+    /// The force that applies σ: `"colour-field"` (the thesis's, WCSPH
+    /// only) or `"akinci"` (Akinci et al. 2013's); left out, each solver's
+    /// own (WCSPH the thesis's, PBF and DFSPH Akinci's).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_tension_model: Option<crate::solver::SurfaceTensionModel>,
     /// |∇c| threshold for surface tension (1/m).
     pub surface_threshold: f32,
     /// Gravity (m/s²).
@@ -526,6 +531,8 @@ impl Scene {
         // bad ones.
         (self.pbf_params().validate()).map_err(in_table("solver"))?;
         (self.dfsph_params().validate()).map_err(in_table("solver"))?;
+        // The chosen solver applies every fluid parameter as given.
+        (self.solver().check_applies(&self.fluid_params())).map_err(in_table("fluid"))?;
         self.render.validate()?;
         if self.max_particles > MAX_PARTICLES {
             return Err(invalid(
@@ -563,6 +570,7 @@ impl Scene {
             stiffness: f.stiffness,
             viscosity: f.viscosity,
             surface_tension: f.surface_tension,
+            surface_tension_model: f.surface_tension_model,
             surface_threshold: f.surface_threshold,
             gravity: Vec3::from(f.gravity),
             negative_pressure_scale: f.negative_pressure_scale,
@@ -695,6 +703,7 @@ impl Scene {
                 stiffness: 2000.0,
                 viscosity: 0.5,
                 surface_tension: 0.0,
+                surface_tension_model: None,
                 surface_threshold: 0.1 / h,
                 gravity: [0.0, -9.81, 0.0],
                 negative_pressure_scale: 0.0,

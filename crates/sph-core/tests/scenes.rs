@@ -58,28 +58,51 @@ fn message(text: &str) -> String {
 }
 
 /// Every solver applies a scene's surface tension: WCSPH by the thesis's
-/// colour-field force inside its force sums, PBF and DFSPH by a `surface
-/// tension` station (Akinci et al.'s forces), which a scene without σ
-/// leaves out.
+/// colour-field force inside its force sums, or with `surface_tension_model
+/// = "akinci"` by a `surface tension` station (Akinci et al.'s forces), as
+/// PBF and DFSPH always do; a scene without σ has no station. The colour
+/// field under PBF or DFSPH is refused, naming the field and the solvers.
 #[test]
 fn every_solver_applies_surface_tension() {
     for sigma in ["0.0", "0.0728"] {
-        let text = with(
-            "surface_tension = 0.0",
-            &format!("surface_tension = {sigma}"),
-        );
-        for kind in ["wcsph", "pbf", "dfsph"] {
-            let scene = text.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
-            let mut world = Scene::from_toml(&scene).unwrap().build_world().unwrap();
-            world.advance(1.0 / 60.0).unwrap();
-            let names: Vec<_> = world.program_mut().names().collect();
-            assert_eq!(
-                names.contains(&"surface tension"),
-                kind != "wcsph" && sigma != "0.0",
-                "{kind}, σ = {sigma}: {names:?}"
+        for model in ["", "surface_tension_model = \"akinci\"\n"] {
+            let text = with(
+                "surface_tension = 0.0\n",
+                &format!("surface_tension = {sigma}\n{model}"),
             );
+            for kind in ["wcsph", "pbf", "dfsph"] {
+                let scene = text.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
+                let mut world = Scene::from_toml(&scene).unwrap().build_world().unwrap();
+                world.advance(1.0 / 60.0).unwrap();
+                let names: Vec<_> = world.program_mut().names().collect();
+                assert_eq!(
+                    names.contains(&"surface tension"),
+                    sigma != "0.0" && (kind != "wcsph" || !model.is_empty()),
+                    "{kind}, σ = {sigma}, {model}: {names:?}"
+                );
+            }
         }
     }
+    let colour = with(
+        "surface_tension = 0.0\n",
+        "surface_tension = 0.0728\nsurface_tension_model = \"colour-field\"\n",
+    );
+    let wcsph = colour.replacen("kind = \"pbf\"", "kind = \"wcsph\"", 1);
+    assert!(Scene::from_toml(&wcsph).unwrap().build_world().is_ok());
+    for kind in ["pbf", "dfsph"] {
+        let scene = colour.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
+        let err = message(&scene);
+        assert!(
+            err.contains("fluid.surface_tension_model") && err.contains("PBF and DFSPH"),
+            "{err}"
+        );
+    }
+    let typo = with(
+        "surface_tension = 0.0\n",
+        "surface_tension = 0.0\nsurface_tension_model = \"csf\"\n",
+    );
+    let err = message(&typo);
+    assert!(err.contains("surface_tension_model"), "{err}");
 }
 
 #[test]

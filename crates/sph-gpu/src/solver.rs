@@ -137,7 +137,8 @@ impl GpuSolver {
     /// # Errors
     /// [`GpuError::Params`] for particles (`Particles::validate`),
     /// parameters or a boundary sph-core rejects (its reason);
-    /// [`GpuError::Invalid`] for a non-finite `h`; [`GpuError::DeviceLimit`] for
+    /// [`GpuError::Invalid`] for a non-finite `h` or Akinci et al.'s surface
+    /// tension (the CPU's only); [`GpuError::DeviceLimit`] for
     /// more particles than one dispatch or storage binding of this device
     /// holds.
     pub fn new(
@@ -148,6 +149,14 @@ impl GpuSolver {
         boundary: &Boundary,
     ) -> Result<Self, GpuError> {
         particles.validate().map_err(GpuError::Params)?;
+        if params.surface_tension > 0.0
+            && params.surface_tension_model == Some(sph_core::SurfaceTensionModel::Akinci)
+        {
+            return Err(GpuError::Invalid(
+                "fluid.surface_tension_model = \"akinci\" runs only on the CPU: the GPU's WCSPH \
+                 applies the thesis's colour-field force; leave the model out on the GPU",
+            ));
+        }
         let n = particles.len();
         let capacity = n.max(1);
         let mut grid = GpuGrid::new(device, capacity, params.h, 1)?;

@@ -169,6 +169,18 @@ fn bad_input_is_an_error() {
         .err()
         .expect("a NaN velocity");
     assert!(err.to_string().contains("velocity"), "{err}");
+    // Akinci et al.'s surface tension runs on the CPU only: refused, not
+    // replaced by the colour field.
+    let mut one = sph_core::Particles::new();
+    one.push(Vec3::ZERO, Vec3::ZERO, 1.0);
+    let akinci = sph_core::FluidParams {
+        surface_tension_model: Some(sph_core::SurfaceTensionModel::Akinci),
+        ..params
+    };
+    let err = sph_gpu::GpuSolver::new(&ctx.device, &ctx.queue, &one, &akinci, &boundary)
+        .err()
+        .expect("Akinci's surface tension");
+    assert!(err.to_string().contains("surface_tension_model"), "{err}");
 }
 
 #[test]

@@ -34,7 +34,10 @@ pub mod wcsph;
 mod world;
 
 pub use dfsph::DfsphParams;
-pub use params::{FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, PressureKernel, TimeStepping};
+pub use params::{
+    FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, PressureKernel, SurfaceTensionModel,
+    TimeStepping,
+};
 pub use pbf::{PbfParams, PbfViscosity};
 pub use stations::{
     BodyForces, Boundaries, BuildGrid, Emitter, ExternalAcceleration, FindNeighbours, Integrate,
@@ -44,7 +47,7 @@ pub use wcsph::{DensityPressure, Forces};
 pub use world::{FrameReport, World, useful_threads};
 
 use crate::boundary::Boundary;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::processor::Program;
 
 /// Which solver advances a [`World`], with the parameters of its own.
@@ -124,6 +127,27 @@ impl Solver {
         }
     }
 
+    /// Checks that the solver applies `params` as given: a surface tension
+    /// model it does not have is refused, naming the field, instead of
+    /// running a fluid other than the one asked for. PBF and DFSPH apply σ
+    /// only by Akinci et al.'s forces ([`surface_tension`]); WCSPH by
+    /// either.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `surface_tension_model`.
+    pub fn check_applies(&self, params: &FluidParams) -> Result<()> {
+        let colour_field = params.surface_tension_model == Some(SurfaceTensionModel::ColourField);
+        match self {
+            Solver::Pbf(_) | Solver::Dfsph(_) if colour_field => Err(Error::InvalidParameter {
+                name: "surface_tension_model",
+                value: "colour-field".into(),
+                reason: "is WCSPH's only: PBF and DFSPH apply σ by Akinci et al.'s forces; \
+                         leave it out, set \"akinci\", or choose kind = \"wcsph\"",
+            }),
+            _ => Ok(()),
+        }
+    }
+
     /// The particle mass for fluid sampled on a cubic lattice of `spacing`
     /// that starts at rest density with the kernel this solver sums
     /// densities with: poly6 for WCSPH and PBF
@@ -143,8 +167,10 @@ impl Solver {
     /// The solver's program for this fluid and these walls.
     ///
     /// # Errors
-    /// Parameters or a boundary that do not validate.
+    /// Parameters or a boundary that do not validate, or a parameter the
+    /// solver does not apply ([`Solver::check_applies`]).
     pub fn program(&self, params: FluidParams, boundary: Boundary) -> Result<Program> {
+        self.check_applies(&params)?;
         match self {
             Solver::Wcsph => wcsph::program(params, boundary),
             Solver::Pbf(p) => pbf::program(params, *p, boundary),

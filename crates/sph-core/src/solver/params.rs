@@ -19,6 +19,9 @@ pub struct FluidParams {
     pub viscosity: f32,
     /// Surface tension coefficient σ (N/m), eq. 20.
     pub surface_tension: f32,
+    /// Which force applies σ; `None`, the default: each solver's own
+    /// (WCSPH the thesis's colour field, PBF and DFSPH Akinci et al.'s).
+    pub surface_tension_model: Option<SurfaceTensionModel>,
     /// Surface tension acts where |∇c| exceeds this (1/m).
     pub surface_threshold: f32,
     /// Gravity (m/s²).
@@ -31,6 +34,20 @@ pub struct FluidParams {
     pub negative_pressure_scale: f32,
     /// The kernel whose gradient the pressure force (eq. 15) uses.
     pub pressure_kernel: PressureKernel,
+}
+
+/// The force that applies the surface tension σ
+/// ([`FluidParams::surface_tension_model`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SurfaceTensionModel {
+    /// The thesis's colour-field force (eq. 18–20; Müller et al. 2003):
+    /// WCSPH's own, and only WCSPH's.
+    ColourField,
+    /// Akinci et al. 2013's cohesion and curvature forces
+    /// ([`super::surface_tension`]): PBF's and DFSPH's own, and WCSPH's
+    /// where a scene asks for it.
+    Akinci,
 }
 
 /// The kernel gradient in the symmetric pressure force (eq. 15).
@@ -64,6 +81,7 @@ impl FluidParams {
             stiffness: 200.0,
             viscosity: 0.2,
             surface_tension: 0.0728,
+            surface_tension_model: None,
             surface_threshold: 0.1 / h,
             gravity: Vec3::new(0.0, -9.81, 0.0),
             negative_pressure_scale: 0.0,

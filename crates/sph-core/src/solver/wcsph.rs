@@ -6,12 +6,19 @@
 //!
 //! Per step: [`BuildGrid`] → [`DensityPressure`] → [`Forces`] →
 //! [`Integrate`] (semi-implicit Euler) → [`Boundaries`].
+//!
+//! A fluid whose [`FluidParams::surface_tension_model`] is
+//! [`SurfaceTensionModel::Akinci`] takes σ out of the force sums and adds
+//! Akinci et al. 2013's forces after them instead ([`FindNeighbours`],
+//! [`SurfaceTension`]), as PBF and DFSPH apply it: the thesis's colour
+//! field stays the reference, and the two can be compared on one solver.
 
 use rayon::prelude::*;
 
 use super::force_sums::{Centre, ForceKernels, ForceSums, SlotFluid, force_sums};
-use super::params::{FluidParams, PressureKernel};
-use super::stations::{Boundaries, BuildGrid, Integrate, grid};
+use super::params::{FluidParams, PressureKernel, SurfaceTensionModel};
+use super::stations::{Boundaries, BuildGrid, FindNeighbours, Integrate, grid};
+use super::surface_tension::{SurfaceTension, Update};
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::Result;
 use crate::kernels::Kernels;
@@ -201,12 +208,22 @@ impl Processor for Forces {
 /// # Errors
 /// Parameters or a boundary that do not validate.
 pub fn program(params: FluidParams, boundary: Boundary) -> Result<Program> {
+    let akinci = params.surface_tension > 0.0
+        && params.surface_tension_model == Some(SurfaceTensionModel::Akinci);
+    let force_sums = FluidParams {
+        surface_tension: if akinci { 0.0 } else { params.surface_tension },
+        ..params
+    };
     let mut program = Program::new("sph");
     program
         .push(BuildGrid::new(params.h, 1))
         .push(DensityPressure::new(params, boundary.clone())?)
-        .push(Forces::new(params, boundary.clone())?)
-        .push(Integrate)
-        .push(Boundaries::new(boundary)?);
+        .push(Forces::new(force_sums, boundary.clone())?);
+    if akinci {
+        program
+            .push(FindNeighbours::new(params.h))
+            .push(SurfaceTension::new(&params, Update::Accelerations)?);
+    }
+    program.push(Integrate).push(Boundaries::new(boundary)?);
     Ok(program)
 }
