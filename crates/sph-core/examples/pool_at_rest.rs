@@ -9,11 +9,12 @@
 //!
 //! ```text
 //! cargo run --release -p sph-core --example pool_at_rest [-- SOLVER... \
-//!     [--depth D] [--seconds T] [--clearance C] [--every T] [--bands] \
+//!     [--depth D] [--seconds T] [--clearance C] [--gravity G] [--every T] [--bands] \
 //!     [--solver-toml 'pbf = { xsph = 0.1 }']]
 //! ```
 //!
 //! - `--clearance C`: the scene's `clearance` (m).
+//! - `--gravity G`: gravity's magnitude (m/s², 9.81 by default).
 //! - `--every T`: every T seconds, the rms speed split into the mean
 //!   velocity of cells 2h wide and the motion about it (particle-scale
 //!   jitter).
@@ -33,6 +34,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kinds = Vec::new();
     let (mut depths, mut seconds, mut clearance) = (vec![0.2f32, 0.5], 2.0f32, 0.0f32);
     let (mut every, mut bands, mut extra) = (0.0f32, false, String::new());
+    let mut gravity = 9.81f32;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -42,6 +44,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--clearance" => clearance = value("--clearance")?.parse()?,
             "--every" => every = value("--every")?.parse()?,
             "--bands" => bands = true,
+            "--gravity" => gravity = value("--gravity")?.parse()?,
             "--solver-toml" => extra = value("--solver-toml")?,
             kind => kinds.push(SolverKind::from_name(kind).ok_or("solvers: wcsph, pbf, dfsph")?),
         }
@@ -59,6 +62,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let spec: SolverSpec = toml::from_str(&extra)?;
             scene.solver = SolverSpec { kind, ..spec };
             scene.clearance = clearance;
+            scene.fluid.gravity = [0.0, -gravity, 0.0];
             scene.domain.min = [0.0; 3];
             scene.domain.max = [side, depth + 0.2, side];
             scene.blocks[0].min = [0.0; 3];
