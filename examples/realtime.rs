@@ -35,7 +35,7 @@
 //! ```
 //!
 //! `--sigma` gives the fluid a surface tension (WCSPH's colour-field force,
-//! PBF's Akinci forces; DFSPH and `pbf-gpu` refuse it), to time what it
+//! PBF's and DFSPH's Akinci forces; `pbf-gpu` refuses it), to time what it
 //! costs.
 
 use std::time::Instant;
