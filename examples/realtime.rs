@@ -35,7 +35,7 @@
 //! ```
 //!
 //! `--sigma` gives the fluid a surface tension (WCSPH's colour-field force,
-//! PBF's and DFSPH's Akinci forces; `pbf-gpu` refuses it), to time what it
+//! PBF's and DFSPH's Akinci forces, on the GPU too), to time what it
 //! costs.
 
 use std::time::Instant;
@@ -289,11 +289,13 @@ fn run_gpu_pbf(
     spacing: f32,
     seconds: f64,
     pbf: Option<&PbfParams>,
+    sigma: f32,
 ) -> Result<Row, Box<dyn std::error::Error>> {
     let mut scene = Scene::dam_break(0.25, 0.08, spacing).with_solver(SolverKind::Pbf);
     if let Some(pbf) = pbf {
         scene.solver.pbf = Some(*pbf);
     }
+    scene.fluid.surface_tension = sigma;
     let particles = scene.particles()?;
     let mut gpu = sph_gpu::GpuPbf::new(
         &ctx.device,
@@ -356,14 +358,12 @@ impl Runner {
     ) -> Result<Row, Box<dyn std::error::Error>> {
         match self {
             Runner::Ours(kind) => run(kind, spacing, seconds, options),
-            Runner::GpuPbf if options.sigma > 0.0 => {
-                Err("pbf-gpu does not apply --sigma (the GPU's PBF refuses σ)".into())
-            }
             Runner::GpuPbf => run_gpu_pbf(
                 gpu.ok_or("pbf-gpu needs a GPU adapter")?,
                 spacing,
                 seconds,
                 options.pbf.as_ref(),
+                options.sigma,
             ),
             Runner::Salva => run_salva(spacing, seconds),
         }

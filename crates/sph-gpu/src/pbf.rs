@@ -6,8 +6,9 @@
 //! walls' projection), the grid over the domain's cells
 //! ([`GpuGrid::in_box`]) and its neighbour lists on the predicted positions,
 //! [`PbfParams::iterations`] Jacobi iterations of λ, Δp and the move,
-//! vorticity confinement and XSPH, the boundary, and the substep's
-//! statistics. Between the grid and the boundary the particles are worked
+//! vorticity confinement and XSPH, where σ > 0 Akinci et al.'s surface
+//! tension (normals, then forces: sph-core's `surface_tension`, the same γ),
+//! the boundary, and the substep's statistics. Between the grid and the boundary the particles are worked
 //! on in cell order: a gather copies them into working buffers sorted by
 //! cell and a scatter copies them home, so that a warp's threads share
 //! neighbourhoods (with the grid over the domain's cells, this took a
@@ -29,7 +30,8 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
-use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6};
+use sph_core::solver::surface_tension;
+use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
@@ -81,9 +83,11 @@ struct Uniform {
     push_accel: [f32; 4],
     /// The grid's hash buckets.
     table: u32,
+    /// Akinci et al.'s γ (0: no surface tension).
+    gamma: f32,
+    /// Their cohesion spline's 32/(πh⁹).
+    cohesion: f32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 /// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
@@ -149,6 +153,9 @@ struct Passes {
     apply: Pass,
     curl: Pass,
     confine: Pass,
+    /// Akinci et al.'s surface tension: normals, then forces.
+    normals: Pass,
+    tension: Pass,
     boundaries: Pass,
     reduce: Pass,
     open_gate: Pass,
@@ -216,9 +223,10 @@ impl GpuPbf {
     ///
     /// # Errors
     /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
-    /// rejects; [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` or a
-    /// surface tension σ > 0, which run only on the CPU; [`GpuError::DeviceLimit`] for more particles than one
-    /// dispatch or storage binding of this device holds.
+    /// rejects (the colour-field surface tension among them, WCSPH's only);
+    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"`, which runs
+    /// only on the CPU; [`GpuError::DeviceLimit`] for more particles than
+    /// one dispatch or storage binding of this device holds.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -231,12 +239,9 @@ impl GpuPbf {
         fluid.validate().map_err(GpuError::Params)?;
         pbf.validate().map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
-        if fluid.surface_tension > 0.0 {
-            return Err(GpuError::Invalid(
-                "fluid.surface_tension > 0 runs only on the CPU's PBF (Akinci et al.'s forces): \
-                 simulate on the CPU, or set it to 0",
-            ));
-        }
+        Solver::Pbf(*pbf)
+            .check_applies(fluid)
+            .map_err(GpuError::Params)?;
         if pbf.viscosity == PbfViscosity::Implicit {
             return Err(GpuError::Invalid(
                 "solver.pbf.viscosity = \"implicit\" runs only on the CPU: use \"xsph\" on the GPU",
@@ -288,9 +293,9 @@ impl GpuPbf {
             push_dir: [0.0; 4],
             push_accel: [0.0; 4],
             table: grid.table_size(),
+            gamma: surface_tension::gamma(fluid),
+            cohesion: surface_tension::cohesion_coefficient(h),
             pad0: 0,
-            pad1: 0,
-            pad2: 0,
         };
         let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pbf params"),
@@ -493,6 +498,8 @@ impl GpuPbf {
             apply: pass("apply", 0),
             curl: pass("curl", 0),
             confine: pass("confine", 0),
+            normals: pass("surface_normals", 0),
+            tension: pass("surface_tension", 0),
             boundaries: pass("boundaries", 0),
             reduce: pass("reduce", 0),
             open_gate: pass("open_gate", 0),
@@ -876,6 +883,10 @@ impl GpuPbf {
         }
         stage("pbf: curl", &run(&p.curl));
         stage("pbf: confine", &run(&p.confine));
+        if self.uniform.gamma > 0.0 {
+            stage("pbf: surface normals", &run(&p.normals));
+            stage("pbf: surface tension", &run(&p.tension));
+        }
         stage("pbf: boundaries", &run(&p.boundaries));
         stage("pbf: scatter", &home(&p.scatter));
         stage("pbf: reduce", &|pass| {
@@ -1009,9 +1020,9 @@ mod tests {
                 push_dir,
                 push_accel,
                 table,
-                pad0,
-                pad1,
-                pad2
+                gamma,
+                cohesion,
+                pad0
             }
         )
         .unwrap();

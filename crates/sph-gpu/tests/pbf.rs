@@ -315,12 +315,15 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     };
     let e = new(&params, &implicit, &world.particles);
     assert!(e.contains("implicit") && e.contains("CPU"), "{e}");
-    let sigma = sph_core::FluidParams {
+    // σ by the thesis's colour field is WCSPH's only, on the GPU as on the
+    // CPU (Akinci et al.'s forces, the default, run).
+    let colour_field = sph_core::FluidParams {
         surface_tension: 0.07,
+        surface_tension_model: Some(sph_core::SurfaceTensionModel::ColourField),
         ..params
     };
-    let e = new(&sigma, &pbf, &world.particles);
-    assert!(e.contains("surface_tension"), "{e}");
+    let e = new(&colour_field, &pbf, &world.particles);
+    assert!(e.contains("surface_tension_model"), "{e}");
     let zero = PbfParams {
         iterations: 0,
         ..pbf

@@ -70,6 +70,18 @@ use crate::processor::{Context, Processor};
 /// pressure say (see the module docs).
 pub const AKINCI_SCALE: f32 = 13.0;
 
+/// The paper's coefficient γ for `params`' σ, h and ρ0:
+/// σ / ([`AKINCI_SCALE`] ρ0 h²) (the GPU's PBF takes the same).
+pub fn gamma(params: &FluidParams) -> f32 {
+    let h = params.h;
+    params.surface_tension / (AKINCI_SCALE * params.rest_density * h * h)
+}
+
+/// Akinci's cohesion spline's coefficient 32/(πh⁹) for support `h`.
+pub fn cohesion_coefficient(h: f32) -> f32 {
+    (32.0 / (std::f64::consts::PI * f64::from(h).powi(9))) as f32
+}
+
 /// The station: Akinci et al.'s forces for the fluid's σ.
 #[derive(Debug, Clone)]
 pub struct SurfaceTension {
@@ -95,9 +107,7 @@ impl SurfaceTension {
     /// # Errors
     /// Parameters that do not validate.
     pub fn new(params: &FluidParams, update: Update) -> Result<Self> {
-        let h = params.h;
-        let gamma = params.surface_tension / (AKINCI_SCALE * params.rest_density * h * h);
-        Self::with_gamma(params, gamma, update)
+        Self::with_gamma(params, gamma(params), update)
     }
 
     /// With the paper's coefficient γ itself (for measuring it), for
@@ -177,7 +187,7 @@ impl Lanes {
             h,
             h2: h * h,
             normal: -h * poly6.coefficients().1,
-            cohesion: 32.0 / (std::f32::consts::PI * h.powi(9)),
+            cohesion: cohesion_coefficient(h),
             middle: t * t * t * (half * half * half),
             tiny: h * 1e-6,
         }

@@ -47,9 +47,9 @@ struct Pbf {
     push_dir: vec4<f32>,    // its unit direction
     push_accel: vec4<f32>,  // the acceleration on the ray (m/s²)
     table: u32,             // the grid's hash buckets (hash.wgsl)
+    gamma: f32,             // Akinci et al.'s γ (0: no surface tension)
+    cohesion: f32,          // their cohesion spline's 32 / (π h⁹)
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 };
 
 // What a frame's substeps add up; cleared when a frame starts, read back
@@ -468,6 +468,67 @@ fn confine(@builtin(global_invocation_id) id: vec3<u32>) {
         }
     }
     velocities[i] = vec4<f32>(velocities[i].xyz + dv, 0.0);
+}
+
+// Surface tension (Akinci et al. 2013, sph-core's `surface_tension`), first
+// pass: n_i = h Σ_j (m_j/ρ_j) ∇W_poly6(x_i − x_j), with ρ_j the densities
+// `curl` left, into `curls` as (n_i, ρ_i) (`confine` has read them).
+@compute @workgroup_size(64)
+fn surface_normals(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let xi = positions[i].xyz;
+    let h2 = f.h * f.h;
+    var n = vec3<f32>(0.0);
+    let count = neighbour_count(i);
+    for (var k = 0u; k < count; k++) {
+        let j = neighbour(i, k);
+        let y = positions[j];
+        let d = xi - y.xyz;
+        let t = max(h2 - dot(d, d), 0.0);
+        n += d * (-6.0 * f.poly6 * t * t * y.w / densities[j]);
+    }
+    curls[i] = vec4<f32>(f.h * n, densities[i]);
+}
+
+// (h − x)⁺³ x³, the cohesion spline's outer part.
+fn cohesion_outer(x: f32) -> f32 {
+    let t = max(f.h - x, 0.0);
+    return t * t * t * (x * x * x);
+}
+
+// Second pass: v_i += Δt a_i, a_i = −γ Σ_j K_ij (m_j C(r) r̂ + n_i − n_j)
+// over the pairs within (0, h), K_ij = 2ρ0/(ρ_i + ρ_j), C Akinci's spline.
+@compute @workgroup_size(64)
+fn surface_tension(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if i >= f.n {
+        return;
+    }
+    let xi = positions[i].xyz;
+    let ni = curls[i];
+    let h2 = f.h * f.h;
+    let half = 0.5 * f.h;
+    let middle = cohesion_outer(half);
+    var a = vec3<f32>(0.0);
+    let count = neighbour_count(i);
+    for (var k = 0u; k < count; k++) {
+        let j = neighbour(i, k);
+        let y = positions[j];
+        let d = xi - y.xyz;
+        let r2 = dot(d, d);
+        if r2 <= 0.0 || r2 >= h2 {
+            continue;
+        }
+        let r = sqrt(r2);
+        let c = f.cohesion * (cohesion_outer(r) + cohesion_outer(min(r, half)) - middle);
+        let nj = curls[j];
+        let kij = 2.0 * f.rest_density / (ni.w + nj.w);
+        a += kij * (d * (y.w * c / r) + ni.xyz - nj.xyz);
+    }
+    velocities[i] = vec4<f32>(velocities[i].xyz - f.dt * f.gamma * a, 0.0);
 }
 
 fn finite(v: f32) -> bool {
