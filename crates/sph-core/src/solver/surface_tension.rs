@@ -42,7 +42,7 @@
 //! from 0.945–1.068 to 0.930–0.953 of Rayleigh's period).
 //!
 //! Both passes (the normals, then the forces with their virial) sum eight
-//! neighbours at a time in the solver's lanes ([`super::lanes`]), bitwise
+//! neighbours at a time in the solver's lanes (`solver/lanes.rs`), bitwise
 //! the same for any thread count and SIMD level; the cohesion spline is
 //! written without branches, and the curvature term, which no kernel
 //! weights, counts the pairs strictly within (0, h) by a lane mask. They
