@@ -132,14 +132,17 @@ def test_bad_input_raises_naming_the_argument(tmp_path):
     broken.write_text(text.replace("h = 0.04", "h = -0.04", 1))
     with pytest.raises(ValueError, match="fluid.h"):
         ss.World(str(broken))
-    # A surface tension DFSPH does not apply (WCSPH and PBF do).
+    # A surface tension force DFSPH does not have (the thesis's colour
+    # field is WCSPH's only; DFSPH applies σ by Akinci et al.'s forces).
     sigma = tmp_path / "sigma.toml"
     sigma.write_text(
-        text.replace("surface_tension = 0.0", "surface_tension = 0.07", 1).replace(
-            'kind = "pbf"', 'kind = "dfsph"', 1
-        )
+        text.replace(
+            "surface_tension = 0.0",
+            'surface_tension = 0.07\nsurface_tension_model = "colour-field"',
+            1,
+        ).replace('kind = "pbf"', 'kind = "dfsph"', 1)
     )
-    with pytest.raises(ValueError, match="fluid.surface_tension"):
+    with pytest.raises(ValueError, match="fluid.surface_tension_model"):
         ss.World(str(sigma))
 
 
