@@ -8,8 +8,8 @@ use std::sync::{Arc, RwLock};
 use std::time::Instant;
 
 use glam::{Vec2, Vec3};
-use sph_core::SolverKind;
 use sph_core::solver::ExternalAcceleration;
+use sph_core::{SolverKind, SurfaceTensionModel};
 use splat_render::{GpuContext, Shading, SplatPath, SplatRenderer, View, wgpu};
 use surfel_extract::{Split, Surface};
 use winit::application::ApplicationHandler;
@@ -321,17 +321,36 @@ impl App {
         }
     }
 
-    /// Runs the scene from its start with another solver; the GPU step
-    /// (PBF or WCSPH) is switched off, with its note, for DFSPH.
+    /// Runs the scene from its start with another solver. A surface tension
+    /// force the new solver does not have gives way to its own, with a note
+    /// (the thesis's colour field is WCSPH's only); the GPU step is switched
+    /// off, with its note, where it cannot run the scene (DFSPH, or WCSPH
+    /// with Akinci et al.'s forces).
     fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
         self.pipeline.scene.solver.kind = kind;
-        if kind == SolverKind::Dfsph && self.pipeline.gpu.is_some() {
+        let fluid = &mut self.pipeline.scene.fluid;
+        if kind != SolverKind::Wcsph
+            && fluid.surface_tension_model == Some(SurfaceTensionModel::ColourField)
+        {
+            println!(
+                "surface_tension_model \"colour-field\" is WCSPH's: {kind} applies σ by Akinci et al.'s forces"
+            );
+            fluid.surface_tension_model = None;
+        }
+        let akinci = fluid.surface_tension > 0.0
+            && fluid.surface_tension_model == Some(SurfaceTensionModel::Akinci);
+        let gpu_refuses = match kind {
+            SolverKind::Dfsph => Some(format!("the GPU path runs PBF and WCSPH, not {kind}")),
+            SolverKind::Wcsph if akinci => {
+                Some("the GPU's WCSPH applies σ by the colour field, not Akinci's forces".into())
+            }
+            _ => None,
+        };
+        if let (Some(why), Some(_)) = (gpu_refuses, &self.pipeline.gpu) {
             let refusal = self
                 .pipeline
                 .set_gpu_sim(None)
-                .and(Err(AppError::Gpu(format!(
-                    "the GPU path runs PBF and WCSPH, not {kind}: back on the CPU"
-                ))));
+                .and(Err(AppError::Gpu(format!("{why}: back on the CPU"))));
             self.settings.gpu_sim.settle(refusal);
         }
         self.reset()

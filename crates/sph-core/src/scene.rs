@@ -854,7 +854,10 @@ impl Scene {
         s.fluid.gravity = [0.0; 3];
         s.fluid.viscosity = 1e-3;
         s.fluid.surface_tension = 0.0728;
-        let side = 13.0 * spacing;
+        // 13 lattice points a side: the extent a quarter spacing over, as
+        // the lattice fills ⌊extent / spacing⌋ (13 × 0.005 is 12.999998
+        // spacings in f32).
+        let side = 13.25 * spacing;
         let offset = side / 3.0;
         for (cx, cy, vx) in [
             (0.3 * w, 0.5 * d + 0.5 * offset, 0.05),

@@ -349,7 +349,7 @@ fn identical_for_1_2_and_4_threads() {
 }
 
 /// The same with surface tension (the `drops` scene: Akinci et al.'s
-/// forces in lanes, 4,056 particles).
+/// forces in lanes, 4,394 particles).
 #[test]
 fn identical_with_surface_tension_for_1_2_and_4_threads() {
     let drops = Scene::built_in("drops").unwrap();

@@ -605,7 +605,8 @@ impl GpuPbf {
     /// [`encode_frame`](Self::encode_frame) with each kind of pass in its
     /// own compute pass, timed by `profiler`: "pbf: predict", "pbf: grid",
     /// "pbf: gather", "pbf: lists", "pbf: lambda", "pbf: correct", "pbf:
-    /// apply", "pbf: curl", "pbf: confine", "pbf: boundaries", "pbf:
+    /// apply", "pbf: curl", "pbf: confine", where σ > 0 "pbf: surface
+    /// normals" and "pbf: surface tension", "pbf: boundaries", "pbf:
     /// scatter", "pbf: reduce", once per substep (and iteration). The caller resolves the profiler's queries
     /// and ends its frame. The split costs pass boundaries the plain path
     /// does not have.

@@ -138,7 +138,8 @@ impl GpuSolver {
     /// [`GpuError::Params`] for particles (`Particles::validate`),
     /// parameters or a boundary sph-core rejects (its reason);
     /// [`GpuError::Invalid`] for a non-finite `h` or Akinci et al.'s surface
-    /// tension (the CPU's only); [`GpuError::DeviceLimit`] for
+    /// tension (which the GPU's PBF runs, its WCSPH not);
+    /// [`GpuError::DeviceLimit`] for
     /// more particles than one dispatch or storage binding of this device
     /// holds.
     pub fn new(
@@ -153,8 +154,9 @@ impl GpuSolver {
             && params.surface_tension_model == Some(sph_core::SurfaceTensionModel::Akinci)
         {
             return Err(GpuError::Invalid(
-                "fluid.surface_tension_model = \"akinci\" runs only on the CPU: the GPU's WCSPH \
-                 applies the thesis's colour-field force; leave the model out on the GPU",
+                "fluid.surface_tension_model = \"akinci\" under WCSPH runs only on the CPU: the \
+                 GPU's WCSPH applies the thesis's colour-field force (its PBF applies Akinci's); \
+                 leave the model out, or choose kind = \"pbf\"",
             ));
         }
         let n = particles.len();

@@ -48,8 +48,10 @@
 //! weights, counts the pairs strictly within (0, h) by a lane mask. They
 //! add about 20 % to a PBF step of 10,000 particles (45 % before, as
 //! scalar loops): `cargo run --release --example realtime -- --solvers pbf
-//! --max-particles 11000 --sigma 0.0728`, against `--sigma 0`. The damping is far above Lamb's. The GPU's PBF does not take
-//! it yet.
+//! --max-particles 11000 --sigma 0.0728`, against `--sigma 0`.
+//!
+//! The damping is far above Lamb's. The GPU's PBF applies the same forces
+//! (sph-gpu's `shaders/pbf.wgsl`).
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -169,7 +171,8 @@ struct Force {
 struct Lanes {
     h: f32,
     h2: f32,
-    /// h times poly6's gradient coefficient: n_i = Σ_j V_j g (h² − r²)² (x_i − x_j).
+    /// −h times poly6's gradient coefficient b:
+    /// n_i = Σ_j V_j (−h b)(h² − r²)² (x_i − x_j).
     normal: f32,
     /// 32/(πh⁹).
     cohesion: f32,

@@ -25,7 +25,8 @@ pub fn pressure_slope(ys: &[f32], ps: &[f32]) -> f64 {
 }
 
 /// The l = 2 period of a weightless water drop (σ = 0.0728 N/m, μ = 0.01
-/// Pa·s, h = 2 spacings) of 4,032 particles (R = 16 spacings) stretched by
+/// Pa·s, h = 2 spacings) of 4,032 particles (a sphere of the volume of 16³
+/// lattice cells, R ≈ 9.9 spacings) stretched by
 /// `stretch` along x, run by `solver` for `seconds`, over Rayleigh's: the
 /// mean spacing of the extent's turns (2√5 × the rms offset along x, 2R
 /// for a sphere; a turn at least 1 % of 2R from the last).

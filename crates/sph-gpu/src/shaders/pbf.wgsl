@@ -2,7 +2,8 @@
 // `solver::pbf` station by station, one thread per particle. Each entry point
 // is one dispatch; a substep is
 //   predict → grid build (grid.wgsl) → gather → lists
-//   → iterations × (lambda → correct → apply) → curl → confine → boundaries
+//   → iterations × (lambda → correct → apply) → curl → confine
+//   → (surface_normals → surface_tension, where σ > 0) → boundaries
 //   → scatter → reduce,
 // and a frame is its substeps recorded back to back, nothing read back.
 //
