@@ -20,7 +20,8 @@
 //! ⟨(x·n)⁴⟩^¼ along the faces' normals over that along the body diagonals,
 //! 1 for a sphere, 0.912 for a cube), the
 //! particles escaped beyond 3R, the period from the extent's extrema against
-//! Rayleigh's, and the mean pressure of the particles within R/2 of the
+//! Rayleigh's, the swing's decay rate from turn to turn against Lamb's, and
+//! the mean pressure of the particles within R/2 of the
 //! centre over the last second against Laplace's 2σ/R.
 //!
 //! ```text
@@ -315,6 +316,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         println!("fewer than three extrema in {seconds} s: no period to measure");
     }
+    // The damping: the swings about the last second's mean, from the start
+    // (itself a turn) through the extrema, each over the one before, as a
+    // rate e^(−βt) against Lamb's.
+    let last: Vec<f64> = (series.iter())
+        .filter(|(t, _)| *t > seconds - 1.0)
+        .map(|(_, e)| *e)
+        .collect();
+    let rest = last.iter().sum::<f64>() / last.len().max(1) as f64;
+    let turns: Vec<(f64, f64)> = std::iter::once((0.0, start.0))
+        .chain(extrema.iter().copied())
+        .collect();
+    let rates: Vec<f64> = (turns.windows(2))
+        .map(|w| ((w[0].1 - rest).abs() / (w[1].1 - rest).abs()).ln() / (w[1].0 - w[0].0))
+        .collect();
+    // Over all the turns after the first half swing (the start's swing
+    // includes the drop's settling from the lattice).
+    let overall = match turns.get(1..).filter(|t| t.len() >= 2) {
+        Some(t) => {
+            let (a, b) = (t[0], t[t.len() - 1]);
+            ((a.1 - rest).abs() / (b.1 - rest).abs()).ln() / (b.0 - a.0)
+        }
+        None => f64::NAN,
+    };
+    println!(
+        "swing decay rates β (1/s) from turn to turn: {rates:.2?} about {rest:.3}; \
+         from the first extremum to the last {overall:.2}; Lamb {lamb:.3} 1/s"
+    );
     let mean = |f: fn(&(f64, f64)) -> f64| {
         pressures.iter().map(f).sum::<f64>() / pressures.len().max(1) as f64
     };
