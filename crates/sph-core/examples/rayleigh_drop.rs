@@ -50,6 +50,7 @@
 
 use std::sync::{Arc, Mutex};
 
+use sph_core::Kernel;
 use sph_core::glam::Vec3;
 use sph_core::processor::{Context, Processor};
 use sph_core::solver::surface_tension::{SurfaceTension, Update};
@@ -228,6 +229,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // over √(1/5), the ratio of a sphere's, so a sphere reads 2R; the
     // particles more than 3R from the centre (escaped spray); the mean
     // pressure within R/2 of the centre.
+    let (rho0, h) = (params.rest_density, params.h);
+    let cubic = sph_core::CubicSpline::new(h)?;
     let measure = |p: &Particles| {
         let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
         let var = (p.positions().iter())
@@ -246,6 +249,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let count = inner.len().max(1) as f64;
         let pressure = inner.iter().map(|q| q.0).sum::<f64>() / count;
         let mechanical = inner.iter().map(|q| q.0 + q.1).sum::<f64>() / count;
+        // Under DFSPH, the pressure forces' own virial in place of the
+        // stored pressure: (ρ_i/6) Σ_j (x_i − x_j)·a_ij with
+        // a_ij = −V_j (κ_i + κ_j) ∇W_ij, κ = ρ0 p/ρ² (the cubic spline's
+        // lattice sum makes it 1.020 p for a uniform p).
+        let pair_virial = (kind == SolverKind::Dfsph).then(|| {
+            let (x, m, rho, pr) = (p.positions(), p.masses(), p.densities(), p.pressures());
+            let kappa = |i: usize| rho0 * pr[i] / (rho[i] * rho[i]);
+            let grid = sph_core::NeighbourGrid::build(x, h).expect("finite positions");
+            let inside: Vec<usize> = (0..x.len())
+                .filter(|&i| f64::from((x[i] - c).length()) < 0.5 * radius)
+                .collect();
+            let sum = (inside.iter())
+                .map(|&i| {
+                    let mut w = 0.0f64;
+                    grid.for_each_neighbour(i, |j, _, _| {
+                        let d = x[i] - x[j];
+                        let a = -(m[j] / rho0) * (kappa(i) + kappa(j)) * cubic.gradient(d);
+                        w += f64::from(d.dot(a));
+                    });
+                    f64::from(rho[i]) / 6.0 * w + virial.get(i).map_or(0.0, |&v| f64::from(v))
+                })
+                .sum::<f64>();
+            sum / inside.len().max(1) as f64
+        });
         let signal = if cube {
             // The l = 4 signal: fourth-moment extents along the faces'
             // normals over those along the body diagonals.
@@ -265,7 +292,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         } else {
             2.0 * (5.0 * var).sqrt() / (2.0 * radius)
         };
-        (signal, far, (pressure, mechanical))
+        (
+            signal,
+            far,
+            (pressure, mechanical, pair_virial.unwrap_or(f64::NAN)),
+        )
     };
     let frame = 1.0 / 60.0;
     let start = measure(&world.particles);
@@ -343,7 +374,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "swing decay rates β (1/s) from turn to turn: {rates:.2?} about {rest:.3}; \
          from the first extremum to the last {overall:.2}; Lamb {lamb:.3} 1/s"
     );
-    let mean = |f: fn(&(f64, f64)) -> f64| {
+    let mean = |f: fn(&(f64, f64, f64)) -> f64| {
         pressures.iter().map(f).sum::<f64>() / pressures.len().max(1) as f64
     };
     let pressure = mean(|p| p.0);
@@ -357,6 +388,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "with the Akinci forces' virial {mechanical:.3} Pa; ratio to Laplace {:.3}",
             mechanical / laplace
         );
+        if kind == SolverKind::Dfsph {
+            let pairs = mean(|p| p.2);
+            println!(
+                "the pressure forces' and Akinci forces' virial {pairs:.3} Pa; ratio to Laplace {:.3}",
+                pairs / laplace
+            );
+        }
     }
     Ok(())
 }
