@@ -75,7 +75,7 @@ impl Processor for Measured {
         self.inner.process(particles, ctx)?;
         let mut virial = self.virial.lock().unwrap_or_else(|e| e.into_inner());
         virial.clear();
-        virial.extend_from_slice(self.inner.virial());
+        virial.extend(self.inner.virial());
         Ok(())
     }
 }

@@ -99,7 +99,6 @@ pub struct SurfaceTension {
     normals: Vec<Vec3>,
     normal_rows: Vec<[f32; 4]>,
     forces: Vec<Force>,
-    virial: Vec<f32>,
 }
 
 impl SurfaceTension {
@@ -131,15 +130,14 @@ impl SurfaceTension {
             normals: Vec::new(),
             normal_rows: Vec::new(),
             forces: Vec::new(),
-            virial: Vec::new(),
         })
     }
 
     /// Each particle's share of these forces' virial pressure at the last
     /// step, (ρ_i/6) Σ_j (x_i − x_j)·a_ij (Pa): added to the solver's
     /// pressure, the mechanical pressure Laplace's law is about.
-    pub fn virial(&self) -> &[f32] {
-        &self.virial
+    pub fn virial(&self) -> impl ExactSizeIterator<Item = f32> + '_ {
+        self.forces.iter().map(|f| f.virial)
     }
 }
 
@@ -158,8 +156,8 @@ fn cohesion(r: f32, h: f32) -> f32 {
     }
 }
 
-/// Particle i's acceleration from these forces and its virial sum
-/// Σ_j (x_i − x_j)·a_ij.
+/// Particle i's acceleration from these forces and its share of their
+/// virial pressure, (ρ_i/6) Σ_j (x_i − x_j)·a_ij.
 #[derive(Debug, Clone, Copy, Default)]
 struct Force {
     a: Vec3,
@@ -290,7 +288,7 @@ impl LaneMap for Forces<'_> {
         }
         Force {
             a: Vec3::new(acc[0].sum(), acc[1].sum(), acc[2].sum()),
-            virial: acc[3].sum(),
+            virial: self.normals[i][3] / 6.0 * acc[3].sum(),
         }
     }
 }
@@ -339,9 +337,6 @@ impl Processor for SurfaceTension {
             Update::Velocities => ctx.dt,
             Update::Accelerations => 1.0,
         };
-        (self.forces.par_iter().zip(rho))
-            .map(|(f, &rho)| rho / 6.0 * f.virial)
-            .collect_into_vec(&mut self.virial);
         let f = particles.fields_mut();
         let target = match self.update {
             Update::Velocities => f.velocities,
