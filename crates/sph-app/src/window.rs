@@ -323,9 +323,9 @@ impl App {
 
     /// Runs the scene from its start with another solver. A surface tension
     /// force the new solver does not have gives way to its own, with a note
-    /// (the thesis's colour field is WCSPH's only); the GPU step is switched
-    /// off, with its note, where it cannot run the scene (DFSPH, or WCSPH
-    /// with Akinci et al.'s forces).
+    /// (the thesis's colour field is WCSPH's only). Where the GPU step cannot
+    /// run the new solver's scene (DFSPH, or WCSPH with Akinci et al.'s
+    /// forces), it goes back to the CPU with the GPU path's own reason.
     fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
         self.pipeline.scene.solver.kind = kind;
         let fluid = &mut self.pipeline.scene.fluid;
@@ -337,23 +337,17 @@ impl App {
             );
             fluid.surface_tension_model = None;
         }
-        let akinci = fluid.surface_tension > 0.0
-            && fluid.surface_tension_model == Some(SurfaceTensionModel::Akinci);
-        let gpu_refuses = match kind {
-            SolverKind::Dfsph => Some(format!("the GPU path runs PBF and WCSPH, not {kind}")),
-            SolverKind::Wcsph if akinci => {
-                Some("the GPU's WCSPH applies σ by the colour field, not Akinci's forces".into())
+        match self.reset() {
+            Err(e @ AppError::Gpu(_)) if self.pipeline.gpu.is_some() => {
+                let refusal = self
+                    .pipeline
+                    .set_gpu_sim(None)
+                    .and(Err(AppError::Gpu(format!("{e}: back on the CPU"))));
+                self.settings.gpu_sim.settle(refusal);
+                self.reset()
             }
-            _ => None,
-        };
-        if let (Some(why), Some(_)) = (gpu_refuses, &self.pipeline.gpu) {
-            let refusal = self
-                .pipeline
-                .set_gpu_sim(None)
-                .and(Err(AppError::Gpu(format!("{why}: back on the CPU"))));
-            self.settings.gpu_sim.settle(refusal);
+            done => done,
         }
-        self.reset()
     }
 
     fn reset(&mut self) -> Result<(), AppError> {
