@@ -387,9 +387,11 @@ fn splats_match_the_ray_cast_iso_surface() {
 /// same field, beside the GPU without hole closing (anisotropic and the
 /// thesis's isotropic field, the demo's GPU surface before) and the CPU with
 /// the same parameters. A hole is a pixel where the iso-surface shows and no
-/// splat does. Asserted: on the sphere fewer than 0.1 % of the surface's
-/// pixels; on the splashing dam-break frame, whose thin sheets leave holes
-/// on either path, no more than the CPU's share plus 0.2 points.
+/// splat does. Asserted: on the sphere and on the splashing dam-break frame,
+/// fewer than 0.1 % of the surface's pixels through either path with hole
+/// closing (measured: none on the sphere; 0.016 % on the GPU and 0.024 % on
+/// the CPU on the dam-break frame, where 1.3 % and 1.5 % were left while
+/// hole closing took discs a quarter of h thick).
 #[test]
 fn gpu_splats_close_the_anisotropic_surface() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
@@ -479,11 +481,8 @@ fn gpu_splats_close_the_anisotropic_surface() {
         let [gpu, _, _, cpu] = fractions[..] else {
             unreachable!("four paths")
         };
-        if name == "sphere" {
-            assert!(gpu < 0.001, "{name}: {:.3} % holes", 100.0 * gpu);
-        }
         assert!(
-            gpu <= cpu + 0.002,
+            gpu < 0.001 && cpu < 0.001,
             "{name}: {:.3} % holes on the GPU, {:.3} % on the CPU",
             100.0 * gpu,
             100.0 * cpu

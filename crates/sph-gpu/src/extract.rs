@@ -42,8 +42,8 @@ struct Uniform {
     fill_table: u32,
     first_split: u32,
     fill_capacity: u32,
-    pad0: u32,
-    pad1: u32,
+    fill_thickness: f32,
+    fill_loose: f32,
     pad2: u32,
 }
 
@@ -215,6 +215,8 @@ impl GpuExtractor {
             Surface::Isotropic => None,
         };
         let h = params.h;
+        let (fill_thickness, fill_loose) = surfel_extract::fill::thicknesses(params.surface);
+        let (fill_thickness, fill_loose) = (fill_thickness * h, fill_loose * h);
         let pi = std::f32::consts::PI;
         let uniform = Uniform {
             h,
@@ -239,16 +241,16 @@ impl GpuExtractor {
             out_capacity: max_surfels as u32,
             anisotropic: u32::from(anisotropy.is_some()),
             // A probe is covered by a disc whose centre lies within
-            // √(r² + (2 × thickness)²) of it, r at most the guess's radius.
-            fill_cell: (params.radius * h).hypot(2.0 * 0.25 * h),
+            // √(r² + loose²) of it, r at most the guess's radius.
+            fill_cell: (params.radius * h).hypot(fill_loose.max(fill_thickness)),
             fill_table: (2 * particles).next_power_of_two().max(1024) as u32,
             first_split: match params.first_split {
                 Split::TwoByTwo => 2,
                 Split::ThreeByThree => 3,
             },
             fill_capacity: fill_capacity(max_surfels) as u32,
-            pad0: 0,
-            pad1: 0,
+            fill_thickness,
+            fill_loose,
             pad2: 0,
         };
         use wgpu::BufferUsages as U;
@@ -1012,8 +1014,8 @@ mod tests {
                 fill_table,
                 first_split,
                 fill_capacity,
-                pad0,
-                pad1,
+                fill_thickness,
+                fill_loose,
                 pad2
             }
         )

@@ -18,15 +18,36 @@ use glam::Vec3;
 use rayon::prelude::*;
 use sph_core::{Error, NeighbourGrid, Result};
 
-use crate::field::ColourField;
+use crate::field::{ColourField, Surface};
 use crate::thesis::{front_facing, newton_step};
 use crate::{ExtractParams, Surfel, tangent_basis};
 
+/// How far from a disc's plane (× h) a point counts as on the disc when
+/// hole closing asks whether one of its probes is covered, on `surface`:
+/// after the probe's projection onto the iso-surface, and before it,
+/// loosely, where the probe still lies in its surfel's tangent plane, off a
+/// surface that curves away (a disc it lies over that loosely spares it the
+/// projection's evaluation).
+///
+/// On the thesis's field, a quarter and half of h. The anisotropic field's
+/// thin kernels make sharper saddles and crevices in a splash, where discs
+/// of a nearby, differently turned part lie within a quarter of h of a
+/// probe that no disc of its own part covers: at those thicknesses the
+/// splashing dam-break frame of `tests/reference_render.rs`
+/// (`gpu_splats_close_the_anisotropic_surface`) kept 1.3–1.5 % of its
+/// surface pixels uncovered, at 0.075 h and 0.15 h (about the sag of a
+/// final disc's rim on a surface curved at radius h, and twice it) 0.02 %,
+/// for 8 % more surfels. On the thesis's field those values cost issue 4's
+/// efficiency (0.63 surfels per evaluation against 0.75) and are not used
+/// (docs/benchmark-notes.md, "Holes in a splash, closed").
+pub fn thicknesses(surface: Surface) -> (f32, f32) {
+    match surface {
+        Surface::Isotropic => (0.25, 0.5),
+        Surface::Anisotropic(_) => (0.075, 0.15),
+    }
+}
 /// Probe distance from a surfel's centre, in units of its radius.
 const PROBE: f32 = 1.2;
-/// Thickness of the coverage test before a probe is projected, in units of
-/// the usual thickness.
-const LOOSE: f32 = 2.0;
 /// Probes per surfel, evenly spaced around its rim.
 const PROBES: usize = 6;
 /// (cos, sin) of the probe directions, 60° apart.
@@ -59,6 +80,8 @@ pub struct SurfelIndex {
     /// of a surfel from that surfel's centre.
     grid: Option<NeighbourGrid>,
     thickness: f32,
+    /// The thickness of the loose test its gathered discs serve.
+    loose: f32,
 }
 
 impl SurfelIndex {
@@ -66,6 +89,12 @@ impl SurfelIndex {
     /// a radius or thickness that is not finite and ≥ 0, non-finite surfel
     /// positions, and positions too far out for the grid's cells.
     pub fn build(surfels: &[Surfel], thickness: f32) -> Result<Self> {
+        Self::with_loose(surfels, thickness, 2.0 * thickness)
+    }
+
+    /// [`SurfelIndex::build`], its gathered discs reaching every one that a
+    /// test `loose` thick can find.
+    fn with_loose(surfels: &[Surfel], thickness: f32, loose: f32) -> Result<Self> {
         let bad = |v: f32| !(v.is_finite() && v >= 0.0);
         if let Some(s) = surfels.iter().find(|s| bad(s.radius)) {
             return Err(Error::InvalidParameter {
@@ -74,25 +103,28 @@ impl SurfelIndex {
                 reason: "must be finite and >= 0",
             });
         }
-        if bad(thickness) {
+        if bad(thickness) || bad(loose) {
             return Err(Error::InvalidParameter {
                 name: "thickness",
-                value: thickness.to_string(),
+                value: thickness.max(loose).to_string(),
                 reason: "must be finite and >= 0",
             });
         }
         let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
         // A disc covering a probe of surfel s (loosely) has its centre within
-        // √(r_max² + (LOOSE thickness)²) of the probe, which lies PROBE r_s
-        // from s.
-        let reach = PROBE * max_radius + max_radius.hypot(LOOSE * thickness);
+        // √(r_max² + loose²) of the probe, which lies PROBE r_s from s.
+        let reach = PROBE * max_radius + max_radius.hypot(loose.max(thickness));
         let grid = if surfels.is_empty() || reach.is_nan() || reach <= 0.0 {
             None
         } else {
             let centres: Vec<Vec3> = surfels.iter().map(|s| s.position).collect();
             Some(NeighbourGrid::build(&centres, reach)?)
         };
-        Ok(Self { grid, thickness })
+        Ok(Self {
+            grid,
+            thickness,
+            loose,
+        })
     }
 
     /// Whether some surfel of `surfels` (the indexed ones) covers `q`.
@@ -224,8 +256,8 @@ fn probe(
 ) -> Option<Surfel> {
     // The probe lies in the tangent plane: where the surface curves away it
     // is off the surface, so before spending an evaluation it counts as
-    // covered by a disc it lies over within twice the usual thickness.
-    if near.cover(q, LOOSE * parts.old.0.thickness) {
+    // covered by a disc it lies over loosely.
+    if near.cover(q, parts.old.0.loose) {
         return None;
     }
     let max_step = p.discard_step * p.h;
@@ -249,9 +281,10 @@ pub fn close_holes(
     p: &ExtractParams,
     surfels: &mut Vec<Surfel>,
 ) -> Result<usize> {
-    let thickness = 0.25 * p.h;
+    let (thickness, loose) = thicknesses(field.surface());
+    let (thickness, loose) = (thickness * p.h, loose * p.h);
     let first_new = surfels.len();
-    let old_index = SurfelIndex::build(surfels, thickness)?;
+    let old_index = SurfelIndex::with_loose(surfels, thickness, loose)?;
     let mut probing: Vec<u32> = (0..first_new as u32).collect();
     for _ in 0..p.fill_rounds {
         if probing.is_empty() {
@@ -261,7 +294,7 @@ pub fn close_holes(
         let (old, new) = all.split_at(first_new);
         let parts = Parts {
             old: (&old_index, old),
-            new: (SurfelIndex::build(new, thickness)?, new),
+            new: (SurfelIndex::with_loose(new, thickness, loose)?, new),
         };
         let candidates: Vec<Surfel> = probing
             .par_iter()

@@ -36,8 +36,8 @@ struct Extract {
     fill_table: u32,          // and its hash buckets (fill.wgsl)
     first_split: u32,         // cells along a side of the first split: 2 or 3
     fill_capacity: u32,       // hole closing's candidates buffer (fill.wgsl)
-    pad0: u32,
-    pad1: u32,
+    fill_thickness: f32,      // and its discs' thickness (m)
+    fill_loose: f32,          // before a probe's projection (m)
     pad2: u32,
 };
 

@@ -33,11 +33,15 @@ struct Candidate {
 const EMPTY: u32 = 0xffffffffu;
 const KEPT: u32 = 1u;
 const PROBE: f32 = 1.2;
-const LOOSE: f32 = 2.0;
 
-// The disc's thickness for coverage: a quarter of h (surfel-extract's).
+// The disc's thickness for coverage (surfel-extract's `fill::thicknesses`).
 fn thickness() -> f32 {
-    return 0.25 * e.h;
+    return e.fill_thickness;
+}
+
+// And before a probe is projected, loosely.
+fn loose() -> f32 {
+    return e.fill_loose;
 }
 
 // Whether q lies on s's disc: within `t` of its plane and its radius of
@@ -165,7 +169,7 @@ fn probe(
     for (var k = 0u; k < 6u; k++) {
         let angle = 1.0471976 * f32(k);
         let q = s.position_radius.xyz + PROBE * r * (cos(angle) * t1 + sin(angle) * t2);
-        if kept_cover(q, LOOSE * thickness()) {
+        if kept_cover(q, loose()) {
             continue;
         }
         let first = newton(q);
