@@ -12,13 +12,22 @@
 //! - `cube`: a cube of 16³ particles, mostly l = 4 at large amplitude
 //!   (a sphere's lattice points perturbed by l = 4's cubic harmonic were
 //!   tried for small amplitudes, but the cubic lattice carries an l = 4
-//!   signal of its own that swamps them).
+//!   signal of its own that swamps them);
+//! - `l4`: l = 4 at small amplitude: the lattice points of that sphere
+//!   moved by Rayleigh's own l = 4 flow, the gradient of the harmonic
+//!   r⁴ P₄(cos θ) (divergence-free, so the density stays uniform), so that
+//!   the surface moves out by `--eps` × R × P₄(cos θ). The axis lies in the
+//!   xy-plane at ½ asin √0.8 = 31.7° from x, where the cubic harmonic
+//!   x⁴ + y⁴ + z⁴ − 3/5 vanishes: the cubic lattice's own l = 4 signal
+//!   does not project on the axisymmetric P₄ about it.
 //!
 //! Printed for the solver given (WCSPH by default): the extent along x
 //! against time (2√5 times the rms offset along x: 2R for a sphere; for
 //! the cube, the l = 4 signal instead: the fourth-moment extent
 //! ⟨(x·n)⁴⟩^¼ along the faces' normals over that along the body diagonals,
-//! 1 for a sphere, 0.912 for a cube), the
+//! 1 for a sphere, 0.912 for a cube; for `l4`, the amplitude
+//! 3⟨r⁴ P₄(cos θ)⟩/R⁴ about its axis, 0 for a sphere and `--eps` at the
+//! start), the
 //! particles escaped beyond 3R, the period from the extent's extrema against
 //! Rayleigh's, the swing's decay rate from turn to turn against Lamb's, and
 //! the mean pressure of the particles within R/2 of the
@@ -26,7 +35,7 @@
 //!
 //! ```text
 //! cargo run --release -p sph-core --example rayleigh_drop [-- SOLVER [SECONDS] \
-//!     [--shape box|ellipsoid|cube] [--eps E] [--spacing S] [--sigma N_PER_M] \
+//!     [--shape box|ellipsoid|cube|l4] [--eps E] [--spacing S] [--across N] [--sigma N_PER_M] \
 //!     [--model colour-field|akinci] [--mu PA_S] [--akinci GAMMA] \
 //!     [--solver-toml 'viscosity = "implicit"']]
 //! ```
@@ -36,7 +45,8 @@
 //!
 //! `--solver-toml` is the solver's own table (`[solver.pbf]` or
 //! `[solver.dfsph]`); `--spacing` sets the resolution (5 mm by default, h =
-//! 2 spacings); `--mu` the viscosity (0.01 Pa·s by default). WCSPH applies
+//! 2 spacings) and `--across N` the drop's volume, N³ particles (16 by
+//! default: the shapes above are for 16); `--mu` the viscosity (0.01 Pa·s by default). WCSPH applies
 //! σ by the thesis's colour-field force, PBF and DFSPH by Akinci et al.'s
 //! forces (`sph_core::solver::surface_tension`).
 //!
@@ -84,6 +94,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kind = SolverKind::Wcsph;
     let (mut seconds, mut shape, mut eps) = (4.0f64, "box".to_string(), 0.1f32);
     let (mut spacing, mut sigma, mut table) = (0.005f32, 0.0728f32, String::new());
+    let mut across = 16u32;
     let (mut mu, mut akinci, mut model) = (0.01f32, None, None);
     let mut args = std::env::args().skip(1);
     let mut positional = 0;
@@ -92,12 +103,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         match arg.as_str() {
             "--shape" => {
                 shape = value("--shape")?;
-                if !["box", "ellipsoid", "cube"].contains(&shape.as_str()) {
-                    return Err(format!("unknown shape `{shape}`: box, ellipsoid, cube").into());
+                if !["box", "ellipsoid", "cube", "l4"].contains(&shape.as_str()) {
+                    return Err(format!("unknown shape `{shape}`: box, ellipsoid, cube, l4").into());
                 }
             }
             "--eps" => eps = value("--eps")?.parse()?,
             "--spacing" => spacing = value("--spacing")?.parse()?,
+            "--across" => across = value("--across")?.parse()?,
             "--sigma" => sigma = value("--sigma")?.parse()?,
             "--solver-toml" => table = value("--solver-toml")?,
             "--mu" => mu = value("--mu")?.parse()?,
@@ -135,20 +147,35 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         SolverKind::Dfsph => Solver::Dfsph(toml::from_str(&table)?),
     };
     let mass = solver.particle_mass(&params, spacing)?;
-    // The volume of 16³ particles: 4/3 π R³.
-    let volume = (16.0 * spacing).powi(3);
+    // The volume of `across`³ particles: 4/3 π R³.
+    let volume = (across as f32 * spacing).powi(3);
     let mut particles = Particles::new();
     let cube = shape == "cube";
-    if shape == "ellipsoid" {
+    let l4 = shape == "l4";
+    // The `l4` shape's axis, where the cubic harmonic vanishes.
+    let phi = 0.5 * 0.8f32.sqrt().asin();
+    let axis = Vec3::new(phi.cos(), phi.sin(), 0.0);
+    if shape == "ellipsoid" || l4 {
         let r = (3.0 * volume / (4.0 * std::f32::consts::PI)).cbrt();
         let n = (r / spacing).ceil() as i32 + 1;
         let stretch = Vec3::new(1.0 + eps, (1.0 + eps).powf(-0.5), (1.0 + eps).powf(-0.5));
+        // Rayleigh's l = 4 flow at y = x/R: ∇(|y|⁴ P₄(ŷ·n)/4), whose
+        // radial part on |y| = 1 is P₄.
+        let flow = |y: Vec3| {
+            let (z, r2) = (y.dot(axis), y.length_squared());
+            ((140.0 * z * z * z - 60.0 * z * r2) * axis + (12.0 * r2 - 60.0 * z * z) * y) / 32.0
+        };
         for k in -n..n {
             for j in -n..n {
                 for i in -n..n {
                     let x = (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * spacing;
                     if x.length() <= r {
-                        particles.push(x * stretch, Vec3::ZERO, mass);
+                        let moved = if l4 {
+                            x + eps * r * flow(x / r)
+                        } else {
+                            x * stretch
+                        };
+                        particles.push(moved, Vec3::ZERO, mass);
                     }
                 }
             }
@@ -156,7 +183,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     } else {
         let b = (volume / 2.0).cbrt();
         let (nx, ny) = if cube {
-            (16, 16)
+            (across as i32, across as i32)
         } else {
             (
                 (2.0 * b / spacing).round() as i32,
@@ -177,7 +204,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let radius =
         (3.0 * count as f64 * f64::from(spacing).powi(3) / (4.0 * std::f64::consts::PI)).cbrt();
     let rho = f64::from(params.rest_density);
-    let (l, nu) = (if cube { 4.0f64 } else { 2.0 }, f64::from(mu) / rho);
+    let (l, nu) = (if cube || l4 { 4.0f64 } else { 2.0 }, f64::from(mu) / rho);
     let omega = (l * (l - 1.0) * (l + 2.0) * f64::from(sigma) / (rho * radius.powi(3))).sqrt();
     let rayleigh = 2.0 * std::f64::consts::PI / omega;
     let lamb = (l - 1.0) * (2.0 * l + 1.0) * nu / (radius * radius);
@@ -273,7 +300,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .sum::<f64>();
             sum / inside.len().max(1) as f64
         });
-        let signal = if cube {
+        let signal = if l4 {
+            // 3⟨r⁴ P₄(cos θ)⟩/R⁴ about the axis, r⁴ P₄ as its harmonic
+            // polynomial (35 z⁴ − 30 z² r² + 3 r⁴)/8.
+            let moment = (p.positions().iter())
+                .map(|x| {
+                    let d = (*x - c).as_dvec3();
+                    let (z, r2) = (d.dot(axis.as_dvec3()), d.length_squared());
+                    (35.0 * z.powi(4) - 30.0 * z * z * r2 + 3.0 * r2 * r2) / 8.0
+                })
+                .sum::<f64>()
+                / p.len() as f64;
+            3.0 * moment / radius.powi(4)
+        } else if cube {
             // The l = 4 signal: fourth-moment extents along the faces'
             // normals over those along the body diagonals.
             let extent = |n: Vec3| {
@@ -328,7 +367,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for ((t, e), far) in series.iter().zip(&escaped).step_by(6) {
         println!(
             "  t = {t:5.2} s  {} {e:.3}, {far} particles beyond 3R",
-            if cube {
+            if l4 {
+                "l = 4 amplitude"
+            } else if cube {
                 "faces' over diagonals' extent"
             } else {
                 "extent along x over 2R"
