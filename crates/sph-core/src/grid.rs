@@ -161,7 +161,11 @@ impl NeighbourGrid {
         let inv_cell = 1.0 / (h as f64 * CELL_SCALE);
         // One pass finds the bounding box and any non-finite coordinate; floor is
         // monotonic, so every cell is in range when the box's corners' are.
-        let (lo, hi, finite) = positions.par_iter().map(|&p| (p, p, p.is_finite())).reduce(
+        let (lo, hi, finite) = (positions
+            .par_iter()
+            .with_min_len(crate::light::min_piece(n)))
+        .map(|&p| (p, p, p.is_finite()))
+        .reduce(
             || (Vec3::INFINITY, Vec3::NEG_INFINITY, true),
             |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 && b.2),
         );
@@ -245,14 +249,11 @@ impl NeighbourGrid {
     /// then walk memory in order. Only after that permutation: otherwise every
     /// index the grid reports names the wrong particle.
     pub fn renumber_by_slot(&mut self) {
-        self.layout
-            .order
-            .par_iter_mut()
+        let piece = crate::light::min_piece(self.len());
+        (self.layout.order.par_iter_mut().with_min_len(piece))
             .enumerate()
             .for_each(|(k, o)| *o = k as u32);
-        self.layout
-            .rank
-            .par_iter_mut()
+        (self.layout.rank.par_iter_mut().with_min_len(piece))
             .enumerate()
             .for_each(|(k, r)| *r = k as u32);
         self.by_slot = true;

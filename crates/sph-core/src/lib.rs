@@ -19,6 +19,7 @@ pub mod error;
 pub mod grid;
 pub mod io;
 pub mod kernels;
+mod light;
 pub mod particles;
 pub mod processor;
 pub mod scene;

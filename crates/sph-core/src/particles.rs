@@ -413,9 +413,11 @@ fn retain_vec<T>(v: &mut Vec<T>, keep: &[bool]) {
 /// the old column's.
 fn permute_vec<T: Clone + Send + Sync>(v: &mut Vec<T>, order: &[u32], spare: &mut Vec<T>) {
     use rayon::prelude::*;
-    (order.par_iter())
-        .map(|&o| v[o as usize].clone())
-        .collect_into_vec(spare);
+    (order
+        .par_iter()
+        .with_min_len(crate::light::min_piece(order.len())))
+    .map(|&o| v[o as usize].clone())
+    .collect_into_vec(spare);
     std::mem::swap(v, spare);
 }
 

@@ -14,6 +14,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Cell, SlotRange, scan, zyx};
+use crate::light::{SERIAL_BELOW, min_piece};
 
 /// The sorted particle data of a [`super::NeighbourGrid`]. Rebuilding from an
 /// old layout refills its buffers instead of allocating new ones.
@@ -218,19 +219,21 @@ impl Layout {
                 },
         } = self;
         let n = positions.len();
+        let piece = min_piece(n);
         positions
             .par_iter()
+            .with_min_len(piece)
             .map(|&p| bounds.key(cell(p)) as u32)
             .collect_into_vec(&mut keys);
         // The input splits into a few chunks, one per thread, scattered in
         // parallel: chunk c writes key k's particles from the slot where chunks
         // before it ended, so the sort stays stable. One histogram per chunk,
-        // of at least 4,096 particles (the grid of a 10,000-particle PBF
-        // substep took 0.29 ms in two chunks against 0.35 ms in one).
-        let chunks = rayon::current_num_threads()
-            .clamp(1, 8)
-            .min(n.div_ceil(1 << 12))
-            .max(1);
+        // one chunk below `SERIAL_BELOW` particles (`crate::light`).
+        let chunks = if n < SERIAL_BELOW {
+            1
+        } else {
+            rayon::current_num_threads().clamp(1, 8)
+        };
         let chunk_len = n.div_ceil(chunks).max(1);
         next.resize_with(n.div_ceil(chunk_len), Vec::new);
         next.par_iter_mut()
@@ -260,6 +263,7 @@ impl Layout {
         pair.par_extend(
             (0..total)
                 .into_par_iter()
+                .with_min_len(piece)
                 .filter(|&k| first[k + 1] > first[k])
                 .map(|k| (bounds.cell(k as u64), first[k])),
         );
@@ -318,6 +322,7 @@ impl Layout {
 
         occupied
             .par_iter()
+            .with_min_len(piece)
             .map(|&c| bounds.rows(&first, c))
             .collect_into_vec(&mut rows);
         fill_slot_cells(&cell_start, n, &mut slot_cell);
@@ -397,7 +402,8 @@ fn fill_slot_cells(cell_start: &[u32], n: usize, slot_cell: &mut Vec<u32>) {
     slot_cell.clear();
     slot_cell.reserve(n);
     let dst = Scatter(slot_cell.as_mut_ptr());
-    cell_start.par_windows(2).enumerate().for_each(|(c, w)| {
+    let piece = min_piece(n);
+    (cell_start.par_windows(2).with_min_len(piece).enumerate()).for_each(|(c, w)| {
         for s in w[0]..w[1] {
             // SAFETY: the cells' slot ranges partition 0..n (cell_start rises from
             // 0 to n) and n <= capacity, so each slot is written once, by one

@@ -1,0 +1,27 @@
+//! How the neighbour grid's build and a particle reordering split: passes
+//! doing a few nanoseconds of work per particle. Below [`SERIAL_BELOW`]
+//! particles such a pass runs on the calling thread alone: waking a second
+//! thread after the gap since the last station's pass costs tens of
+//! microseconds on a VM, more than the pass. Rebuilding the grid of a
+//! lattice of 10,648 particles after a 50 µs gap took 0.143 ms on one
+//! thread and 0.159–0.178 ms on two, of 19,683 0.271 against 0.318–0.321
+//! ms, of 39,304 0.533 against 0.476–0.488 ms (the median of 400 rebuilds
+//! each, 2-core VM, 2026-11-27; `cargo run --release -p sph-core --example
+//! grid_rebuild_threads`). Pieces of at least 16k particles above it took
+//! 0.56 ms at 39k and 1.10 against 1.01 ms at 97k on two threads, so larger
+//! passes split as rayon sees fit. The results are the same either way.
+//!
+//! The solvers' own light passes (integration, a density copy, a maximum)
+//! keep splitting: run on one thread inside a PBF substep they left the
+//! other asleep through them, and the heavy passes after them paid its
+//! wake-up (10k particles, 2 threads: 3.28 → 3.50–3.67 ms a substep).
+
+/// The particle count from which a light pass splits.
+pub(crate) const SERIAL_BELOW: usize = 1 << 15;
+
+/// The fewest items of a parallel piece of a light pass over `n` items:
+/// all of them below [`SERIAL_BELOW`], else rayon's choice
+/// (`with_min_len(min_piece(n))`).
+pub(crate) fn min_piece(n: usize) -> usize {
+    if n < SERIAL_BELOW { n.max(1) } else { 1 }
+}
