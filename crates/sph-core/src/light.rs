@@ -1,6 +1,8 @@
-//! How the neighbour grid's build and a particle reordering split: passes
-//! doing a few nanoseconds of work per particle. Below [`SERIAL_BELOW`]
-//! particles such a pass runs on the calling thread alone: waking a second
+//! How the neighbour grid's dense build (the usual one: a fluid filling
+//! its bounding box; a scattered set's sort splits as before) and a
+//! particle reordering split: passes doing a few nanoseconds of work per
+//! particle. Below [`SERIAL_BELOW`] particles such a pass runs on the
+//! calling thread alone, in one piece whatever its length: waking a second
 //! thread after the gap since the last station's pass costs tens of
 //! microseconds on a VM, more than the pass. Rebuilding the grid of a
 //! lattice of 10,648 particles after a 50 µs gap took 0.143 ms on one
@@ -9,7 +11,8 @@
 //! each, 2-core VM, 2026-11-27; `cargo run --release -p sph-core --example
 //! grid_rebuild_threads`). Pieces of at least 16k particles above it took
 //! 0.56 ms at 39k and 1.10 against 1.01 ms at 97k on two threads, so larger
-//! passes split as rayon sees fit. The results are the same either way.
+//! passes split as rayon sees fit. (Interpolated, one and two threads
+//! break even near 29k.) The results are the same either way.
 //!
 //! The solvers' own light passes (integration, a density copy, a maximum)
 //! keep splitting: run on one thread inside a PBF substep they left the
@@ -19,9 +22,10 @@
 /// The particle count from which a light pass splits.
 pub(crate) const SERIAL_BELOW: usize = 1 << 15;
 
-/// The fewest items of a parallel piece of a light pass over `n` items:
-/// all of them below [`SERIAL_BELOW`], else rayon's choice
-/// (`with_min_len(min_piece(n))`).
+/// The fewest items of a parallel piece of a light pass over `n`
+/// particles (`with_min_len(min_piece(n))`): one piece below
+/// [`SERIAL_BELOW`] (even over more items than particles, such as the
+/// cells of their box), else rayon's choice.
 pub(crate) fn min_piece(n: usize) -> usize {
-    if n < SERIAL_BELOW { n.max(1) } else { 1 }
+    if n < SERIAL_BELOW { usize::MAX } else { 1 }
 }

@@ -860,23 +860,30 @@ fn a_drop_oscillates_at_rayleighs_period() {
 /// Rayleigh's l = 4 mode under PBF, at small amplitude
 /// (`common::drop_l4_period`: the lattice sphere moved by the mode's own
 /// flow, `eps` R at the surface), its period from a damped-sinusoid fit,
-/// the median of `eps` = 0.08, 0.10 and 0.12. Measured (fit, all four of
-/// 0.08–0.15): 1.43–1.55 of Rayleigh's at 5 mm (R = 5 h), 1.23–1.30 at 3.5
-/// mm (7 h), 1.06–1.18 at 2.5 mm (10 h), 1.15–1.22 at 2 mm (12 h). Issue
-/// 42's 10 % is missed; held here: the period falls with resolution, by
-/// at least 0.2 of Rayleigh's from 5 mm to 2.5 mm, and is within 20 % at
-/// 2.5 mm.
+/// the median of `eps` = 0.08, 0.10 and 0.12, as swung (damped) and as the
+/// restoring force alone would swing it (undamped: 2π/√(ω² + β²); the
+/// swing decays at 1–3 1/s, 10–30 × Lamb's). Measured, damped / undamped
+/// medians: 1.482 / 1.431 of Rayleigh's period at 5 mm (R = 5 h), 1.263 /
+/// 1.179 at 3.5 mm (7 h), 1.101 / 1.026 at 2.5 mm (10 h), 1.158 / 1.076
+/// at 2 mm (12 h). Held: at 2.5 mm the undamped period within issue 42's
+/// 10 % and the damped one within 20 %, and from 5 mm to 2.5 mm the period
+/// falls by at least 0.2 of Rayleigh's.
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let pbf = Solver::Pbf(PbfParams::default());
     let median = |spacing: f32, across: u32| {
-        let mut ratios =
+        let fits =
             [0.08f32, 0.10, 0.12].map(|eps| common::drop_l4_period(pbf, spacing, across, eps, 3.0));
-        ratios.sort_by(f64::total_cmp);
-        println!("{spacing} m: period / Rayleigh's {ratios:.3?}");
-        ratios[1]
+        let sorted = |mut v: [f64; 3]| {
+            v.sort_by(f64::total_cmp);
+            v
+        };
+        let (damped, undamped) = (sorted(fits.map(|f| f.0)), sorted(fits.map(|f| f.1)));
+        println!("{spacing} m: period / Rayleigh's, damped {damped:.3?}, undamped {undamped:.3?}");
+        (damped[1], undamped[1])
     };
     let (coarse, fine) = (median(0.005, 16), median(0.0025, 32));
-    assert!((0.8..=1.2).contains(&fine), "2.5 mm: {fine}");
-    assert!(coarse - fine >= 0.2, "5 mm {coarse}, 2.5 mm {fine}");
+    assert!((0.8..=1.2).contains(&fine.0), "2.5 mm: {fine:?}");
+    assert!((0.9..=1.1).contains(&fine.1), "2.5 mm: {fine:?}");
+    assert!(coarse.0 - fine.0 >= 0.2, "5 mm {coarse:?}, 2.5 mm {fine:?}");
 }

@@ -38,7 +38,8 @@ use crate::{ExtractParams, Surfel, tangent_basis};
 /// surface pixels uncovered, at 0.075 h and 0.15 h (about the sag of a
 /// final disc's rim on a surface curved at radius h, and twice it) 0.02 %,
 /// for 8 % more surfels. On the thesis's field those values cost issue 4's
-/// efficiency (0.63 surfels per evaluation against 0.75) and are not used
+/// efficiency (0.63 surfels per evaluation against 0.77, where its test
+/// asks for 0.75) and are not used
 /// (docs/benchmark-notes.md, "Holes in a splash, closed").
 pub fn thicknesses(surface: Surface) -> (f32, f32) {
     match surface {

@@ -539,7 +539,8 @@ mod tests {
         let hi = positions.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
         let bounds = Bounds::of(Some((lo, hi)), cell).unwrap();
         let total = bounds.total().unwrap();
-        // Four threads: the scatter runs in four chunks (n ≥ 3 · 2¹²).
+        // Four threads: the scatter runs in four chunks (n ≥ 2¹⁵,
+        // `crate::light::SERIAL_BELOW`).
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(4)
             .build()

@@ -42,19 +42,18 @@ pub fn drop_period(solver: sph_core::Solver, spacing: f32, stretch: f32, seconds
             / x.len() as f64;
         2.0 * (5.0 * var).sqrt()
     };
-    let (ratio, count) = drop_oscillation(
-        solver,
-        spacing,
-        16,
-        2,
-        |x, _| x * scale,
-        extent,
-        |r| 0.02 * r,
-        false,
-        seconds,
-    );
-    assert_eq!(count, 4032);
-    ratio
+    let (series, rayleigh, r) =
+        drop_oscillation(solver, spacing, 16, 2, |x, _| x * scale, extent, seconds);
+    let (mut turns, mut last) = (Vec::new(), series[0].1);
+    for w in series.windows(3) {
+        let (a, b, c) = (w[0].1, w[1].1, w[2].1);
+        if ((b > a && b >= c) || (b < a && b <= c)) && (b - last).abs() > 0.02 * r {
+            turns.push(w[1].0);
+            last = b;
+        }
+    }
+    assert!(turns.len() >= 3, "stretch {stretch}: turns at {turns:?}");
+    2.0 * (turns[turns.len() - 1] - turns[0]) / (turns.len() - 1) as f64 / rayleigh
 }
 
 /// The l = 4 period of the same drop at `across`³ cells' volume (R ≈ 0.62
@@ -65,8 +64,9 @@ pub fn drop_period(solver: sph_core::Solver, spacing: f32, stretch: f32, seconds
 /// harmonic x⁴ + y⁴ + z⁴ − 3/5 vanishes (in the xy-plane, ½ asin √0.8 from
 /// x), so the cubic lattice's own l = 4 shape does not project on the
 /// amplitude measured, 3⟨r⁴ P₄(cos θ)⟩/R⁴ about that axis (0 for the
-/// undisturbed lattice sphere, `eps` at the start). Turns count at least
-/// 0.01 from the last.
+/// undisturbed lattice sphere, `eps` at the start). The period is the
+/// damped sinusoid's that fits the amplitude best ([`damped_fit`]); also
+/// returned, the undamped one, 2π/√(ω² + β²), over Rayleigh's.
 #[allow(dead_code)]
 pub fn drop_l4_period(
     solver: sph_core::Solver,
@@ -74,7 +74,7 @@ pub fn drop_l4_period(
     across: u32,
     eps: f32,
     seconds: f64,
-) -> f64 {
+) -> (f64, f64) {
     use sph_core::glam::Vec3;
     let phi = 0.5 * 0.8f32.sqrt().asin();
     let axis = Vec3::new(phi.cos(), phi.sin(), 0.0);
@@ -95,27 +95,19 @@ pub fn drop_l4_period(
         3.0 * moment / r.powi(4)
     };
     let move_point = move |x: Vec3, r: f32| x + eps * r * flow(x / r);
-    drop_oscillation(
-        solver,
-        spacing,
-        across,
-        4,
-        move_point,
-        amplitude,
-        |_| 0.01,
-        true,
-        seconds,
-    )
-    .0
+    let (series, rayleigh, _) =
+        drop_oscillation(solver, spacing, across, 4, move_point, amplitude, seconds);
+    let omega_r = 2.0 * std::f64::consts::PI / rayleigh;
+    let (omega, beta) = damped_fit(&series, omega_r);
+    (omega_r / omega, omega_r / omega.hypot(beta))
 }
 
 /// A weightless water drop (σ = 0.0728 N/m, μ = 0.01 Pa·s, h = 2
 /// spacings): the lattice points x of a sphere of `across`³ cells' volume
-/// and radius R, each moved to `shape(x, R)`, run by `solver` for `seconds` in
-/// 1/60 s frames. Returns the mean spacing of the turns of `signal`
-/// (positions, centre, R) at least `turn(R)` from the last, as a period
-/// over Rayleigh's for mode `l`, and the particle count.
-#[allow(clippy::too_many_arguments)]
+/// and radius R, each moved to `shape(x, R)`, run by `solver` for `seconds`
+/// in 1/60 s frames. Returns `signal` (positions, centre, R of the
+/// particles' volume) at the start and after each frame, Rayleigh's period
+/// for mode `l` and that R.
 fn drop_oscillation(
     solver: sph_core::Solver,
     spacing: f32,
@@ -123,10 +115,8 @@ fn drop_oscillation(
     l: u32,
     shape: impl Fn(sph_core::glam::Vec3, f32) -> sph_core::glam::Vec3,
     signal: impl Fn(&[sph_core::glam::Vec3], sph_core::glam::Vec3, f64) -> f64,
-    turn: impl Fn(f64) -> f64,
-    fit: bool,
     seconds: f64,
-) -> (f64, usize) {
+) -> (Vec<(f64, f64)>, f64, f64) {
     use sph_core::glam::Vec3;
     use sph_core::{Aabb, Boundary, FluidParams, Particles, TimeStepping, World};
     let params = FluidParams {
@@ -150,6 +140,9 @@ fn drop_oscillation(
         }
     }
     let count = particles.len();
+    if across == 16 {
+        assert_eq!(count, 4032);
+    }
     let r = f64::from((3.0 * count as f32 * spacing.powi(3) / (4.0 * std::f32::consts::PI)).cbrt());
     let l = f64::from(l);
     let omega2 = l * (l - 1.0) * (l + 2.0) * 0.0728 / (1000.0 * r.powi(3));
@@ -166,21 +159,7 @@ fn drop_oscillation(
         world.advance(1.0 / 60.0).unwrap();
         series.push((world.time(), measure(&world.particles)));
     }
-    if fit {
-        let (omega, _) = damped_fit(&series, 2.0 * std::f64::consts::PI / rayleigh);
-        return (2.0 * std::f64::consts::PI / omega / rayleigh, count);
-    }
-    let (mut turns, mut last) = (Vec::new(), series[0].1);
-    for w in series.windows(3) {
-        let (a, b, c) = (w[0].1, w[1].1, w[2].1);
-        if ((b > a && b >= c) || (b < a && b <= c)) && (b - last).abs() > turn(r) {
-            turns.push(w[1].0);
-            last = b;
-        }
-    }
-    assert!(turns.len() >= 3, "turns at {turns:?}");
-    let period = 2.0 * (turns[turns.len() - 1] - turns[0]) / (turns.len() - 1) as f64;
-    (period / rayleigh, count)
+    (series, rayleigh, r)
 }
 
 /// The angular frequency ω and decay rate β of the damped oscillation
@@ -232,7 +211,14 @@ pub fn damped_fit(series: &[(f64, f64)], omega: f64) -> (f64, f64) {
         }
         w *= 1.0025;
     }
-    (best.1, best.2)
+    let (sse, w, beta) = best;
+    // A fit at an edge of the search (or none) found no oscillation.
+    assert!(sse.is_finite(), "no finite fit");
+    assert!(
+        w > 0.5 * omega * 1.0025 && w < 2.0 * omega / 1.0025 && beta < 10.0,
+        "the best fit, ω = {w}, β = {beta}, lies at the search's edge"
+    );
+    (w, beta)
 }
 
 /// The solution of the 3×3 system m x = v by Cramer's rule, or `None`
