@@ -29,7 +29,9 @@
 //! 3⟨r⁴ P₄(cos θ)⟩/R⁴ about its axis, 0 for a sphere and `--eps` at the
 //! start), the
 //! particles escaped beyond 3R, the period from the extent's extrema against
-//! Rayleigh's, the swing's decay rate from turn to turn against Lamb's, and
+//! Rayleigh's and that of the damped sinusoid fitting every sample (with
+//! the undamped period, 2π/√(ω² + β²); the solver tests read periods so),
+//! the swing's decay rate from turn to turn against Lamb's, and
 //! the mean pressure of the particles within R/2 of the
 //! centre over the last second against Laplace's 2σ/R.
 //!
@@ -59,6 +61,11 @@
 //! solver feature, and γ is not σ.
 
 use std::sync::{Arc, Mutex};
+
+// The solver tests' helpers, for the damped-sinusoid fit they read
+// periods with.
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 use sph_core::Kernel;
 use sph_core::glam::Vec3;
@@ -387,6 +394,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
     } else {
         println!("fewer than three extrema in {seconds} s: no period to measure");
+    }
+    // The damped sinusoid that fits every sample (as the tests read the
+    // period): the swing's period, and the restoring force's alone,
+    // 2π/√(ω² + β²).
+    let omega_r = 2.0 * std::f64::consts::PI / rayleigh;
+    match common::damped_fit(&series, omega_r) {
+        Some((w, beta)) => println!(
+            "fit: period {:.3} s, ratio {:.3}; undamped ratio {:.3}; β {beta:.2} 1/s",
+            2.0 * std::f64::consts::PI / w,
+            omega_r / w,
+            omega_r / w.hypot(beta),
+        ),
+        None => println!("fit: no damped oscillation between ½ and 2 × Rayleigh's frequency"),
     }
     // The damping: the swings about the last second's mean, from the start
     // (itself a turn) through the extrema, each over the one before, as a
