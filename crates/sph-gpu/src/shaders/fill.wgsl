@@ -4,7 +4,7 @@
 //   fill_prepare → clear_heads → insert_kept → probe
 //   → fill_prepare_dedup → clear_heads → insert_candidates → dedup.
 // Surfels probe six points 1.2 radii out on their rim; a probe no kept
-// surfel covers (loosely: twice the thickness) is taken onto the
+// surfel covers (loosely: `fill_loose` thick) is taken onto the
 // iso-surface by two Newton steps and, if still uncovered and facing the
 // camera, is a candidate. A candidate is kept unless a candidate of smaller
 // key (a hash of its position: the same choice whatever order the GPU
