@@ -62,8 +62,8 @@
 
 use std::sync::{Arc, Mutex};
 
-// The solver tests' helpers, for the damped-sinusoid fit they read
-// periods with.
+// The solver tests' helpers: the l = 4 mode's flow and amplitude, and the
+// damped-sinusoid fit they read periods with.
 #[path = "../tests/common/mod.rs"]
 mod common;
 
@@ -159,26 +159,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut particles = Particles::new();
     let cube = shape == "cube";
     let l4 = shape == "l4";
-    // The `l4` shape's axis, where the cubic harmonic vanishes.
-    let phi = 0.5 * 0.8f32.sqrt().asin();
-    let axis = Vec3::new(phi.cos(), phi.sin(), 0.0);
     if shape == "ellipsoid" || l4 {
         let r = (3.0 * volume / (4.0 * std::f32::consts::PI)).cbrt();
         let n = (r / spacing).ceil() as i32 + 1;
         let stretch = Vec3::new(1.0 + eps, (1.0 + eps).powf(-0.5), (1.0 + eps).powf(-0.5));
-        // Rayleigh's l = 4 flow at y = x/R: ∇(|y|⁴ P₄(ŷ·n)/4), whose
-        // radial part on |y| = 1 is P₄.
-        let flow = |y: Vec3| {
-            let (z, r2) = (y.dot(axis), y.length_squared());
-            ((140.0 * z * z * z - 60.0 * z * r2) * axis + (12.0 * r2 - 60.0 * z * z) * y) / 32.0
-        };
         for k in -n..n {
             for j in -n..n {
                 for i in -n..n {
                     let x = (Vec3::new(i as f32, j as f32, k as f32) + 0.5) * spacing;
                     if x.length() <= r {
                         let moved = if l4 {
-                            x + eps * r * flow(x / r)
+                            x + eps * r * common::l4_flow(x / r)
                         } else {
                             x * stretch
                         };
@@ -308,17 +299,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             sum / inside.len().max(1) as f64
         });
         let signal = if l4 {
-            // 3⟨r⁴ P₄(cos θ)⟩/R⁴ about the axis, r⁴ P₄ as its harmonic
-            // polynomial (35 z⁴ − 30 z² r² + 3 r⁴)/8.
-            let moment = (p.positions().iter())
-                .map(|x| {
-                    let d = (*x - c).as_dvec3();
-                    let (z, r2) = (d.dot(axis.as_dvec3()), d.length_squared());
-                    (35.0 * z.powi(4) - 30.0 * z * z * r2 + 3.0 * r2 * r2) / 8.0
-                })
-                .sum::<f64>()
-                / p.len() as f64;
-            3.0 * moment / radius.powi(4)
+            common::l4_amplitude(p.positions(), c, radius)
         } else if cube {
             // The l = 4 signal: fourth-moment extents along the faces'
             // normals over those along the body diagonals.

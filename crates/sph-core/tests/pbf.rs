@@ -871,17 +871,7 @@ fn a_drop_oscillates_at_rayleighs_period() {
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let pbf = Solver::Pbf(PbfParams::default());
-    let median = |spacing: f32, across: u32| {
-        let fits =
-            [0.08f32, 0.10, 0.12].map(|eps| common::drop_l4_period(pbf, spacing, across, eps, 3.0));
-        let sorted = |mut v: [f64; 3]| {
-            v.sort_by(f64::total_cmp);
-            v
-        };
-        let (damped, undamped) = (sorted(fits.map(|f| f.0)), sorted(fits.map(|f| f.1)));
-        println!("{spacing} m: period / Rayleigh's, damped {damped:.3?}, undamped {undamped:.3?}");
-        (damped[1], undamped[1])
-    };
+    let median = |spacing, across| common::drop_l4_medians(pbf, spacing, across);
     let (coarse, fine) = (median(0.005, 16), median(0.0025, 32));
     assert!((0.8..=1.2).contains(&fine.0), "2.5 mm: {fine:?}");
     assert!((0.9..=1.1).contains(&fine.1), "2.5 mm: {fine:?}");

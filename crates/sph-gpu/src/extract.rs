@@ -43,7 +43,7 @@ struct Uniform {
     first_split: u32,
     fill_capacity: u32,
     fill_thickness: f32,
-    fill_loose: f32,
+    pad1: u32,
     pad2: u32,
 }
 
@@ -215,8 +215,7 @@ impl GpuExtractor {
             Surface::Isotropic => None,
         };
         let h = params.h;
-        let (fill_thickness, fill_loose) = surfel_extract::fill::thicknesses(params.surface);
-        let (fill_thickness, fill_loose) = (fill_thickness * h, fill_loose * h);
+        let fill_thickness = surfel_extract::fill::thickness(params.surface) * h;
         let pi = std::f32::consts::PI;
         let uniform = Uniform {
             h,
@@ -241,8 +240,9 @@ impl GpuExtractor {
             out_capacity: max_surfels as u32,
             anisotropic: u32::from(anisotropy.is_some()),
             // A probe is covered by a disc whose centre lies within
-            // √(r² + loose²) of it, r at most the guess's radius.
-            fill_cell: (params.radius * h).hypot(fill_loose.max(fill_thickness)),
+            // √(r² + (LOOSE × thickness)²) of it, r at most the guess's
+            // radius.
+            fill_cell: (params.radius * h).hypot(surfel_extract::fill::LOOSE * fill_thickness),
             fill_table: (2 * particles).next_power_of_two().max(1024) as u32,
             first_split: match params.first_split {
                 Split::TwoByTwo => 2,
@@ -250,7 +250,7 @@ impl GpuExtractor {
             },
             fill_capacity: fill_capacity(max_surfels) as u32,
             fill_thickness,
-            fill_loose,
+            pad1: 0,
             pad2: 0,
         };
         use wgpu::BufferUsages as U;
@@ -1015,7 +1015,7 @@ mod tests {
                 first_split,
                 fill_capacity,
                 fill_thickness,
-                fill_loose,
+                pad1,
                 pad2
             }
         )

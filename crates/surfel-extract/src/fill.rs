@@ -23,32 +23,33 @@ use crate::thesis::{front_facing, newton_step};
 use crate::{ExtractParams, Surfel, tangent_basis};
 
 /// How far from a disc's plane (× h) a point counts as on the disc when
-/// hole closing asks whether one of its probes is covered, on `surface`:
-/// after the probe's projection onto the iso-surface, and before it,
-/// loosely, where the probe still lies in its surfel's tangent plane, off a
-/// surface that curves away (a disc it lies over that loosely spares it the
-/// projection's evaluation).
+/// hole closing asks whether one of its probes, projected onto the
+/// iso-surface, is covered, on `surface` (before the projection, [`LOOSE`]
+/// times that).
 ///
-/// On the thesis's field, a quarter and half of h. The anisotropic field's
-/// thin kernels make sharper saddles and crevices in a splash, where discs
-/// of a nearby, differently turned part lie within a quarter of h of a
-/// probe that no disc of its own part covers: at those thicknesses the
-/// splashing dam-break frame of `tests/reference_render.rs`
+/// On the thesis's field, a quarter of h. The anisotropic field's thin
+/// kernels make sharper saddles and crevices in a splash, where discs of a
+/// nearby, differently turned part lie within a quarter of h of a probe
+/// that no disc of its own part covers: at that thickness the splashing
+/// dam-break frame of `tests/reference_render.rs`
 /// (`gpu_splats_close_the_anisotropic_surface`) kept 1.3–1.5 % of its
-/// surface pixels uncovered, at 0.075 h and 0.15 h (about the sag of a
-/// final disc's rim on a surface curved at radius h, and twice it) 0.02 %,
-/// for 8 % more surfels. On the thesis's field those values cost issue 4's
-/// efficiency (0.63 surfels per evaluation against 0.77, where its test
-/// asks for 0.75) and are not used
-/// (docs/benchmark-notes.md, "Holes in a splash, closed").
-pub fn thicknesses(surface: Surface) -> (f32, f32) {
+/// surface pixels uncovered, at 0.075 h (about the sag of a final disc's
+/// rim on a surface curved at radius h) 0.02 %, for 8 % more surfels. On
+/// the thesis's field that value costs issue 4's efficiency (0.63 surfels
+/// per evaluation against 0.77, where its test asks for 0.75) and is not
+/// used (docs/benchmark-notes.md, "Holes in a splash, closed").
+pub fn thickness(surface: Surface) -> f32 {
     match surface {
-        Surface::Isotropic => (0.25, 0.5),
-        Surface::Anisotropic(_) => (0.075, 0.15),
+        Surface::Isotropic => 0.25,
+        Surface::Anisotropic(_) => 0.075,
     }
 }
 /// Probe distance from a surfel's centre, in units of its radius.
 const PROBE: f32 = 1.2;
+/// Thickness of the coverage test before a probe is projected, in units of
+/// the usual thickness: the probe lies in its surfel's tangent plane, off a
+/// surface that curves away.
+pub const LOOSE: f32 = 2.0;
 /// Probes per surfel, evenly spaced around its rim.
 const PROBES: usize = 6;
 /// (cos, sin) of the probe directions, 60° apart.
@@ -81,8 +82,6 @@ pub struct SurfelIndex {
     /// of a surfel from that surfel's centre.
     grid: Option<NeighbourGrid>,
     thickness: f32,
-    /// The thickness of the loose test its gathered discs serve.
-    loose: f32,
 }
 
 impl SurfelIndex {
@@ -90,12 +89,6 @@ impl SurfelIndex {
     /// a radius or thickness that is not finite and ≥ 0, non-finite surfel
     /// positions, and positions too far out for the grid's cells.
     pub fn build(surfels: &[Surfel], thickness: f32) -> Result<Self> {
-        Self::with_loose(surfels, thickness, 2.0 * thickness)
-    }
-
-    /// [`SurfelIndex::build`], its gathered discs reaching every one that a
-    /// test `loose` thick can find.
-    fn with_loose(surfels: &[Surfel], thickness: f32, loose: f32) -> Result<Self> {
         let bad = |v: f32| !(v.is_finite() && v >= 0.0);
         if let Some(s) = surfels.iter().find(|s| bad(s.radius)) {
             return Err(Error::InvalidParameter {
@@ -104,28 +97,25 @@ impl SurfelIndex {
                 reason: "must be finite and >= 0",
             });
         }
-        if bad(thickness) || bad(loose) {
+        if bad(thickness) {
             return Err(Error::InvalidParameter {
                 name: "thickness",
-                value: thickness.max(loose).to_string(),
+                value: thickness.to_string(),
                 reason: "must be finite and >= 0",
             });
         }
         let max_radius = surfels.iter().map(|s| s.radius).fold(0.0, f32::max);
         // A disc covering a probe of surfel s (loosely) has its centre within
-        // √(r_max² + loose²) of the probe, which lies PROBE r_s from s.
-        let reach = PROBE * max_radius + max_radius.hypot(loose.max(thickness));
+        // √(r_max² + (LOOSE thickness)²) of the probe, which lies PROBE r_s
+        // from s.
+        let reach = PROBE * max_radius + max_radius.hypot(LOOSE * thickness);
         let grid = if surfels.is_empty() || reach.is_nan() || reach <= 0.0 {
             None
         } else {
             let centres: Vec<Vec3> = surfels.iter().map(|s| s.position).collect();
             Some(NeighbourGrid::build(&centres, reach)?)
         };
-        Ok(Self {
-            grid,
-            thickness,
-            loose,
-        })
+        Ok(Self { grid, thickness })
     }
 
     /// Whether some surfel of `surfels` (the indexed ones) covers `q`.
@@ -257,8 +247,8 @@ fn probe(
 ) -> Option<Surfel> {
     // The probe lies in the tangent plane: where the surface curves away it
     // is off the surface, so before spending an evaluation it counts as
-    // covered by a disc it lies over loosely.
-    if near.cover(q, parts.old.0.loose) {
+    // covered by a disc it lies over within twice the usual thickness.
+    if near.cover(q, LOOSE * parts.old.0.thickness) {
         return None;
     }
     let max_step = p.discard_step * p.h;
@@ -282,10 +272,9 @@ pub fn close_holes(
     p: &ExtractParams,
     surfels: &mut Vec<Surfel>,
 ) -> Result<usize> {
-    let (thickness, loose) = thicknesses(field.surface());
-    let (thickness, loose) = (thickness * p.h, loose * p.h);
+    let thickness = thickness(field.surface()) * p.h;
     let first_new = surfels.len();
-    let old_index = SurfelIndex::with_loose(surfels, thickness, loose)?;
+    let old_index = SurfelIndex::build(surfels, thickness)?;
     let mut probing: Vec<u32> = (0..first_new as u32).collect();
     for _ in 0..p.fill_rounds {
         if probing.is_empty() {
@@ -295,7 +284,7 @@ pub fn close_holes(
         let (old, new) = all.split_at(first_new);
         let parts = Parts {
             old: (&old_index, old),
-            new: (SurfelIndex::with_loose(new, thickness, loose)?, new),
+            new: (SurfelIndex::build(new, thickness)?, new),
         };
         let candidates: Vec<Surfel> = probing
             .par_iter()

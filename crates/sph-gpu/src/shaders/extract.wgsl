@@ -37,7 +37,7 @@ struct Extract {
     first_split: u32,         // cells along a side of the first split: 2 or 3
     fill_capacity: u32,       // hole closing's candidates buffer (fill.wgsl)
     fill_thickness: f32,      // and its discs' thickness (m)
-    fill_loose: f32,          // before a probe's projection (m)
+    pad1: u32,
     pad2: u32,
 };
 

@@ -4,7 +4,7 @@
 //   fill_prepare → clear_heads → insert_kept → probe
 //   → fill_prepare_dedup → clear_heads → insert_candidates → dedup.
 // Surfels probe six points 1.2 radii out on their rim; a probe no kept
-// surfel covers (loosely: `fill_loose` thick) is taken onto the
+// surfel covers (loosely: twice the thickness) is taken onto the
 // iso-surface by two Newton steps and, if still uncovered and facing the
 // camera, is a candidate. A candidate is kept unless a candidate of smaller
 // key (a hash of its position: the same choice whatever order the GPU
@@ -33,15 +33,11 @@ struct Candidate {
 const EMPTY: u32 = 0xffffffffu;
 const KEPT: u32 = 1u;
 const PROBE: f32 = 1.2;
+const LOOSE: f32 = 2.0;
 
-// The disc's thickness for coverage (surfel-extract's `fill::thicknesses`).
+// The disc's thickness for coverage (surfel-extract's `fill::thickness`).
 fn thickness() -> f32 {
     return e.fill_thickness;
-}
-
-// And before a probe is projected, loosely.
-fn loose() -> f32 {
-    return e.fill_loose;
 }
 
 // Whether q lies on s's disc: within `t` of its plane and its radius of
@@ -169,7 +165,7 @@ fn probe(
     for (var k = 0u; k < 6u; k++) {
         let angle = 1.0471976 * f32(k);
         let q = s.position_radius.xyz + PROBE * r * (cos(angle) * t1 + sin(angle) * t2);
-        if kept_cover(q, loose()) {
+        if kept_cover(q, LOOSE * thickness()) {
             continue;
         }
         let first = newton(q);
