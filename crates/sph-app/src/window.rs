@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use sph_core::solver::ExternalAcceleration;
-use sph_core::{SolverKind, SurfaceTensionModel};
+use sph_core::{PbfParams, PbfViscosity, SolverKind, SurfaceTensionModel};
 use splat_render::{GpuContext, Shading, SplatPath, SplatRenderer, View, wgpu};
 use surfel_extract::{Split, Surface};
 use winit::application::ApplicationHandler;
@@ -323,7 +323,8 @@ impl App {
 
     /// Runs the scene from its start with another solver. A surface tension
     /// force the new solver does not have gives way to its own, with a note
-    /// (the thesis's colour field is WCSPH's only). Where the GPU step cannot
+    /// (the thesis's colour field is WCSPH's only), and so does PBF's XSPH
+    /// blend to its implicit viscosity where the scene gives a μ. Where the GPU step cannot
     /// run the new solver's scene (DFSPH, or WCSPH with Akinci et al.'s
     /// forces), it goes back to the CPU with the GPU path's own reason.
     fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
@@ -336,6 +337,19 @@ impl App {
                 "surface_tension_model \"colour-field\" is WCSPH's: {kind} applies σ by Akinci et al.'s forces"
             );
             fluid.surface_tension_model = None;
+        }
+        let scene = &mut self.pipeline.scene;
+        if kind == SolverKind::Pbf
+            && let Some(mu) = scene.fluid.viscosity
+            && scene.pbf_params().viscosity == PbfViscosity::Xsph
+        {
+            println!(
+                "PBF's XSPH viscosity has no μ: PBF solves the scene's μ = {mu} Pa·s implicitly"
+            );
+            scene.solver.pbf = Some(PbfParams {
+                viscosity: PbfViscosity::Implicit,
+                ..scene.pbf_params()
+            });
         }
         match self.reset() {
             Err(e @ AppError::Gpu(_)) if self.pipeline.gpu.is_some() => {
@@ -520,7 +534,7 @@ impl App {
         let (fps, render_ms) = (self.fps, self.render_ms);
         let settings = &mut self.settings;
         let extract = &mut self.pipeline.extract;
-        let fluid = &mut self.pipeline.scene.fluid;
+        let scene = &mut self.pipeline.scene;
         let name = self.pipeline.name.clone();
         let playing = self
             .pipeline
@@ -621,10 +635,7 @@ impl App {
                         }
                     });
                 ui.collapsing("fluid", |ui| {
-                    changed |= ui.add(egui::Slider::new(&mut fluid.stiffness, 100.0..=20_000.0).logarithmic(true).text("k (m²/s²)")).changed();
-                    changed |= ui.add(egui::Slider::new(&mut fluid.viscosity, 0.0..=5.0).text("μ (Pa·s)")).changed();
-                    changed |= ui.add(egui::Slider::new(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)")).changed();
-                    changed |= ui.add(egui::Slider::new(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)")).changed();
+                    changed |= fluid_sliders(ui, scene);
                 });
                 ui.collapsing("extraction", |ui| {
                     let mut smooth = extract.surface != Surface::Isotropic;
@@ -850,6 +861,51 @@ impl ApplicationHandler for App {
 fn surface_size(ctx: &GpuContext, size: winit::dpi::PhysicalSize<u32>) -> (u32, u32) {
     let max = ctx.device.limits().max_texture_dimension_2d;
     (size.width.clamp(1, max), size.height.clamp(1, max))
+}
+
+/// The panel's sliders for what the scene's solver applies: WCSPH's
+/// stiffness, the μ of the solvers that have one (PBF's XSPH blend in its
+/// place), σ and gravity. Returns whether any moved.
+fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
+    let mut changed = false;
+    let kind = scene.solver.kind;
+    if kind == SolverKind::Wcsph {
+        let wcsph = scene.solver.wcsph.get_or_insert_default();
+        changed |= ui
+            .add(
+                egui::Slider::new(&mut wcsph.stiffness, 100.0..=20_000.0)
+                    .logarithmic(true)
+                    .text("k (m²/s²)"),
+            )
+            .changed();
+    }
+    if kind == SolverKind::Pbf && scene.pbf_params().viscosity == PbfViscosity::Xsph {
+        let mut pbf = scene.pbf_params();
+        if ui
+            .add(egui::Slider::new(&mut pbf.xsph, 0.0..=1.0).text("XSPH blend (no unit)"))
+            .changed()
+        {
+            scene.solver.pbf = Some(pbf);
+            changed = true;
+        }
+    } else {
+        let mut mu = scene.fluid.viscosity();
+        if ui
+            .add(egui::Slider::new(&mut mu, 0.0..=5.0).text("μ (Pa·s)"))
+            .changed()
+        {
+            scene.fluid.viscosity = Some(mu);
+            changed = true;
+        }
+    }
+    let fluid = &mut scene.fluid;
+    changed |= ui
+        .add(egui::Slider::new(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)"))
+        .changed();
+    changed |= ui
+        .add(egui::Slider::new(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)"))
+        .changed();
+    changed
 }
 
 #[cfg(test)]

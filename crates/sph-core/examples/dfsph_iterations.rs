@@ -22,7 +22,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "DFSPH slab dam break, {} particles, spacing {spacing} m, μ = {} Pa·s",
         world.particles.len(),
-        scene.fluid.viscosity
+        scene.fluid.viscosity()
     );
     println!(
         "{:>6} {:>6} {:>9} {:>9} {:>9} {:>12} {:>10} {:>10}",

@@ -9,6 +9,7 @@
 //! clamped) — may only fall (viscosity, inelastic walls). A rise is energy the
 //! discretisation creates.
 
+use sph_core::scene::WcsphSpec;
 use sph_core::{PressureKernel, Result, Scene};
 
 fn main() -> Result<()> {
@@ -17,9 +18,12 @@ fn main() -> Result<()> {
         let mut scene = Scene::dam_break(w, w, 0.02);
         scene.domain.max = [w, 0.6, w];
         scene.blocks[0].max = [w, 0.4, w];
-        scene.fluid.stiffness = 500.0;
-        scene.fluid.viscosity = 1.0;
-        scene.fluid.pressure_kernel = kernel;
+        scene.solver.wcsph = Some(WcsphSpec {
+            stiffness: 500.0,
+            pressure_kernel: kernel,
+            ..WcsphSpec::default()
+        });
+        scene.fluid.viscosity = Some(1.0);
         let (k, rho0, g) = (500.0f64, scene.fluid.rest_density as f64, 9.81f64);
         let mut world = scene.build_world()?;
         println!("{kernel:?}: time (s), energy (J/kg), kinetic (J/kg), mean density (kg/m³)");

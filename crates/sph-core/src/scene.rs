@@ -87,7 +87,11 @@ pub struct BlockSpec {
     pub velocity: [f32; 3],
 }
 
-/// Physical parameters, see [`FluidParams`].
+/// The fluid's physical parameters, see [`FluidParams`]. What only the
+/// thesis's WCSPH reads (its stiffness, pressure clamp and kernel, the
+/// colour field's threshold and its time step) lives in `[solver.wcsph]`
+/// ([`WcsphSpec`]), so a scene gives no solver a parameter it does not
+/// apply.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct FluidSpec {
@@ -95,10 +99,12 @@ pub struct FluidSpec {
     pub h: f32,
     /// Rest density ρ0 (kg/m³).
     pub rest_density: f32,
-    /// Stiffness k (m²/s²).
-    pub stiffness: f32,
-    /// Viscosity μ (Pa·s).
-    pub viscosity: f32,
+    /// Dynamic viscosity μ (Pa·s), applied by WCSPH, DFSPH and PBF's
+    /// implicit viscosity. PBF's default XSPH viscosity has no μ and
+    /// refuses one. Left out: [`FluidSpec::DEFAULT_VISCOSITY`] where a
+    /// solver applies μ.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub viscosity: Option<f32>,
     /// Surface tension σ (N/m).
     pub surface_tension: f32,
     /// The force that applies σ: `"colour-field"` (the thesis's, WCSPH
@@ -106,16 +112,20 @@ pub struct FluidSpec {
     /// own (WCSPH the thesis's, PBF and DFSPH Akinci's).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub surface_tension_model: Option<crate::solver::SurfaceTensionModel>,
-    /// |∇c| threshold for surface tension (1/m).
-    pub surface_threshold: f32,
     /// Gravity (m/s²).
     pub gravity: [f32; 3],
-    /// Factor on negative pressures in [0, 1] (0 = clamp, the default).
-    #[serde(default)]
-    pub negative_pressure_scale: f32,
-    /// Kernel of the pressure force: `"poly6"` (default) or `"spiky"`.
-    #[serde(default)]
-    pub pressure_kernel: crate::solver::PressureKernel,
+}
+
+impl FluidSpec {
+    /// The μ (Pa·s) of a scene that gives none, for the solvers that apply
+    /// one: the thesis's scenes' 0.5 Pa·s, which keeps WCSPH's pressure
+    /// waves damped at real-time stiffness.
+    pub const DEFAULT_VISCOSITY: f32 = 0.5;
+
+    /// The viscosity μ (Pa·s) the solvers that apply one use.
+    pub fn viscosity(&self) -> f32 {
+        self.viscosity.unwrap_or(Self::DEFAULT_VISCOSITY)
+    }
 }
 
 /// An obstacle.
@@ -150,37 +160,84 @@ pub struct EmitterSpec {
     pub width: u32,
 }
 
-/// Time-stepping parameters, see [`TimeStepping`].
+/// The frame: how much simulated time each rendered frame advances. The
+/// solvers choose their own steps within it (`[solver.*]`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TimeStepSpec {
-    /// Largest substep (s).
-    pub max_dt: f32,
-    /// Courant factor.
-    #[serde(default = "default_cfl")]
-    pub cfl: f32,
-    /// Force-condition factor.
-    #[serde(default = "default_force_factor")]
-    pub force_factor: f32,
     /// Simulated time per rendered frame (s).
     pub frame_dt: f32,
 }
 
-fn default_cfl() -> f32 {
-    TimeStepping::default().cfl
+/// The thesis's weakly compressible SPH's own parameters, the
+/// `[solver.wcsph]` table: every field optional (the defaults below), kept
+/// when another solver runs the scene, as the other solvers' tables are.
+/// See [`FluidParams`] for the equation of state and the pressure force,
+/// [`TimeStepping`] for the adaptive step.
+///
+/// ```toml
+/// [solver.wcsph]
+/// stiffness = 2000.0
+/// max_dt = 0.002
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct WcsphSpec {
+    /// Stiffness k of p = k(ρ − ρ0) (m²/s²); the speed of sound is √k.
+    /// Default 2000: about 10 × the fastest flow of a 1 m fall.
+    pub stiffness: f32,
+    /// Factor on negative pressures in [0, 1] (default 0: clamped).
+    pub negative_pressure_scale: f32,
+    /// Kernel of the pressure force: `"poly6"` (default) or `"spiky"`.
+    pub pressure_kernel: crate::solver::PressureKernel,
+    /// |∇c| above which the thesis's colour-field surface tension acts
+    /// (1/m); left out, 0.1 / h. Only the colour-field force reads it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub surface_threshold: Option<f32>,
+    /// Largest step (s); default 0.002.
+    pub max_dt: f32,
+    /// Courant factor of the adaptive step.
+    pub cfl: f32,
+    /// Force-condition factor of the adaptive step.
+    pub force_factor: f32,
 }
-fn default_force_factor() -> f32 {
-    TimeStepping::default().force_factor
+
+impl Default for WcsphSpec {
+    fn default() -> Self {
+        let t = TimeStepping::default();
+        Self {
+            stiffness: 2000.0,
+            negative_pressure_scale: 0.0,
+            pressure_kernel: Default::default(),
+            surface_threshold: None,
+            max_dt: t.max_dt,
+            cfl: t.cfl,
+            force_factor: t.force_factor,
+        }
+    }
 }
+
+/// Fields that moved from `[fluid]` and `[time_step]` to `[solver.wcsph]`:
+/// a file that still has them is told where they went.
+const WCSPH_FIELDS: [&str; 7] = [
+    "stiffness",
+    "negative_pressure_scale",
+    "pressure_kernel",
+    "surface_threshold",
+    "max_dt",
+    "cfl",
+    "force_factor",
+];
 
 /// Which solver runs the scene, and the parameters of each: `[solver]` with
 /// `kind = "pbf"` (the default, also without the table), `"dfsph"` or
 /// `"wcsph"` (the thesis's), and
-/// optional `[solver.pbf]` and `[solver.dfsph]` tables ([`PbfParams`],
-/// [`DfsphParams`], every field optional). Without its table PBF takes
-/// [`Scene::pbf_params`]: enough substeps for the scene's fluid height and
-/// particle size; DFSPH takes [`DfsphParams::default`]. The parameters of a solver not chosen
-/// are kept, so switching solver (the demo's `--solver`) finds them.
+/// optional `[solver.pbf]`, `[solver.dfsph]` and `[solver.wcsph]` tables
+/// ([`PbfParams`], [`DfsphParams`], [`WcsphSpec`], every field optional).
+/// Without its table PBF takes [`Scene::pbf_params`]: enough substeps for
+/// the scene's fluid height and particle size; DFSPH and WCSPH take their
+/// defaults. The parameters of a solver not chosen are kept, so switching
+/// solver (the demo's `--solver`) finds them.
 ///
 /// ```toml
 /// [solver]
@@ -204,6 +261,10 @@ pub struct SolverSpec {
     /// defaults.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub dfsph: Option<DfsphParams>,
+    /// The thesis's WCSPH's parameters; `None` (no `[solver.wcsph]`
+    /// table): [`WcsphSpec::default`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wcsph: Option<WcsphSpec>,
 }
 
 /// Hints for the renderer and the demo.
@@ -350,7 +411,18 @@ fn lattice_count(min: Vec3, max: Vec3, spacing: f32) -> [usize; 3] {
 impl Scene {
     /// Parses and validates a scene from TOML text.
     pub fn from_toml(text: &str) -> Result<Self> {
-        let scene: Scene = toml::from_str(text).map_err(|e| Error::SceneSyntax(e.to_string()))?;
+        let scene: Scene = toml::from_str(text).map_err(|e| {
+            let mut message = e.to_string();
+            let moved = WCSPH_FIELDS
+                .iter()
+                .find(|f| message.contains(&format!("unknown field `{f}`")));
+            if let Some(field) = moved {
+                message.push_str(&format!(
+                    "`{field}` is the thesis's WCSPH's parameter: it lives in [solver.wcsph]\n"
+                ));
+            }
+            Error::SceneSyntax(message)
+        })?;
         scene.validate()?;
         Ok(scene)
     }
@@ -504,9 +576,6 @@ impl Scene {
             }
         }
         let t = &self.time_step;
-        positive("time_step.max_dt", t.max_dt)?;
-        positive("time_step.cfl", t.cfl)?;
-        positive("time_step.force_factor", t.force_factor)?;
         positive("time_step.frame_dt", t.frame_dt)?;
         if t.frame_dt > MAX_FRAME_DT {
             return Err(invalid(
@@ -517,22 +586,14 @@ impl Scene {
                 ),
             ));
         }
-        let min_dt = TimeStepping::default().min_dt;
-        if t.max_dt < min_dt {
-            return Err(invalid(
-                "time_step.max_dt",
-                format!(
-                    "{} s is below min_dt = {min_dt:e} s, the step that counts as a blow-up",
-                    t.max_dt
-                ),
-            ));
-        }
+        self.validate_wcsph()?;
         // Every solver's parameters, chosen or not: switching must not find
         // bad ones.
         (self.pbf_params().validate()).map_err(in_table("solver"))?;
         (self.dfsph_params().validate()).map_err(in_table("solver"))?;
         // The chosen solver applies every fluid parameter as given.
         (self.solver().check_applies(&self.fluid_params())).map_err(in_table("fluid"))?;
+        self.check_viscosity_applies()?;
         self.render.validate()?;
         if self.max_particles > MAX_PARTICLES {
             return Err(invalid(
@@ -561,20 +622,83 @@ impl Scene {
         Ok(())
     }
 
-    /// The fluid parameters.
+    /// `[solver.wcsph]`'s values: the step's bounds, and a colour-field
+    /// threshold only where the colour field runs (a WCSPH scene with
+    /// Akinci et al.'s forces would not read it).
+    fn validate_wcsph(&self) -> Result<()> {
+        let w = self.wcsph_params();
+        positive("solver.wcsph.max_dt", w.max_dt)?;
+        positive("solver.wcsph.cfl", w.cfl)?;
+        positive("solver.wcsph.force_factor", w.force_factor)?;
+        let min_dt = TimeStepping::default().min_dt;
+        if w.max_dt < min_dt {
+            return Err(invalid(
+                "solver.wcsph.max_dt",
+                format!(
+                    "{} s is below min_dt = {min_dt:e} s, the step that counts as a blow-up",
+                    w.max_dt
+                ),
+            ));
+        }
+        let model = self.fluid.surface_tension_model;
+        let colour_field =
+            model.is_none_or(|m| m == crate::solver::SurfaceTensionModel::ColourField);
+        if let (Some(threshold), false) = (w.surface_threshold, colour_field) {
+            return Err(invalid(
+                "solver.wcsph.surface_threshold",
+                format!(
+                    "{threshold} 1/m applies to the thesis's colour-field force only, and \
+                     fluid.surface_tension_model is \"akinci\": leave it out"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    /// PBF's default XSPH viscosity has no μ: a scene run by it that gives
+    /// `fluid.viscosity` is refused rather than run without it.
+    fn check_viscosity_applies(&self) -> Result<()> {
+        let xsph = self.solver.kind == SolverKind::Pbf
+            && self.pbf_params().viscosity == PbfViscosity::Xsph;
+        match self.fluid.viscosity {
+            Some(mu) if xsph => Err(invalid(
+                "fluid.viscosity",
+                format!(
+                    "{mu} Pa·s is not applied by PBF with XSPH viscosity (its default, a blend \
+                     with no unit): leave it out, set [solver.pbf] viscosity = \"implicit\" to \
+                     solve this μ, or choose kind = \"dfsph\""
+                ),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The fluid parameters: `[fluid]`'s, with WCSPH's own from
+    /// `[solver.wcsph]` (which the other solvers do not read).
     pub fn fluid_params(&self) -> FluidParams {
-        let f = &self.fluid;
+        let (f, w) = (&self.fluid, self.wcsph_params());
         FluidParams {
             h: f.h,
             rest_density: f.rest_density,
-            stiffness: f.stiffness,
-            viscosity: f.viscosity,
+            stiffness: w.stiffness,
+            viscosity: f.viscosity(),
             surface_tension: f.surface_tension,
             surface_tension_model: f.surface_tension_model,
-            surface_threshold: f.surface_threshold,
+            surface_threshold: w.surface_threshold.unwrap_or(0.1 / f.h),
             gravity: Vec3::from(f.gravity),
-            negative_pressure_scale: f.negative_pressure_scale,
-            pressure_kernel: f.pressure_kernel,
+            negative_pressure_scale: w.negative_pressure_scale,
+            pressure_kernel: w.pressure_kernel,
+        }
+    }
+
+    /// WCSPH's adaptive step, from `[solver.wcsph]`.
+    pub fn time_stepping(&self) -> TimeStepping {
+        let w = self.wcsph_params();
+        TimeStepping {
+            max_dt: w.max_dt,
+            cfl: w.cfl,
+            force_factor: w.force_factor,
+            ..TimeStepping::default()
         }
     }
 
@@ -639,13 +763,7 @@ impl Scene {
     /// around the given `particles` (e.g. to change parameters mid-run).
     pub fn world_with(&self, particles: Particles) -> Result<World> {
         self.validate()?;
-        let t = &self.time_step;
-        let stepping = TimeStepping {
-            max_dt: t.max_dt,
-            cfl: t.cfl,
-            force_factor: t.force_factor,
-            ..TimeStepping::default()
-        };
+        let stepping = self.time_stepping();
         let mass = (self.solver()).particle_mass(&self.fluid_params(), self.spacing)?;
         let mut world = World::with_solver(
             particles,
@@ -699,15 +817,10 @@ impl Scene {
             fluid: FluidSpec {
                 h,
                 rest_density: 1000.0,
-                // Sound speed √k ≈ 10 × the fastest expected flow (√(2 g · 1 m)).
-                stiffness: 2000.0,
-                viscosity: 0.5,
+                viscosity: None,
                 surface_tension: 0.0,
                 surface_tension_model: None,
-                surface_threshold: 0.1 / h,
                 gravity: [0.0, -9.81, 0.0],
-                negative_pressure_scale: 0.0,
-                pressure_kernel: Default::default(),
             },
             spacing,
             blocks: Vec::new(),
@@ -715,9 +828,6 @@ impl Scene {
             clearance: 0.0,
             emitters: Vec::new(),
             time_step: TimeStepSpec {
-                max_dt: 2e-3,
-                cfl: default_cfl(),
-                force_factor: default_force_factor(),
                 frame_dt: 1.0 / 60.0,
             },
             max_particles: default_max_particles(),
@@ -743,6 +853,11 @@ impl Scene {
         self.solver.dfsph.unwrap_or_default()
     }
 
+    /// WCSPH's parameters: the `[solver.wcsph]` table's, or the defaults.
+    pub fn wcsph_params(&self) -> WcsphSpec {
+        self.solver.wcsph.unwrap_or_default()
+    }
+
     /// PBF's parameters: the `[solver.pbf]` table's, or without one
     /// [`PbfParams::for_fall`] from the highest block top or emitter
     /// above the floor, at the scene's frame rate (what the built-in scenes
@@ -765,6 +880,19 @@ impl Scene {
     /// This scene run by `kind` (its parameters from `[solver.pbf]` etc.).
     pub fn with_solver(mut self, kind: SolverKind) -> Self {
         self.solver.kind = kind;
+        self
+    }
+
+    /// This scene's fluid with viscosity `mu` (Pa·s), applied by every
+    /// solver: PBF solves it implicitly ([`PbfViscosity::Implicit`]) in
+    /// place of its XSPH blend, which has no μ. Call it once the blocks are
+    /// in: PBF's derived substeps depend on their height.
+    pub fn with_viscosity(mut self, mu: f32) -> Self {
+        self.fluid.viscosity = Some(mu);
+        self.solver.pbf = Some(PbfParams {
+            viscosity: PbfViscosity::Implicit,
+            ..self.pbf_params()
+        });
         self
     }
 
@@ -808,18 +936,13 @@ impl Scene {
         let w = 4.0 * a;
         let mut s = Self::base("honey", Vec3::new(w, 2.5 * a, w), spacing);
         s.fluid.rest_density = 1400.0;
-        s.fluid.viscosity = 50.0;
         s.blocks.push(BlockSpec {
             min: [1.5 * a, 0.5 * a, 1.5 * a],
             max: [2.5 * a, 1.5 * a, 2.5 * a],
             velocity: [0.0; 3],
         });
         s.solver.kind = SolverKind::Dfsph;
-        s.solver.pbf = Some(PbfParams {
-            viscosity: PbfViscosity::Implicit,
-            ..s.pbf_params()
-        });
-        s
+        s.with_viscosity(50.0)
     }
 
     /// A cube of water of side `a` falling into a pool of depth a/2 in a tank 3a
@@ -847,12 +970,13 @@ impl Scene {
     /// centre, in a box 0.36 × 0.2 × 0.2 m: surface tension (water's σ =
     /// 0.0728 N/m) rounds each into a drop, and the drops merge into one
     /// that spins and wobbles. Without σ nothing pulls them round or holds
-    /// them together. h = 2 × spacing, as the other scenes.
+    /// them together. h = 2 × spacing, as the other scenes. No μ is given:
+    /// PBF, which runs it (on the GPU too), damps by its XSPH blend, and
+    /// the other solvers take [`FluidSpec::DEFAULT_VISCOSITY`].
     pub fn weightless_drops(spacing: f32) -> Self {
         let (w, d) = (0.36, 0.2);
         let mut s = Self::base("weightless drops", Vec3::new(w, d, d), spacing);
         s.fluid.gravity = [0.0; 3];
-        s.fluid.viscosity = 1e-3;
         s.fluid.surface_tension = 0.0728;
         // 13 lattice points a side: the extent a quarter spacing over, as
         // the lattice fills ⌊extent / spacing⌋ (13 × 0.005 is 12.999998
@@ -930,9 +1054,9 @@ pub const BUILT_IN: [BuiltIn; 8] = [
         "dam-break-water",
         "thin-slab dam break of water (μ = 1e-3 Pa·s), DFSPH",
         || {
-            let mut scene = Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Dfsph);
-            scene.fluid.viscosity = 1e-3;
-            scene
+            Scene::dam_break(0.25, 0.08, 0.02)
+                .with_solver(SolverKind::Dfsph)
+                .with_viscosity(1e-3)
         },
     ),
     (

@@ -35,7 +35,7 @@ fn radius(positions: &[Vec3], centre: Vec3, h: f32) -> f32 {
 fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
     let (side, height, tank, spacing) = (0.2f32, 0.1f32, 1.2f32, 0.01f32);
     let mut scene = Scene::dam_break(side, side, spacing).with_solver(SolverKind::Dfsph);
-    scene.fluid.viscosity = mu;
+    scene.fluid.viscosity = Some(mu);
     scene.domain.max = [tank, 0.3, tank];
     let c = 0.5 * tank;
     scene.blocks[0].min = [c - 0.5 * side, 0.0, c - 0.5 * side];

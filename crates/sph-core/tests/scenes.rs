@@ -89,6 +89,21 @@ fn every_solver_applies_surface_tension() {
     );
     let wcsph = colour.replacen("kind = \"pbf\"", "kind = \"wcsph\"", 1);
     assert!(Scene::from_toml(&wcsph).unwrap().build_world().is_ok());
+    // The colour field's threshold, where Akinci et al.'s forces run instead.
+    let threshold = |model: &str| {
+        let text = with(
+            "surface_tension = 0.0\n",
+            &format!("surface_tension = 0.0728\nsurface_tension_model = \"{model}\"\n"),
+        );
+        let text = text.replacen("kind = \"pbf\"", "kind = \"wcsph\"", 1);
+        text.replacen("cfl = 0.4\n", "cfl = 0.4\nsurface_threshold = 2.5\n", 1)
+    };
+    assert!(Scene::from_toml(&threshold("colour-field")).is_ok());
+    let err = message(&threshold("akinci"));
+    assert!(
+        err.contains("solver.wcsph.surface_threshold") && err.contains("colour-field force only"),
+        "{err}"
+    );
     for kind in ["pbf", "dfsph"] {
         let scene = colour.replacen("kind = \"pbf\"", &format!("kind = \"{kind}\""), 1);
         let err = message(&scene);
@@ -107,7 +122,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 27] = [
+    let cases: [(&str, &str, &[&str]); 30] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -178,7 +193,24 @@ fn malformed_scenes_name_the_field_and_reason() {
         (
             "max_dt = 0.002",
             "max_dt = 1e-9",
-            &["time_step.max_dt", "below min_dt"],
+            &["solver.wcsph.max_dt", "below min_dt"],
+        ),
+        // PBF's default XSPH viscosity has no μ to apply.
+        (
+            "rest_density = 1000.0\n",
+            "rest_density = 1000.0\nviscosity = 1e-3\n",
+            &["fluid.viscosity", "not applied by PBF", "implicit"],
+        ),
+        // WCSPH's parameters moved out of [fluid] and [time_step].
+        (
+            "rest_density = 1000.0\n",
+            "rest_density = 1000.0\nstiffness = 2000.0\n",
+            &["unknown field `stiffness`", "[solver.wcsph]"],
+        ),
+        (
+            "frame_dt = 0.016666668",
+            "frame_dt = 0.016666668\ncfl = 0.4",
+            &["unknown field `cfl`", "[solver.wcsph]"],
         ),
         ("fov_y = 45.0", "fov_y = 0.0", &["render.fov_y", "degrees"]),
         ("fov_y = 45.0", "fov_y = nan", &["render.fov_y", "degrees"]),

@@ -4,6 +4,7 @@
 mod common;
 
 use glam::Vec3;
+use sph_core::scene::WcsphSpec;
 use sph_core::{
     Aabb, Boundary, Context, Error, FluidParams, Particles, Processor, Scene, TimeStepping, World,
 };
@@ -145,13 +146,16 @@ fn hydrostatic_tank() {
     let mut scene = Scene::dam_break(w, w, spacing);
     scene.domain.max = [w, 0.6, w];
     scene.blocks[0].max = [w, depth, w];
-    scene.fluid.stiffness = 500.0;
-    scene.fluid.viscosity = 1.0;
+    scene.solver.wcsph = Some(WcsphSpec {
+        stiffness: 500.0,
+        ..WcsphSpec::default()
+    });
+    scene.fluid.viscosity = Some(1.0);
     let mut world = scene.build_world().unwrap();
     // Total energy per particle mass: kinetic + gravitational + the equation of
     // state's pressure energy u(ρ) = k (ln(ρ/ρ0) + ρ0/ρ − 1) for ρ > ρ0.
     let (k, rho0) = (
-        scene.fluid.stiffness as f64,
+        scene.wcsph_params().stiffness as f64,
         scene.fluid.rest_density as f64,
     );
     let energy = |p: &Particles| -> f64 {
@@ -576,7 +580,7 @@ fn inconsistent_parameters_are_errors() {
 #[test]
 fn very_viscous_fluid_keeps_to_the_viscous_step_limit() {
     let mut scene = Scene::dam_break(0.2, 0.06, 0.02);
-    scene.fluid.viscosity = 3000.0;
+    scene.fluid.viscosity = Some(3000.0);
     let mut world = scene.build_world().unwrap();
     let limit = world.params().viscous_dt();
     let acoustic = 0.4 * world.params().h / world.params().sound_speed();

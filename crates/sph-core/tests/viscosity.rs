@@ -37,7 +37,7 @@ fn duct_flow(kind: SolverKind) -> Duct {
     let (side, length, spacing, mu, g) = (0.1f32, 0.3f32, 0.01f32, 100.0f32, 9.81f32);
     let mut scene = Scene::dam_break(length, side, spacing).with_solver(kind);
     scene.fluid.h = 2.0 * spacing;
-    scene.fluid.viscosity = mu;
+    scene.fluid.viscosity = Some(mu);
     scene.fluid.gravity = [g, 0.0, 0.0];
     scene.domain.min = [0.0, 0.0, 0.0];
     scene.domain.max = [1.0, side, side];
@@ -141,7 +141,7 @@ struct Slump {
 /// viscosity): every solve converges and every particle stays in the tank.
 fn slump(kind: SolverKind, mu: f32) -> Slump {
     let mut scene = Scene::dam_break(0.25, 0.08, 0.02).with_solver(kind);
-    scene.fluid.viscosity = mu;
+    scene.fluid.viscosity = Some(mu);
     scene.solver.pbf = Some(PbfParams {
         viscosity: PbfViscosity::Implicit,
         ..scene.pbf_params()

@@ -439,7 +439,7 @@ fn viscous_gpu_frame_keeps_to_the_cpu_step_limit() {
         return;
     };
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
-    scene.fluid.viscosity = 2900.0;
+    scene.fluid.viscosity = Some(2900.0);
     let (mut world, mut gpu) = world_and_gpu_solver(ctx, &scene);
     let (device, queue) = (&ctx.device, &ctx.queue);
     let frame_dt = 1.0 / 60.0;

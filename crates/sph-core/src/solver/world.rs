@@ -437,7 +437,7 @@ impl World {
                 dfsph.cfl, dfsph.max_dt, dfsph.max_iterations
             ),
             Solver::Wcsph => format!(
-                "lower time_step.max_dt (now {:e} s) or time_step.cfl (now {}), \
+                "lower solver.wcsph.max_dt (now {:e} s) or solver.wcsph.cfl (now {}), \
                  or check viscosity μ (now {} Pa·s), stiffness k (now {} m²/s²) and h (now {} m)",
                 self.stepping.max_dt,
                 self.stepping.cfl,
