@@ -38,9 +38,9 @@ pub struct Scene {
     /// How far particle centres stay from the domain walls and the
     /// obstacles (m, [`Boundary::clearance`]). Default 0. Half the
     /// `spacing` holds the first layer where a lattice puts it, and a
-    /// settled pool then loses 1–2 % of its depth instead of 2–4 %. The
-    /// DFSPH walls' push does not yet account for it, though: a DFSPH dam
-    /// break is about twice as compressed with it.
+    /// settled pool then loses 1–2 % of its depth instead of 2–4 %
+    /// (DFSPH's solves hold their particles at it: `solver::dfsph`,
+    /// "Contacts").
     #[serde(default)]
     pub clearance: f32,
     /// Particle emitters.

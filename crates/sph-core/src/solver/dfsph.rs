@@ -35,6 +35,21 @@
 //! compressed under this kernel, and the first step kicked a resting tank
 //! to 0.3 m/s.) Meeting walls are united as in PBF.
 //!
+//! **Contacts.** After the step, the projection keeps particle centres the
+//! boundary's clearance from the walls ([`Boundary::clearance`]). Both
+//! solves know it: a particle within h/2 of that plane has its velocity
+//! into the wall held to what reaches the plane, v* first and then
+//! v* + Δt a(κ) at every iteration (projected Jacobi). Without it a solve
+//! lets the first layer make way into the wall for the layer above, which
+//! the projection then stops: in a 0.5 m pool at rest with a 1 cm
+//! clearance the 2–4 cm band stayed 4.6 % compressed and the floor layer
+//! moved at 86 mm/s (`cargo run --release -p sph-core --example
+//! pool_at_rest -- dfsph --depth 0.5 --clearance 0.01 --bands`; with the
+//! contacts 0.08 %, 12 mm/s). Without a clearance the walls' steep density
+//! term alone holds particles off, and there are no contacts (holding them
+//! at the wall's plane raised the dam break's most compressed particle
+//! from 0.66 to 0.83 % at a tight tolerance).
+//!
 //! **The linear system.** Both solves are one relaxed Jacobi iteration on
 //! different right-hand sides (SPlisHSPlasH's, after Ihmsen et al. 2014).
 //! With volumes V_j = m_j/ρ0 and the pairs' G_ij = V_j ∇W_ij:
@@ -602,6 +617,63 @@ struct Solve {
     applied: Vec<f32>,
     /// The last spacing and its [`relaxation`].
     relaxation: Option<(f32, f32)>,
+    /// The particles within reach of a wall's clearance this step.
+    contacts: Vec<Contact>,
+}
+
+/// A particle near a wall: the step must not take it closer than the
+/// boundary's clearance, where the projection after the step would stop
+/// it ([`Boundary::resolve`]). The solve holds its velocity's component
+/// into the wall to at least `least` (m/s, ≤ 0), so that it predicts the
+/// densities the projection will leave, rather than a first layer that
+/// makes way into the wall for the layer above.
+#[derive(Debug, Clone, Copy)]
+struct Contact {
+    i: usize,
+    /// The wall's normal, into the fluid.
+    n: Vec3,
+    /// −(distance to the clearance) / Δt.
+    least: f32,
+}
+
+impl Contact {
+    /// The particles within `reach` of a clearance plane of `b`'s walls,
+    /// in index order, with one contact per wall; none without a
+    /// clearance.
+    fn find(b: &Boundary, x: &[Vec3], reach: f32, dt: f32, out: &mut Vec<Contact>) {
+        out.clear();
+        let c = b.clearance;
+        if c <= 0.0 {
+            return;
+        }
+        let range = c + reach;
+        let far = |x: Vec3| {
+            b.obstacles.is_empty()
+                && (x - b.domain.min).cmpge(Vec3::splat(range)).all()
+                && (b.domain.max - x).cmpge(Vec3::splat(range)).all()
+        };
+        for (i, &xi) in x.iter().enumerate() {
+            if far(xi) {
+                continue;
+            }
+            b.for_each_wall_within(xi, range, |d, n| {
+                out.push(Contact {
+                    i,
+                    n,
+                    least: -(d - c).max(0.0) / dt,
+                });
+            });
+        }
+    }
+
+    /// Raises `u`'s component into the wall to at least `least`.
+    #[inline]
+    fn hold(&self, u: &mut Vec3, least: f32) {
+        let un = u.dot(self.n);
+        if un < least {
+            *u += (least - un) * self.n;
+        }
+    }
 }
 
 impl Solve {
@@ -617,6 +689,7 @@ impl Solve {
             vrows: Vec::new(),
             applied: Vec::new(),
             relaxation: None,
+            contacts: Vec::new(),
         }
     }
 
@@ -656,6 +729,13 @@ impl Solve {
             (f.velocities.par_iter_mut())
                 .zip(f.accelerations.par_iter())
                 .for_each(|(v, &a)| *v += dt * a);
+        }
+        // Near a wall, the step ends no closer than the clearance: v* held
+        // there, and later each iteration's accelerations.
+        let reach = 0.5 * model.params.h;
+        Contact::find(model.walls.boundary(), x, reach, dt, &mut self.contacts);
+        for c in &self.contacts {
+            c.hold(&mut f.velocities[c.i], c.least);
         }
         // Per particle, the source b_i, the density change to undo:
         // −Δt DS_i/Dt, or 1 − (ρ_i/ρ0 − f_i + f̃_i + Δt Σ_j (v_i − v_j)·G_ij).
@@ -718,6 +798,7 @@ impl Solve {
                 kappa: &self.kappa,
             };
             par_map(&pressure, n, &mut self.accelerations);
+            hold_accelerations(&self.contacts, v, dt, &mut self.accelerations);
             // (Aκ)_i = Δt² (Σ_j (a_i − a_j)·G_ij + a_i·∇f_i): the density
             // change the pressure accelerations make over the step. Each κ_i
             // moves by ω times its Jacobi step towards (Aκ)_i = b_i,
@@ -772,6 +853,7 @@ impl Solve {
             kappa,
         };
         par_map(&pressure, n, &mut self.accelerations);
+        hold_accelerations(&self.contacts, &f.velocities, dt, &mut self.accelerations);
         (f.velocities.par_iter_mut())
             .zip(self.accelerations.par_iter())
             .for_each(|(v, a)| *v += dt * Vec3::new(a[0], a[1], a[2]));
@@ -847,6 +929,17 @@ impl LaneMap for PressureAccelerations<'_> {
         let [x, y, z] = sum;
         let a = -(self.kappa[i] * self.factors[i].grad + Vec3::new(x.sum(), y.sum(), z.sum()));
         [a.x, a.y, a.z, 0.0]
+    }
+}
+
+/// Holds each contact's acceleration a so that v + Δt a keeps to its
+/// [`Contact::least`] normal velocity.
+fn hold_accelerations(contacts: &[Contact], v: &[Vec3], dt: f32, a: &mut [[f32; 4]]) {
+    for c in contacts {
+        let row = &mut a[c.i];
+        let mut ai = Vec3::new(row[0], row[1], row[2]);
+        c.hold(&mut ai, (c.least - v[c.i].dot(c.n)) / dt);
+        *row = [ai.x, ai.y, ai.z, 0.0];
     }
 }
 
