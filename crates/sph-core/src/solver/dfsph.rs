@@ -853,7 +853,7 @@ impl Solve {
             kappa,
         };
         par_map(&pressure, n, &mut self.accelerations);
-        hold_accelerations(&self.contacts, &f.velocities, dt, &mut self.accelerations);
+        hold_accelerations(&self.contacts, f.velocities, dt, &mut self.accelerations);
         (f.velocities.par_iter_mut())
             .zip(self.accelerations.par_iter())
             .for_each(|(v, a)| *v += dt * Vec3::new(a[0], a[1], a[2]));
