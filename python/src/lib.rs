@@ -99,7 +99,10 @@ impl PyWorld {
             }
         };
         if let Some(name) = solver {
-            scene.solver.kind = solver_kind(name)?;
+            // What the new solver would refuse gives way to its own
+            // (`Scene::switch_solver`'s notes, dropped here: the scene's
+            // fields say what runs).
+            let _ = scene.switch_solver(solver_kind(name)?);
         }
         Ok(Self {
             world: scene.build_world().map_err(error)?,

@@ -71,7 +71,9 @@ fn run(args: &Args) -> Result<(), AppError> {
         _ => {
             let (name, mut scene) = scenes::resolve(&args.scene)?;
             if let Some(kind) = args.solver {
-                scene.solver.kind = kind;
+                for note in scene.switch_solver(kind) {
+                    println!("{note}");
+                }
             }
             Pipeline::new(name, scene, args.iterations)?
         }

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3};
 use sph_core::solver::ExternalAcceleration;
-use sph_core::{PbfParams, PbfViscosity, SolverKind, SurfaceTensionModel};
+use sph_core::{PbfViscosity, SolverKind};
 use splat_render::{GpuContext, Shading, SplatPath, SplatRenderer, View, wgpu};
 use surfel_extract::{Split, Surface};
 use winit::application::ApplicationHandler;
@@ -321,35 +321,14 @@ impl App {
         }
     }
 
-    /// Runs the scene from its start with another solver. A surface tension
-    /// force the new solver does not have gives way to its own, with a note
-    /// (the thesis's colour field is WCSPH's only), and so does PBF's XSPH
-    /// blend to its implicit viscosity where the scene gives a μ. Where the GPU step cannot
-    /// run the new solver's scene (DFSPH, or WCSPH with Akinci et al.'s
-    /// forces), it goes back to the CPU with the GPU path's own reason.
+    /// Runs the scene from its start with another solver
+    /// ([`sph_core::Scene::switch_solver`], whose notes it prints). Where
+    /// the GPU step cannot run the new solver's scene (DFSPH, WCSPH with
+    /// Akinci et al.'s forces, PBF with its implicit viscosity), it goes
+    /// back to the CPU with the GPU path's own reason.
     fn switch_solver(&mut self, kind: SolverKind) -> Result<(), AppError> {
-        self.pipeline.scene.solver.kind = kind;
-        let fluid = &mut self.pipeline.scene.fluid;
-        if kind != SolverKind::Wcsph
-            && fluid.surface_tension_model == Some(SurfaceTensionModel::ColourField)
-        {
-            println!(
-                "surface_tension_model \"colour-field\" is WCSPH's: {kind} applies σ by Akinci et al.'s forces"
-            );
-            fluid.surface_tension_model = None;
-        }
-        let scene = &mut self.pipeline.scene;
-        if kind == SolverKind::Pbf
-            && let Some(mu) = scene.fluid.viscosity
-            && scene.pbf_params().viscosity == PbfViscosity::Xsph
-        {
-            println!(
-                "PBF's XSPH viscosity has no μ: PBF solves the scene's μ = {mu} Pa·s implicitly"
-            );
-            scene.solver.pbf = Some(PbfParams {
-                viscosity: PbfViscosity::Implicit,
-                ..scene.pbf_params()
-            });
+        for note in self.pipeline.scene.switch_solver(kind) {
+            println!("{note}");
         }
         match self.reset() {
             Err(e @ AppError::Gpu(_)) if self.pipeline.gpu.is_some() => {
@@ -870,14 +849,12 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     let mut changed = false;
     let kind = scene.solver.kind;
     if kind == SolverKind::Wcsph {
-        let wcsph = scene.solver.wcsph.get_or_insert_default();
-        changed |= ui
-            .add(
-                egui::Slider::new(&mut wcsph.stiffness, 100.0..=20_000.0)
-                    .logarithmic(true)
-                    .text("k (m²/s²)"),
-            )
-            .changed();
+        let mut wcsph = scene.wcsph_params();
+        let k = egui::Slider::new(&mut wcsph.stiffness, 100.0..=20_000.0).logarithmic(true);
+        if ui.add(k.text("k (m²/s²)")).changed() {
+            scene.solver.wcsph = Some(wcsph);
+            changed = true;
+        }
     }
     if kind == SolverKind::Pbf && scene.pbf_params().viscosity == PbfViscosity::Xsph {
         let mut pbf = scene.pbf_params();

@@ -413,9 +413,12 @@ impl Scene {
     pub fn from_toml(text: &str) -> Result<Self> {
         let scene: Scene = toml::from_str(text).map_err(|e| {
             let mut message = e.to_string();
-            let moved = WCSPH_FIELDS
-                .iter()
-                .find(|f| message.contains(&format!("unknown field `{f}`")));
+            // Only where the fields were: [fluid] lists `rest_density`
+            // among the fields it expects, [time_step] only `frame_dt`.
+            let old_table =
+                message.contains("`rest_density`") || message.contains("expected `frame_dt`");
+            let moved = (WCSPH_FIELDS.iter())
+                .find(|f| old_table && message.contains(&format!("unknown field `{f}`")));
             if let Some(field) = moved {
                 message.push_str(&format!(
                     "`{field}` is the thesis's WCSPH's parameter: it lives in [solver.wcsph]\n"
@@ -445,8 +448,14 @@ impl Scene {
     /// Checks every value; the error names the field and the reason.
     pub fn validate(&self) -> Result<()> {
         let f = &self.fluid;
-        // The solver's own checks, named as the file names the fields.
-        (self.fluid_params().validate()).map_err(in_table("fluid"))?;
+        // The solver's own checks, named as the file names the fields:
+        // WCSPH's own under [solver.wcsph], the others under [fluid].
+        (self.fluid_params().validate()).map_err(|e| match &e {
+            Error::InvalidParameter { name, .. } if WCSPH_FIELDS.contains(name) => {
+                in_table("solver.wcsph")(e)
+            }
+            _ => in_table("fluid")(e),
+        })?;
         // The kernels' own check: h must keep their coefficients finite f32.
         check_kernel_h(f.h).map_err(|e| invalid("fluid.h", e.to_string()))?;
         positive("spacing", self.spacing)?;
@@ -666,7 +675,7 @@ impl Scene {
                 format!(
                     "{mu} Pa·s is not applied by PBF with XSPH viscosity (its default, a blend \
                      with no unit): leave it out, set [solver.pbf] viscosity = \"implicit\" to \
-                     solve this μ, or choose kind = \"dfsph\""
+                     solve this μ, or run another solver"
                 ),
             )),
             _ => Ok(()),
@@ -883,6 +892,40 @@ impl Scene {
         self
     }
 
+    /// Runs this scene with `kind` from now on, as the demo's `--solver`,
+    /// its window's switch and Python's `solver=` do, giving way where the
+    /// scene has what `kind` would refuse: the thesis's colour-field force
+    /// gives way to Akinci et al.'s under PBF and DFSPH, and PBF's XSPH
+    /// blend to its implicit viscosity where the scene gives a μ. Returns
+    /// a note for each, to tell the user.
+    pub fn switch_solver(&mut self, kind: SolverKind) -> Vec<String> {
+        use crate::solver::SurfaceTensionModel;
+        self.solver.kind = kind;
+        let mut notes = Vec::new();
+        let fluid = &mut self.fluid;
+        if kind != SolverKind::Wcsph
+            && fluid.surface_tension_model == Some(SurfaceTensionModel::ColourField)
+        {
+            notes.push(format!(
+                "surface_tension_model \"colour-field\" is WCSPH's: {kind} applies σ by Akinci et al.'s forces"
+            ));
+            fluid.surface_tension_model = None;
+        }
+        if kind == SolverKind::Pbf
+            && let Some(mu) = fluid.viscosity
+            && self.pbf_params().viscosity == PbfViscosity::Xsph
+        {
+            notes.push(format!(
+                "PBF's XSPH viscosity has no μ: PBF solves the scene's μ = {mu} Pa·s implicitly"
+            ));
+            self.solver.pbf = Some(PbfParams {
+                viscosity: PbfViscosity::Implicit,
+                ..self.pbf_params()
+            });
+        }
+        notes
+    }
+
     /// This scene's fluid with viscosity `mu` (Pa·s), applied by every
     /// solver: PBF solves it implicitly ([`PbfViscosity::Implicit`]) in
     /// place of its XSPH blend, which has no μ. Call it once the blocks are
@@ -1013,7 +1056,8 @@ pub type BuiltIn = (&'static str, &'static str, fn() -> Scene);
 /// that a fall through the fluid's height moves at most 0.6 h per substep);
 /// the next two DFSPH, the accurate one, with physical viscosities: water
 /// (1e-3 Pa·s) and honey (50 Pa·s); `drops`, water's surface tension in
-/// zero gravity, PBF again. `--solver` runs any with another.
+/// zero gravity, PBF again (with no μ: run by another solver it takes
+/// [`FluidSpec::DEFAULT_VISCOSITY`]). `--solver` runs any with another.
 pub const BUILT_IN: [BuiltIn; 8] = [
     ("dam-break", "thin-slab dam break", || {
         Scene::dam_break(0.25, 0.08, 0.02).with_solver(SolverKind::Pbf)

@@ -35,15 +35,56 @@ fn every_scene_file_loads_and_runs_10_steps() {
 
 #[test]
 fn built_in_scenes_round_trip_through_toml() {
-    for s in [
-        Scene::dam_break(0.25, 0.08, 0.02),
+    let mut wcsph = Scene::dam_break(0.25, 0.08, 0.02);
+    wcsph.solver.wcsph = Some(sph_core::scene::WcsphSpec {
+        stiffness: 5000.0,
+        surface_threshold: Some(3.0),
+        ..Default::default()
+    });
+    wcsph.fluid.viscosity = Some(0.1);
+    let built_in = sph_core::scene::BUILT_IN.iter().map(|(_, _, make)| make());
+    for s in built_in.chain([
         Scene::dam_break(0.25, 0.25, 0.02),
-        Scene::drop_into_pool(0.2, 0.02),
         Scene::double_dam_break(0.2, 0.2, 0.02),
-        Scene::honey(0.2, 0.02),
-    ] {
-        assert_eq!(Scene::from_toml(&s.to_toml()).unwrap(), s);
+        wcsph,
+    ]) {
+        assert_eq!(Scene::from_toml(&s.to_toml()).unwrap(), s, "{}", s.name);
     }
+}
+
+/// Switching solver gives way, with a note, where the scene has what the
+/// new solver would refuse; otherwise it only switches.
+#[test]
+fn switching_solver_gives_way_with_a_note() {
+    use sph_core::{PbfViscosity, SolverKind};
+    // Water's dam break gives μ, which PBF's XSPH would refuse.
+    let mut water = Scene::built_in("dam-break-water").unwrap();
+    water.solver.pbf = None;
+    assert!(
+        water
+            .clone()
+            .with_solver(SolverKind::Pbf)
+            .validate()
+            .is_err()
+    );
+    let notes = water.switch_solver(SolverKind::Pbf);
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(notes[0].contains("implicitly"), "{notes:?}");
+    assert_eq!(water.pbf_params().viscosity, PbfViscosity::Implicit);
+    water.validate().unwrap();
+    // The colour field is WCSPH's.
+    let mut colour = Scene::dam_break(0.25, 0.08, 0.02);
+    colour.fluid.surface_tension = 0.07;
+    colour.fluid.surface_tension_model = Some(sph_core::SurfaceTensionModel::ColourField);
+    let notes = colour.switch_solver(SolverKind::Dfsph);
+    assert!(notes.len() == 1 && notes[0].contains("Akinci"), "{notes:?}");
+    assert_eq!(colour.fluid.surface_tension_model, None);
+    colour.validate().unwrap();
+    // Nothing to give way: only the kind changes.
+    let plain = Scene::built_in("dam-break").unwrap();
+    let mut switched = plain.clone();
+    assert!(switched.switch_solver(SolverKind::Wcsph).is_empty());
+    assert_eq!(switched, plain.with_solver(SolverKind::Wcsph));
 }
 
 /// The slab dam break as TOML with one line replaced.
@@ -122,7 +163,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 30] = [
+    let cases: [(&str, &str, &[&str]); 33] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -201,6 +242,23 @@ fn malformed_scenes_name_the_field_and_reason() {
             "rest_density = 1000.0\nviscosity = 1e-3\n",
             &["fluid.viscosity", "not applied by PBF", "implicit"],
         ),
+        // WCSPH's own values are named where they live.
+        (
+            "stiffness = 2000.0",
+            "stiffness = 0.0",
+            &["solver.wcsph.stiffness", "> 0"],
+        ),
+        (
+            "negative_pressure_scale = 0.0",
+            "negative_pressure_scale = 2.0",
+            &["solver.wcsph.negative_pressure_scale", "[0, 1]"],
+        ),
+        // A field unknown to PBF is not told it is WCSPH's.
+        (
+            "scorr_n = 4\n",
+            "scorr_n = 4\ncfl = 0.4\n",
+            &["unknown field `cfl`"],
+        ),
         // WCSPH's parameters moved out of [fluid] and [time_step].
         (
             "rest_density = 1000.0\n",
@@ -262,6 +320,9 @@ fn malformed_scenes_name_the_field_and_reason() {
             );
         }
     }
+    // The hint that a field moved to [solver.wcsph] only where it was.
+    let pbf_cfl = message(&with("scorr_n = 4\n", "scorr_n = 4\ncfl = 0.4\n"));
+    assert!(!pbf_cfl.contains("[solver.wcsph]"), "{pbf_cfl}");
     // A nozzle that fits and is inside no obstacle is accepted.
     let fits = "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 3\n\n[time_step]";
     Scene::from_toml(&with("[time_step]", fits)).unwrap();

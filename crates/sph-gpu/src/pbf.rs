@@ -244,7 +244,7 @@ impl GpuPbf {
             .map_err(GpuError::Params)?;
         if pbf.viscosity == PbfViscosity::Implicit {
             return Err(GpuError::Invalid(
-                "solver.pbf.viscosity = \"implicit\" runs only on the CPU: use \"xsph\" on the GPU",
+                "solver.pbf.viscosity = \"implicit\" runs only on the CPU: on the GPU use \"xsph\" and leave out fluid.viscosity, which XSPH does not apply",
             ));
         }
         let n = particles.len();

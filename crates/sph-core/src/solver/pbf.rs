@@ -161,6 +161,8 @@ pub struct PbfParams {
     /// XSPH viscosity c in [0, 1]: each substep blends a particle's velocity
     /// by c towards its neighbours' kernel-weighted mean,
     /// v_i += c Σ_j (m_j/ρ0)(v_j − v_i) W_ij. Default 0.01 (the paper's).
+    /// Read only under [`PbfViscosity::Xsph`]: the implicit viscosity
+    /// replaces the blend.
     pub xsph: f32,
     /// The guard: the predicted displacement of one substep, |v| Δt, is at
     /// most this fraction of h; faster particles are slowed to it and
@@ -171,7 +173,8 @@ pub struct PbfParams {
     /// Which viscosity acts: `"xsph"` (default) or `"implicit"`.
     pub viscosity: PbfViscosity,
     /// The implicit viscosity's tolerance: the conjugate gradients stop at
-    /// this residual relative to the velocities' norm. Default 1e-3.
+    /// this residual relative to the velocities' norm. Default 1e-3. Read
+    /// only under [`PbfViscosity::Implicit`], as the next.
     pub viscosity_tolerance: f32,
     /// The implicit viscosity's most conjugate-gradient iterations per
     /// substep. Default 100.
