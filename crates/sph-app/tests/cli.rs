@@ -588,6 +588,46 @@ fn solver_flag_chooses_and_bad_names_are_errors() {
         "{}",
         stderr(&o)
     );
+    // A DFSPH scene with a μ run by PBF: its XSPH blend gives way to the
+    // implicit viscosity, with a note, rather than the scene being refused.
+    let slab = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../assets/scenes/dam_break_slab.toml"
+    );
+    let text = std::fs::read_to_string(slab).unwrap();
+    let water = (text.replacen(
+        "rest_density = 1000.0\n",
+        "rest_density = 1000.0\nviscosity = 0.001\n",
+        1,
+    ))
+    .replacen("kind = \"pbf\"", "kind = \"dfsph\"", 1);
+    let file = out.join("water.toml");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(&file, water).unwrap();
+    let o = app(&[
+        "--headless",
+        "--scene",
+        file.to_str().unwrap(),
+        "--frames",
+        "1",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--solver",
+        "pbf",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("solves the scene's μ"), "{stdout}");
+    let csv = std::fs::read_to_string(out.join("frames.csv")).unwrap();
+    assert_eq!(
+        csv.lines().nth(1).unwrap().split(',').nth(9),
+        Some("pbf"),
+        "{csv}"
+    );
 }
 
 /// `--gif` writes the run as a looping animated GIF that decodes, one frame
