@@ -83,7 +83,7 @@ struct PyWorld {
 impl PyWorld {
     #[new]
     #[pyo3(signature = (scene, solver = None))]
-    fn new(scene: &str, solver: Option<&str>) -> PyResult<Self> {
+    fn new(py: Python<'_>, scene: &str, solver: Option<&str>) -> PyResult<Self> {
         let mut scene = match Scene::built_in(scene) {
             Some(s) => s,
             None => {
@@ -99,10 +99,14 @@ impl PyWorld {
             }
         };
         if let Some(name) = solver {
-            // What the new solver would refuse gives way to its own
-            // (`Scene::switch_solver`'s notes, dropped here: the scene's
-            // fields say what runs).
-            let _ = scene.switch_solver(solver_kind(name)?);
+            // What the new solver would refuse gives way to its own, each
+            // with a `UserWarning` (`Scene::switch_solver`'s notes).
+            let warning = py.get_type::<pyo3::exceptions::PyUserWarning>();
+            for note in scene.switch_solver(solver_kind(name)?) {
+                let note = std::ffi::CString::new(note)
+                    .map_err(|e| PyValueError::new_err(e.to_string()))?;
+                PyErr::warn(py, &warning, &note, 1)?;
+            }
         }
         Ok(Self {
             world: scene.build_world().map_err(error)?,

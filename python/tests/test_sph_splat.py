@@ -38,6 +38,19 @@ def test_solvers_and_scene_files_choose_the_world():
     assert world.solver == "pbf" and len(world) > 1000
 
 
+def test_a_switch_that_gives_way_warns(tmp_path):
+    # A DFSPH scene with a viscosity, run by PBF: its XSPH blend, which has
+    # no viscosity, gives way to the implicit one, with a warning.
+    text = (ROOT / "assets" / "scenes" / "dam_break_slab.toml").read_text()
+    text = text.replace("rest_density = 1000.0\n", "rest_density = 1000.0\nviscosity = 0.001\n", 1)
+    text = text.replace('kind = "pbf"', 'kind = "dfsph"', 1)
+    path = tmp_path / "water.toml"
+    path.write_text(text)
+    with pytest.warns(UserWarning, match="implicitly"):
+        world = ss.World(str(path), solver="pbf")
+    assert world.solver == "pbf"
+
+
 def test_a_world_from_arrays_falls_and_stays_in_its_box():
     grid = np.mgrid[0:6, 0:6, 0:6].reshape(3, -1).T.astype(np.float32)
     positions = 0.02 * grid + np.float32(0.2)
