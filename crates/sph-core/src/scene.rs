@@ -635,20 +635,8 @@ impl Scene {
     /// threshold only where the colour field runs (a WCSPH scene with
     /// Akinci et al.'s forces would not read it).
     fn validate_wcsph(&self) -> Result<()> {
+        (self.time_stepping().validate()).map_err(in_table("solver.wcsph"))?;
         let w = self.wcsph_params();
-        positive("solver.wcsph.max_dt", w.max_dt)?;
-        positive("solver.wcsph.cfl", w.cfl)?;
-        positive("solver.wcsph.force_factor", w.force_factor)?;
-        let min_dt = TimeStepping::default().min_dt;
-        if w.max_dt < min_dt {
-            return Err(invalid(
-                "solver.wcsph.max_dt",
-                format!(
-                    "{} s is below min_dt = {min_dt:e} s, the step that counts as a blow-up",
-                    w.max_dt
-                ),
-            ));
-        }
         let model = self.fluid.surface_tension_model;
         let colour_field =
             model.is_none_or(|m| m == crate::solver::SurfaceTensionModel::ColourField);
@@ -918,10 +906,7 @@ impl Scene {
             notes.push(format!(
                 "PBF's XSPH viscosity has no μ: PBF solves the scene's μ = {mu} Pa·s implicitly"
             ));
-            self.solver.pbf = Some(PbfParams {
-                viscosity: PbfViscosity::Implicit,
-                ..self.pbf_params()
-            });
+            self.solve_viscosity_implicitly();
         }
         notes
     }
@@ -932,11 +917,17 @@ impl Scene {
     /// in: PBF's derived substeps depend on their height.
     pub fn with_viscosity(mut self, mu: f32) -> Self {
         self.fluid.viscosity = Some(mu);
+        self.solve_viscosity_implicitly();
+        self
+    }
+
+    /// PBF's parameters as now, with the implicit viscosity of μ in place
+    /// of the XSPH blend.
+    fn solve_viscosity_implicitly(&mut self) {
         self.solver.pbf = Some(PbfParams {
             viscosity: PbfViscosity::Implicit,
             ..self.pbf_params()
         });
-        self
     }
 
     /// The dam break: a water column of width `a` and height 2a at the left of a

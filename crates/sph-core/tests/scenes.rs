@@ -234,7 +234,7 @@ fn malformed_scenes_name_the_field_and_reason() {
         (
             "max_dt = 0.002",
             "max_dt = 1e-9",
-            &["solver.wcsph.max_dt", "below min_dt"],
+            &["solver.wcsph.max_dt", "at least min_dt"],
         ),
         // PBF's default XSPH viscosity has no μ to apply.
         (

@@ -535,6 +535,8 @@ const MEAN_CHUNK: usize = 4096;
 struct Linearisation {
     factors: Vec<Factor>,
     pairs: Vec<Vec3>,
+    /// The particles within reach of a wall's clearance.
+    contacts: Vec<Contact>,
 }
 
 /// The [`Linearisation`] the stations of one program share.
@@ -550,8 +552,8 @@ fn lock(shared: &Shared) -> std::sync::MutexGuard<'_, Linearisation> {
 
 /// Algorithm 1's "compute densities ρ_i and factors α_i": the densities
 /// (into [`Particles::densities`]), α_i, g_i, the walls' term and G_ij of
-/// the step's positions, once for both solves (nothing between them moves
-/// a particle).
+/// the step's positions, and the solves' contacts, once for both solves
+/// (nothing between them moves a particle).
 #[derive(Debug)]
 pub struct Factors {
     model: Arc<Model>,
@@ -568,7 +570,11 @@ impl Processor for Factors {
         let lists = lists(ctx, particles, "factors")?;
         let model = &*self.model;
         let mut shared = lock(&self.shared);
-        let Linearisation { factors, pairs } = &mut *shared;
+        let Linearisation {
+            factors,
+            pairs,
+            contacts,
+        } = &mut *shared;
         let f = particles.fields_mut();
         rows_of(f.positions, f.masses, &mut self.rows);
         pairs.resize(lists.pairs(), Vec3::ZERO);
@@ -584,6 +590,8 @@ impl Processor for Factors {
         (f.densities.par_iter_mut())
             .zip(factors.par_iter())
             .for_each(|(rho, c)| *rho = c.rho);
+        let reach = 0.5 * model.params.h;
+        Contact::find(model.walls.boundary(), f.positions, reach, contacts);
         Ok(())
     }
 }
@@ -617,53 +625,46 @@ struct Solve {
     applied: Vec<f32>,
     /// The last spacing and its [`relaxation`].
     relaxation: Option<(f32, f32)>,
-    /// The particles within reach of a wall's clearance this step.
-    contacts: Vec<Contact>,
 }
 
 /// A particle near a wall: the step must not take it closer than the
 /// boundary's clearance, where the projection after the step would stop
-/// it ([`Boundary::resolve`]). The solve holds its velocity's component
-/// into the wall to at least `least` (m/s, ≤ 0), so that it predicts the
-/// densities the projection will leave, rather than a first layer that
-/// makes way into the wall for the layer above.
+/// it ([`Boundary::resolve`]). The solves hold its velocity's component
+/// into the wall to at least −gap/Δt ([`Contact::least`]), so that they
+/// predict the densities the projection will leave, rather than a first
+/// layer that makes way into the wall for the layer above.
 #[derive(Debug, Clone, Copy)]
 struct Contact {
     i: usize,
     /// The wall's normal, into the fluid.
     n: Vec3,
-    /// −(distance to the clearance) / Δt.
-    least: f32,
+    /// The distance to the clearance plane (m, ≥ 0).
+    gap: f32,
 }
 
 impl Contact {
     /// The particles within `reach` of a clearance plane of `b`'s walls,
     /// in index order, with one contact per wall; none without a
     /// clearance.
-    fn find(b: &Boundary, x: &[Vec3], reach: f32, dt: f32, out: &mut Vec<Contact>) {
+    fn find(b: &Boundary, x: &[Vec3], reach: f32, out: &mut Vec<Contact>) {
         out.clear();
         let c = b.clearance;
         if c <= 0.0 {
             return;
         }
-        let range = c + reach;
-        let far = |x: Vec3| {
-            b.obstacles.is_empty()
-                && (x - b.domain.min).cmpge(Vec3::splat(range)).all()
-                && (b.domain.max - x).cmpge(Vec3::splat(range)).all()
-        };
         for (i, &xi) in x.iter().enumerate() {
-            if far(xi) {
-                continue;
-            }
-            b.for_each_wall_within(xi, range, |d, n| {
-                out.push(Contact {
-                    i,
-                    n,
-                    least: -(d - c).max(0.0) / dt,
-                });
+            b.for_each_wall_within(xi, c + reach, |d, n| {
+                let gap = (d - c).max(0.0);
+                out.push(Contact { i, n, gap });
             });
         }
+    }
+
+    /// The least normal velocity of a step of `dt`: the one that reaches
+    /// the clearance plane.
+    #[inline]
+    fn least(&self, dt: f32) -> f32 {
+        -self.gap / dt
     }
 
     /// Raises `u`'s component into the wall to at least `least`.
@@ -689,7 +690,6 @@ impl Solve {
             vrows: Vec::new(),
             applied: Vec::new(),
             relaxation: None,
-            contacts: Vec::new(),
         }
     }
 
@@ -732,10 +732,9 @@ impl Solve {
         }
         // Near a wall, the step ends no closer than the clearance: v* held
         // there, and later each iteration's accelerations.
-        let reach = 0.5 * model.params.h;
-        Contact::find(model.walls.boundary(), x, reach, dt, &mut self.contacts);
-        for c in &self.contacts {
-            c.hold(&mut f.velocities[c.i], c.least);
+        let contacts = &shared.contacts;
+        for c in contacts {
+            c.hold(&mut f.velocities[c.i], c.least(dt));
         }
         // Per particle, the source b_i, the density change to undo:
         // −Δt DS_i/Dt, or 1 − (ρ_i/ρ0 − f_i + f̃_i + Δt Σ_j (v_i − v_j)·G_ij).
@@ -798,7 +797,7 @@ impl Solve {
                 kappa: &self.kappa,
             };
             par_map(&pressure, n, &mut self.accelerations);
-            hold_accelerations(&self.contacts, v, dt, &mut self.accelerations);
+            hold_accelerations(contacts, v, dt, &mut self.accelerations);
             // (Aκ)_i = Δt² (Σ_j (a_i − a_j)·G_ij + a_i·∇f_i): the density
             // change the pressure accelerations make over the step. Each κ_i
             // moves by ω times its Jacobi step towards (Aκ)_i = b_i,
@@ -853,7 +852,7 @@ impl Solve {
             kappa,
         };
         par_map(&pressure, n, &mut self.accelerations);
-        hold_accelerations(&self.contacts, f.velocities, dt, &mut self.accelerations);
+        hold_accelerations(contacts, f.velocities, dt, &mut self.accelerations);
         (f.velocities.par_iter_mut())
             .zip(self.accelerations.par_iter())
             .for_each(|(v, a)| *v += dt * Vec3::new(a[0], a[1], a[2]));
@@ -938,7 +937,7 @@ fn hold_accelerations(contacts: &[Contact], v: &[Vec3], dt: f32, a: &mut [[f32; 
     for c in contacts {
         let row = &mut a[c.i];
         let mut ai = Vec3::new(row[0], row[1], row[2]);
-        c.hold(&mut ai, (c.least - v[c.i].dot(c.n)) / dt);
+        c.hold(&mut ai, (c.least(dt) - v[c.i].dot(c.n)) / dt);
         *row = [ai.x, ai.y, ai.z, 0.0];
     }
 }
