@@ -368,29 +368,29 @@ const BLOCK: usize = 256;
 pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
     // Every value is written below; the memory is only sized here.
     out.resize(n, M::Out::default());
-    #[cfg(target_arch = "x86_64")]
-    let (avx2, wide) = (simd_level() >= Simd::Avx2, wide_registers());
     out.par_chunks_mut(BLOCK)
         .enumerate()
-        .for_each(|(b, block)| {
-            let first = b * BLOCK;
-            #[cfg(target_arch = "x86_64")]
-            if wide {
-                // SAFETY: checked by `wide_registers`.
-                unsafe { fill_avx512vl(map, first, block) };
-                return;
-            }
-            #[cfg(target_arch = "x86_64")]
-            if avx2 {
-                // SAFETY: `simd_level` never exceeds what the CPU supports.
-                unsafe { fill_avx2(map, first, block) };
-                return;
-            }
-            #[cfg(target_arch = "x86_64")]
+        .for_each(|(b, block)| fill_block(map, b * BLOCK, block));
+}
+
+/// Sets `block[k]` to `map`'s value for particle `first + k`, on this
+/// thread, with the lanes [`par_map`] picks.
+#[inline]
+pub(super) fn fill_block<M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if wide_registers() {
+            // SAFETY: checked by `wide_registers`.
+            unsafe { fill_avx512vl(map, first, block) };
+        } else if simd_level() >= Simd::Avx2 {
+            // SAFETY: `simd_level` never exceeds what the CPU supports.
+            unsafe { fill_avx2(map, first, block) };
+        } else {
             fill::<Sse2, M>(map, first, block);
-            #[cfg(not(target_arch = "x86_64"))]
-            fill::<Scalar, M>(map, first, block);
-        });
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    fill::<Scalar, M>(map, first, block);
 }
 
 /// A per-particle computation over lanes of any kind that also writes a

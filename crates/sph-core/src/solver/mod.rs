@@ -26,6 +26,7 @@ mod force_sums;
 mod lanes;
 pub mod params;
 pub mod pbf;
+mod region;
 pub mod stations;
 pub mod surface_tension;
 pub mod viscosity;

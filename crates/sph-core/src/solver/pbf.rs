@@ -67,6 +67,8 @@
 //!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
 //!   every clamped particle is counted in [`crate::StepCounters::clamped`].
 
+use std::ops::Range;
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -79,8 +81,9 @@ use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
-use super::f32x8::{F32x8, LaneMap, par_map};
-use super::lanes::{DensitySums, LaneKernels, Near, rows_of};
+use super::f32x8::{F32x8, LaneMap, fill_block};
+use super::lanes::{DensitySums, LaneKernels, Near};
+use super::region::{self, Blocks, OwnedPass, Pass};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::surface_tension::SurfaceTension;
@@ -711,10 +714,14 @@ struct Constraint {
 #[derive(Debug, Clone)]
 pub struct SolveDensity {
     model: Model,
-    /// (x, m) per particle.
-    rows: Vec<[f32; 4]>,
+    /// (x, m) per particle: the positions an iteration reads, and those it
+    /// leaves, in turn.
+    rows: [Vec<[f32; 4]>; 2],
     constraints: Vec<Constraint>,
-    corrections: Vec<Vec3>,
+    /// Each iteration's largest density, per block.
+    densest: Vec<f32>,
+    /// Whether a block's final positions are all finite.
+    finite: Vec<bool>,
 }
 
 /// The λ pass: every particle's [`Constraint`].
@@ -760,9 +767,10 @@ impl SolveDensity {
     fn with_model(model: Model) -> Self {
         Self {
             model,
-            rows: Vec::new(),
+            rows: [Vec::new(), Vec::new()],
             constraints: Vec::new(),
-            corrections: Vec::new(),
+            densest: Vec::new(),
+            finite: Vec::new(),
         }
     }
 }
@@ -775,64 +783,113 @@ impl Processor for SolveDensity {
         let lists = lists(ctx, particles, "density")?;
         let model = &self.model;
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
-        let (mut first, mut worst) = (None, 0.0f32);
-        let n_particles = particles.len();
-        let f = particles.fields_mut();
-        rows_of(f.positions, f.masses, &mut self.rows);
-        for iteration in 0..pbf.iterations {
-            let rows = &self.rows[..];
-            par_map(
-                &Lambdas { model, rows, lists },
-                n_particles,
-                &mut self.constraints,
-            );
-            let c = &self.constraints;
-            // The solve's headway: the largest density at the first and the
-            // last iteration.
-            if iteration == 0 || iteration + 1 == pbf.iterations {
-                worst = c.par_iter().map(|c| c.rho).reduce(|| 0.0, f32::max) / rho0 - 1.0;
-                first.get_or_insert(worst);
-            }
-            let corrections = Corrections {
-                model,
-                rows,
-                constraints: c,
-                lists,
-            };
-            par_map(&corrections, n_particles, &mut self.corrections);
-            // Each particle moves by its correction and out of walls, its
-            // velocity by that motion over Δt, and its row follows; its
-            // pressure gains the iteration's −ω ρ0 λ_i/Δt².
-            let b = model.walls.boundary();
-            let omega = pbf.over_relaxation;
-            let to_pressure = -omega * rho0 / (dt * dt);
-            let first_iteration = iteration == 0;
-            (f.positions.par_iter_mut())
-                .zip(f.velocities.par_iter_mut())
-                .zip(self.corrections.par_iter())
-                .zip(self.rows.par_iter_mut())
-                .zip(f.pressures.par_iter_mut().zip(c.par_iter()))
-                .for_each(|((((x, v), &dp), row), (p, c))| {
-                    let dp = omega * dp;
-                    *x += dp;
-                    let free = *x;
-                    b.project(x);
-                    *v += (dp + (*x - free)) / dt;
-                    (row[0], row[1], row[2]) = (x.x, x.y, x.z);
-                    let applied = to_pressure * c.lambda;
-                    *p = if first_iteration {
-                        applied
-                    } else {
-                        *p + applied
-                    };
-                });
+        let n = particles.len();
+        let (iterations, per_pass) = (pbf.iterations as usize, region::blocks(n));
+        for rows in &mut self.rows {
+            rows.resize(n, [0.0; 4]);
         }
-        (particles.densities_mut().par_iter_mut())
-            .zip(self.constraints.par_iter())
-            .for_each(|(rho, c)| *rho = c.rho);
+        self.constraints.resize(n, Constraint::default());
+        self.densest.resize(iterations * per_pass, 0.0);
+        self.finite.resize(per_pass, true);
+        {
+            let f = particles.fields_mut();
+            let [rows_a, rows_b] = &mut self.rows;
+            let rows = [Blocks::new(rows_a), Blocks::new(rows_b)];
+            let constraints = Blocks::new(&mut self.constraints);
+            let densest = Blocks::new(&mut self.densest);
+            let finite = Blocks::new(&mut self.finite);
+            let (positions, velocities) = (Blocks::new(f.positions), Blocks::new(f.velocities));
+            let (pressures, densities) = (Blocks::new(f.pressures), Blocks::new(f.densities));
+            let masses = &*f.masses;
+            let (b, omega) = (model.walls.boundary(), pbf.over_relaxation);
+            let to_pressure = -omega * rho0 / (dt * dt);
+            // SAFETY (every pass below): each writes only its own block of the
+            // slices it owns, and reads whole only slices no pass writes
+            // meanwhile; iteration k reads `rows[k % 2]` and writes the other.
+            let start = |r: Range<usize>, _| {
+                let (x, out) = unsafe { (positions.all(), rows[0].block(r.clone())) };
+                for (row, i) in out.iter_mut().zip(r) {
+                    *row = [x[i].x, x[i].y, x[i].z, masses[i]];
+                }
+            };
+            // Lines 9–11: every λ_i, and the iteration's largest density.
+            let lambdas = |k: usize| {
+                let (rows, constraints, densest) = (&rows, &constraints, &densest);
+                move |r: Range<usize>, block: usize| {
+                    let rows = unsafe { rows[k % 2].all() };
+                    let out = unsafe { constraints.block(r.clone()) };
+                    fill_block(&Lambdas { model, rows, lists }, r.start, out);
+                    let rho = out.iter().fold(0.0, |m: f32, c| m.max(c.rho));
+                    unsafe {
+                        densest.block(k * per_pass + block..k * per_pass + block + 1)[0] = rho
+                    };
+                }
+            };
+            // Lines 12–21: each particle moves by its correction and out of
+            // walls, its velocity by that motion over Δt; its row for the next
+            // iteration follows, and its pressure gains −ω ρ0 λ_i/Δt².
+            let moves = |k: usize| {
+                let (rows, constraints, finite) = (&rows, &constraints, &finite);
+                let (positions, velocities) = (&positions, &velocities);
+                let (pressures, densities) = (&pressures, &densities);
+                move |r: Range<usize>, block: usize| {
+                    let (now, c) = unsafe { (rows[k % 2].all(), constraints.all()) };
+                    let mut dps = [Vec3::ZERO; region::BLOCK];
+                    let dps = &mut dps[..r.len()];
+                    let corrections = Corrections {
+                        model,
+                        rows: now,
+                        constraints: c,
+                        lists,
+                    };
+                    fill_block(&corrections, r.start, dps);
+                    let (x, v) =
+                        unsafe { (positions.block(r.clone()), velocities.block(r.clone())) };
+                    let (p, next) =
+                        unsafe { (pressures.block(r.clone()), rows[1 - k % 2].block(r.clone())) };
+                    for (j, i) in r.clone().enumerate() {
+                        let dp = omega * dps[j];
+                        let x = &mut x[j];
+                        *x += dp;
+                        let free = *x;
+                        b.project(x);
+                        v[j] += (dp + (*x - free)) / dt;
+                        next[j] = [x.x, x.y, x.z, now[i][3]];
+                        let applied = to_pressure * c[i].lambda;
+                        p[j] = if k == 0 { applied } else { p[j] + applied };
+                    }
+                    if k + 1 == iterations {
+                        let rho = unsafe { densities.block(r.clone()) };
+                        for (rho, c) in rho.iter_mut().zip(&c[r]) {
+                            *rho = c.rho;
+                        }
+                        unsafe {
+                            finite.block(block..block + 1)[0] = x.iter().all(|x| x.is_finite())
+                        };
+                    }
+                }
+            };
+            let steps: Vec<OwnedPass<'_>> = (0..iterations)
+                .flat_map(|k| -> [OwnedPass<'_>; 2] { [Box::new(lambdas(k)), Box::new(moves(k))] })
+                .collect();
+            let passes: Vec<Pass<'_>> = std::iter::once(&start as Pass<'_>)
+                .chain(steps.iter().map(|p| &**p as Pass<'_>))
+                .collect();
+            region::run(n, &passes);
+        }
+        // The solve's headway: the largest density at the first and the
+        // last iteration.
+        let worst_at = |k: usize| {
+            let blocks = &self.densest[k * per_pass..(k + 1) * per_pass];
+            blocks.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0
+        };
+        let (first, worst) = match iterations {
+            0 => (None, 0.0f32),
+            _ => (Some(worst_at(0)), worst_at(iterations - 1)),
+        };
         ctx.counters.iterations += pbf.iterations;
         ctx.invalidate_grid(); // positions moved; the lists stay
-        let bad = particles.positions().par_iter().any(|x| !x.is_finite());
+        let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
         let stuck = first.is_some_and(|first| worst >= first);
         if bad || worst.is_nan() || (worst > MAX_DENSITY_ERROR && stuck) {
             return Err(Error::Unstable {
@@ -879,8 +936,6 @@ pub struct VorticityXsph {
     first: Vec<Sums>,
     /// |ω| per particle.
     curl_len: Vec<f32>,
-    /// η per particle (empty without vorticity confinement).
-    eta: Vec<Vec3>,
 }
 
 /// The viscosity station's first pass: every particle's [`Sums`].
@@ -940,7 +995,6 @@ impl VorticityXsph {
             vrows: Vec::new(),
             first: Vec::new(),
             curl_len: Vec::new(),
-            eta: Vec::new(),
         }
     }
 }
@@ -958,54 +1012,74 @@ impl Processor for VorticityXsph {
             PbfViscosity::Implicit => 0.0,
         };
         let eps = model.pbf.vorticity;
+        let n = particles.len();
+        self.rows.resize(n, [0.0; 4]);
+        self.vrows.resize(n, [0.0; 4]);
+        self.first.resize(n, Sums::default());
+        self.curl_len.resize(n, 0.0);
         let f = particles.fields_mut();
-        let n = f.positions.len();
-        rows_of(f.positions, f.masses, &mut self.rows);
-        (f.velocities.par_iter())
-            .map(|v| [v.x, v.y, v.z, 0.0])
-            .collect_into_vec(&mut self.vrows);
-        let (rows, vrows) = (&self.rows[..], &self.vrows[..]);
+        let (rows, vrows) = (Blocks::new(&mut self.rows), Blocks::new(&mut self.vrows));
+        let (first, curl_len) = (
+            Blocks::new(&mut self.first),
+            Blocks::new(&mut self.curl_len),
+        );
+        let (velocities, densities) = (Blocks::new(f.velocities), Blocks::new(f.densities));
+        let (positions, masses) = (&*f.positions, &*f.masses);
+        // SAFETY (every pass below): each writes only its own block of the
+        // slices it owns, and reads whole only slices no pass writes
+        // meanwhile.
+        let start = |r: Range<usize>, _| {
+            let v = unsafe { velocities.all() };
+            let (out, vout) = unsafe { (rows.block(r.clone()), vrows.block(r.clone())) };
+            for ((row, vrow), i) in out.iter_mut().zip(vout).zip(r) {
+                let (x, v) = (positions[i], v[i]);
+                *row = [x.x, x.y, x.z, masses[i]];
+                *vrow = [v.x, v.y, v.z, 0.0];
+            }
+        };
         // Density, curl and XSPH mean at once.
-        par_map(
-            &CurlSums {
+        let sums = |r: Range<usize>, _| {
+            let (rows, vrows) = unsafe { (rows.all(), vrows.all()) };
+            let out = unsafe { first.block(r.clone()) };
+            let map = CurlSums {
                 model,
                 rows,
                 vrows,
                 lists,
-            },
-            n,
-            &mut self.first,
-        );
-        let first = &self.first;
-        self.eta.clear();
-        if eps > 0.0 {
-            (first.par_iter())
-                .map(|s| s.curl_len)
-                .collect_into_vec(&mut self.curl_len);
-            let curl_len = &self.curl_len[..];
-            let gradients = CurlGradients {
-                model,
-                rows,
-                curl_len,
-                lists,
             };
-            par_map(&gradients, n, &mut self.eta);
-        }
-        let eta = &self.eta;
-        // Each particle's velocity change reads only the sums above, so it
-        // is added in place, with the density.
-        (f.velocities.par_iter_mut())
-            .zip(f.densities.par_iter_mut())
-            .enumerate()
-            .for_each(|(i, (v, rho))| {
+            fill_block(&map, r.start, out);
+            let len = unsafe { curl_len.block(r) };
+            for (len, s) in len.iter_mut().zip(out) {
+                *len = s.curl_len;
+            }
+        };
+        // η, then each particle's velocity change, which reads only the
+        // sums above, so it is added in place, with the density.
+        let apply = |r: Range<usize>, _| {
+            let (rows, first, curl_len) = unsafe { (rows.all(), first.all(), curl_len.all()) };
+            let mut eta = [Vec3::ZERO; region::BLOCK];
+            let eta = &mut eta[..r.len()];
+            if eps > 0.0 {
+                let map = CurlGradients {
+                    model,
+                    rows,
+                    curl_len,
+                    lists,
+                };
+                fill_block(&map, r.start, eta);
+            }
+            let (v, rho) = unsafe { (velocities.block(r.clone()), densities.block(r.clone())) };
+            for (j, i) in r.enumerate() {
                 let Sums { curl, mean, .. } = first[i];
                 let mut dv = c * mean;
-                if let Some(n) = eta.get(i).and_then(|eta| eta.try_normalize()) {
+                if let Some(n) = eta[j].try_normalize() {
                     dv += dt * eps * n.cross(curl);
                 }
-                *v += dv;
-                *rho = first[i].rho;
-            });
+                v[j] += dv;
+                rho[j] = first[i].rho;
+            }
+        };
+        region::run(n, &[&start, &sums, &apply]);
         Ok(())
     }
 }
@@ -1016,7 +1090,7 @@ mod tests {
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
     use crate::solver::f32x8::every_kind;
-    use crate::solver::lanes::jittered_block;
+    use crate::solver::lanes::{jittered_block, rows_of};
 
     /// The four lane passes give bitwise the same values with every kind of
     /// lanes (plain, SSE2, AVX2), and the λ pass's density is the plain sum
