@@ -101,14 +101,16 @@
 //!   ([`super::surface_tension`], the same forces and σ-to-γ scale as
 //!   PBF's, with their measured accuracy).
 
+use std::ops::Range;
 use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::f32x8::{F32x8, LaneMap, LaneRowMap, par_map, par_map_rows};
+use super::f32x8::{F32x8, LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
 use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
 use super::params::FluidParams;
+use super::region::{self, Blocks};
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
@@ -524,10 +526,6 @@ fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Mod
     }
 }
 
-/// Particles per chunk of the error's mean: a fixed size, so the sum's
-/// order does not depend on the number of threads.
-const MEAN_CHUNK: usize = 4096;
-
 /// The factors of the step's positions, which the `factors` station
 /// computes and both solves read: per particle, then G_ij per pair in the
 /// neighbour lists' order.
@@ -619,6 +617,8 @@ struct Solve {
     /// Σ_j (u_i − u_j)·G_ij per particle, of the velocities or the
     /// accelerations.
     products: Vec<f32>,
+    /// Each iteration's compression left, per block.
+    sums: Vec<f64>,
     /// The velocities as rows (v, 0).
     vrows: Vec<[f32; 4]>,
     /// The density solve's record of the divergence solve's κ_i.
@@ -688,6 +688,7 @@ impl Solve {
             accelerations: Vec::new(),
             products: Vec::new(),
             vrows: Vec::new(),
+            sums: Vec::new(),
             applied: Vec::new(),
             relaxation: None,
         }
@@ -789,45 +790,60 @@ impl Solve {
             Target::Density => dfsph.density_tolerance,
         };
         let (mut iterations, mut first) = (0, None);
+        self.accelerations.resize(n, [0.0; 4]);
+        self.sums.resize(region::blocks(n), 0.0);
         let error = loop {
-            let pressure = PressureAccelerations {
-                lists,
-                factors,
-                pairs,
-                kappa: &self.kappa,
+            let acceleration = Blocks::new(&mut self.accelerations);
+            let (kappa, sums) = (Blocks::new(&mut self.kappa), Blocks::new(&mut self.sums));
+            let rows = &self.rows;
+            // SAFETY (both passes): each writes only its own block of the
+            // slices it owns, and reads whole only the slice the other
+            // pass writes.
+            // The pressure accelerations of κ, held at the contacts.
+            let accelerate = |r: Range<usize>, _| {
+                let kappa = unsafe { kappa.all() };
+                let out = unsafe { acceleration.block(r.clone()) };
+                let pressure = PressureAccelerations {
+                    lists,
+                    factors,
+                    pairs,
+                    kappa,
+                };
+                fill_block(&pressure, r.start, out);
+                let held = contacts.partition_point(|c| c.i < r.start)
+                    ..contacts.partition_point(|c| c.i < r.end);
+                hold_accelerations(&contacts[held], v, dt, r.start, out);
             };
-            par_map(&pressure, n, &mut self.accelerations);
-            hold_accelerations(contacts, v, dt, &mut self.accelerations);
             // (Aκ)_i = Δt² (Σ_j (a_i − a_j)·G_ij + a_i·∇f_i): the density
             // change the pressure accelerations make over the step. Each κ_i
             // moves by ω times its Jacobi step towards (Aκ)_i = b_i,
             // projected to κ_i ≥ 0; e_i = max((Aκ)_i − b_i, 0) is the
-            // compression left, summed in fixed chunks.
-            let products = PairProducts {
-                lists,
-                pairs,
-                values: &self.accelerations,
+            // compression left, summed per block.
+            let relax = |r: Range<usize>, block: usize| {
+                let a = unsafe { acceleration.all() };
+                let mut products = [0.0; region::BLOCK];
+                let products = &mut products[..r.len()];
+                let map = PairProducts {
+                    lists,
+                    pairs,
+                    values: a,
+                };
+                fill_block(&map, r.start, products);
+                let ks = unsafe { kappa.block(r.clone()) };
+                let mut sum = 0.0f64;
+                for ((k, i), product) in ks.iter_mut().zip(r).zip(products) {
+                    let row = rows[i];
+                    let ai = Vec3::new(a[i][0], a[i][1], a[i][2]);
+                    let ak = ai.dot(row.wall) + *product;
+                    let residual = row.source - dt * dt * ak;
+                    sum += f64::from((-residual).max(0.0));
+                    *k = (*k - omega * residual * row.alpha / (dt * dt)).max(0.0);
+                }
+                unsafe { sums.block(block..block + 1)[0] = sum };
             };
-            par_map(&products, n, &mut self.products);
-            let (a, rows, products) = (&self.accelerations, &self.rows, &self.products);
-            let sums: Vec<f64> = (self.kappa.par_chunks_mut(MEAN_CHUNK))
-                .enumerate()
-                .map(|(chunk, ks)| {
-                    let mut sum = 0.0f64;
-                    for (l, k) in ks.iter_mut().enumerate() {
-                        let i = chunk * MEAN_CHUNK + l;
-                        let row = rows[i];
-                        let ai = Vec3::new(a[i][0], a[i][1], a[i][2]);
-                        let ak = ai.dot(row.wall) + products[i];
-                        let residual = row.source - dt * dt * ak;
-                        sum += f64::from((-residual).max(0.0));
-                        *k = (*k - omega * residual * row.alpha / (dt * dt)).max(0.0);
-                    }
-                    sum
-                })
-                .collect();
+            region::run(n, &[&accelerate, &relax]);
             iterations += 1;
-            let error = (sums.iter().sum::<f64>() / n.max(1) as f64) as f32;
+            let error = (self.sums.iter().sum::<f64>() / n.max(1) as f64) as f32;
             let first = *first.get_or_insert(error);
             if !error.is_finite() || (error > MAX_MEAN_ERROR && error >= first && iterations > 1) {
                 return Err(self.unstable(ctx, error, first, iterations));
@@ -852,7 +868,7 @@ impl Solve {
             kappa,
         };
         par_map(&pressure, n, &mut self.accelerations);
-        hold_accelerations(contacts, f.velocities, dt, &mut self.accelerations);
+        hold_accelerations(contacts, f.velocities, dt, 0, &mut self.accelerations);
         (f.velocities.par_iter_mut())
             .zip(self.accelerations.par_iter())
             .for_each(|(v, a)| *v += dt * Vec3::new(a[0], a[1], a[2]));
@@ -933,9 +949,10 @@ impl LaneMap for PressureAccelerations<'_> {
 
 /// Holds each contact's acceleration a so that v + Δt a keeps to its
 /// [`Contact::least`] normal velocity.
-fn hold_accelerations(contacts: &[Contact], v: &[Vec3], dt: f32, a: &mut [[f32; 4]]) {
+/// `a` holds the rows of particles `first..`.
+fn hold_accelerations(contacts: &[Contact], v: &[Vec3], dt: f32, first: usize, a: &mut [[f32; 4]]) {
     for c in contacts {
-        let row = &mut a[c.i];
+        let row = &mut a[c.i - first];
         let mut ai = Vec3::new(row[0], row[1], row[2]);
         c.hold(&mut ai, (c.least(dt) - v[c.i].dot(c.n)) / dt);
         *row = [ai.x, ai.y, ai.z, 0.0];
