@@ -6,7 +6,7 @@
 //! in a rayon pool of that many threads, with the speed-up over one thread.
 //!
 //! ```text
-//! cargo run --release --example scaling [-- --frames F] [--max-threads N] [--sweep] [--every-thread]
+//! cargo run --release --example scaling [-- --frames F] [--max-threads N] [--sweep | --paired] [--every-thread]
 //! ```
 //!
 //! `--sweep` instead times PBF frames at about 5k, 10k, 20k and 40k
@@ -21,6 +21,13 @@
 //! Each row starts from the scene's first frame and times `--frames` frames
 //! (default 20) after two untimed ones; the extraction is timed five times
 //! on the state the PBF rows end in.
+//!
+//! `--paired` times the steps of the default rows on a machine whose speed
+//! drifts (a shared VM): one world per thread count, stepped in turn frame
+//! by frame, so that each frame's times at every count are taken within
+//! a fraction of a second of each other on the same state (the worlds are
+//! bitwise equal). It prints the median ms and the median of the per-frame
+//! speed-ups over one thread.
 
 use std::time::Instant;
 
@@ -70,6 +77,7 @@ fn extraction(particles: &Particles, h: f32) -> Result<f64, Error> {
 
 fn main() -> Result<(), Error> {
     let (mut count, mut max_threads, mut sweep, mut every) = (20usize, usize::MAX, false, false);
+    let mut paired = false;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = |name: &str| args.next().ok_or(format!("{name} needs a value"));
@@ -78,6 +86,7 @@ fn main() -> Result<(), Error> {
             "--max-threads" => max_threads = value("--max-threads")?.parse()?,
             "--sweep" => (sweep, every) = (true, true),
             "--every-thread" => every = true,
+            "--paired" => paired = true,
             other => return Err(format!("unknown argument `{other}`").into()),
         }
     }
@@ -107,7 +116,60 @@ fn main() -> Result<(), Error> {
     } else {
         scaling_cases(pbf, dfsph)
     };
+    if paired {
+        return run_paired(&cases, &threads, count, every);
+    }
     run(&cases, &threads, count, every)
+}
+
+/// Times the steps of `cases` at every thread count of `threads`, frame by
+/// frame in turn (see the module docs), and prints the table.
+fn run_paired(
+    cases: &[(&str, Scene, bool)],
+    threads: &[usize],
+    count: usize,
+    every: bool,
+) -> Result<(), Error> {
+    println!(
+        "slab dam break, {count} frames of 1/60 s after 2 untimed, stepped in turn at each thread count; median ms (median per-frame speed-up over 1 thread)"
+    );
+    print!("{:<34}", "");
+    for n in threads {
+        print!("{:>18}", format!("{n} threads"));
+    }
+    println!();
+    for (name, scene, _) in cases {
+        let pools = (threads.iter())
+            .map(|&n| rayon::ThreadPoolBuilder::new().num_threads(n).build())
+            .collect::<Result<Vec<_>, _>>()?;
+        let mut worlds = Vec::new();
+        for pool in &pools {
+            worlds.push(pool.install(|| -> Result<World, Error> {
+                let mut world = scene.build_world()?;
+                world.use_every_thread(every);
+                for _ in 0..2 {
+                    world.advance(1.0 / 60.0)?;
+                }
+                Ok(world)
+            })?);
+        }
+        let mut times = vec![Vec::with_capacity(count); threads.len()];
+        for _ in 0..count {
+            for ((pool, world), times) in pools.iter().zip(&mut worlds).zip(&mut times) {
+                let start = Instant::now();
+                pool.install(|| world.advance(1.0 / 60.0))?;
+                times.push(start.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        print!("{:<34}", format!("{name} ({})", worlds[0].particles.len()));
+        for t in &times {
+            let mut gains: Vec<f64> = times[0].iter().zip(t).map(|(a, b)| a / b).collect();
+            let gain = median(&mut gains);
+            print!("{:>18}", format!("{:.2} ({gain:.2}×)", median(&mut t.clone())));
+        }
+        println!();
+    }
+    Ok(())
 }
 
 /// The default rows: PBF at 10k and 100k (each with the extraction of its
