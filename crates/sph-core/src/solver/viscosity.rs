@@ -35,10 +35,13 @@
 //! tabulated at 64 distances once per h ([`WallFriction`]). Weiler et al.
 //! sample walls with particles; this is that sampling's continuous limit.
 
+use std::ops::Range;
+
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::params::FluidParams;
+use super::region::{self, Blocks};
 use super::stations::lists;
 use crate::boundary::Boundary;
 use crate::error::{Error, Result};
@@ -83,8 +86,9 @@ pub fn laplacian_factor(kernel: &CubicSpline, spacing: f32) -> f32 {
 }
 
 /// Particles per chunk of the dot products: fixed, so the sums' order does
-/// not depend on the number of threads.
-const DOT_CHUNK: usize = 4096;
+/// not depend on the number of threads; the regions' blocks, so that the
+/// CG iterations' sums add in the same order as [`dot`]'s.
+const DOT_CHUNK: usize = region::BLOCK;
 
 /// Distances (fractions of h) at which [`WallFriction`] tabulates.
 const TABLE: usize = 64;
@@ -200,6 +204,8 @@ pub struct ImplicitViscosity {
     z: Vec<Vec3>,
     p: Vec<Vec3>,
     ap: Vec<Vec3>,
+    /// A CG iteration's p·Ap, r·z and r·r per block.
+    sums: [Vec<f64>; 3],
 }
 
 impl ImplicitViscosity {
@@ -254,6 +260,7 @@ impl ImplicitViscosity {
             z: Vec::new(),
             p: Vec::new(),
             ap: Vec::new(),
+            sums: Default::default(),
         })
     }
 }
@@ -383,34 +390,77 @@ impl Processor for ImplicitViscosity {
         let mut rz = dot(&self.r, &self.z);
         let mut iterations = 0;
         let mut residual = dot(&self.r, &self.r).sqrt();
+        let per_pass = region::blocks(n);
+        self.ap.resize(n, Vec3::ZERO);
+        for sums in &mut self.sums {
+            sums.resize(per_pass, 0.0);
+        }
         while residual > stop && iterations < self.max_iterations {
-            (0..n)
-                .into_par_iter()
-                .map(|i| apply(i, &self.p, pos, lists, pairs, rows))
-                .collect_into_vec(&mut self.ap);
-            let pap = dot(&self.p, &self.ap);
-            if pap.is_nan() || pap <= 0.0 {
-                break; // p is 0: converged to round-off
+            let (x, r, z) = (&mut self.x, &mut self.r, &mut self.z);
+            let (x, r, z) = (Blocks::new(x), Blocks::new(r), Blocks::new(z));
+            let (p, ap) = (Blocks::new(&mut self.p), Blocks::new(&mut self.ap));
+            let [pap, rz_new, rr] = &mut self.sums;
+            let (pap, rz_new, rr_new) = (Blocks::new(pap), Blocks::new(rz_new), Blocks::new(rr));
+            let total = |sums: &[f64]| sums.iter().sum::<f64>();
+            // p·Ap ≤ 0 (or NaN): p is 0, converged to round-off; the
+            // passes after it leave everything as it is.
+            let stalled = |pap: f64| pap.is_nan() || pap <= 0.0;
+            // SAFETY (every pass below): each writes only its own block of
+            // the slices it owns, and reads whole only slices no pass writes
+            // meanwhile.
+            // Ap, and p·Ap per block.
+            let multiply = |range: Range<usize>, block: usize| {
+                let p = unsafe { p.all() };
+                let out = unsafe { ap.block(range.clone()) };
+                let mut sum = 0.0f64;
+                for (ap, i) in out.iter_mut().zip(range) {
+                    *ap = apply(i, p, pos, lists, pairs, rows);
+                    sum += f64::from(p[i].dot(*ap));
+                }
+                unsafe { pap.block(block..block + 1)[0] = sum };
+            };
+            // x += αp, r −= αAp, z = M⁻¹r, and r·z and r·r per block.
+            let descend = |range: Range<usize>, block: usize| {
+                let pap = total(unsafe { pap.all() });
+                if stalled(pap) {
+                    return;
+                }
+                let alpha = (rz / pap) as f32;
+                let (p, ap) = unsafe { (p.all(), ap.all()) };
+                let (x, r) = unsafe { (x.block(range.clone()), r.block(range.clone())) };
+                let z = unsafe { z.block(range.clone()) };
+                let (mut rz, mut rr) = (0.0f64, 0.0f64);
+                for (k, i) in range.enumerate() {
+                    x[k] += alpha * p[i];
+                    r[k] -= alpha * ap[i];
+                    z[k] = rows[i].2 * r[k];
+                    rz += f64::from(r[k].dot(z[k]));
+                    rr += f64::from(r[k].dot(r[k]));
+                }
+                unsafe {
+                    rz_new.block(block..block + 1)[0] = rz;
+                    rr_new.block(block..block + 1)[0] = rr;
+                }
+            };
+            // p = z + βp.
+            let turn = |range: Range<usize>, _| {
+                if stalled(total(unsafe { pap.all() })) {
+                    return;
+                }
+                let beta = (total(unsafe { rz_new.all() }) / rz) as f32;
+                let z = unsafe { z.all() };
+                let p = unsafe { p.block(range.clone()) };
+                for (p, i) in p.iter_mut().zip(range) {
+                    *p = z[i] + beta * *p;
+                }
+            };
+            region::run(n, &[&multiply, &descend, &turn]);
+            if stalled(total(&self.sums[0])) {
+                break;
             }
-            let alpha = (rz / pap) as f32;
-            (self.x.par_iter_mut())
-                .zip(self.r.par_iter_mut())
-                .zip(self.p.par_iter().zip(self.ap.par_iter()))
-                .for_each(|((x, r), (&p, &ap))| {
-                    *x += alpha * p;
-                    *r -= alpha * ap;
-                });
-            (self.r.par_iter().zip(rows.par_iter()))
-                .map(|(&r, row)| row.2 * r)
-                .collect_into_vec(&mut self.z);
-            let rz_new = dot(&self.r, &self.z);
-            let beta = (rz_new / rz) as f32;
-            rz = rz_new;
-            (self.p.par_iter_mut())
-                .zip(self.z.par_iter())
-                .for_each(|(p, &z)| *p = z + beta * *p);
+            rz = total(&self.sums[1]);
             iterations += 1;
-            residual = dot(&self.r, &self.r).sqrt();
+            residual = total(&self.sums[2]).sqrt();
         }
         if !residual.is_finite() {
             return Err(Error::Unstable {
