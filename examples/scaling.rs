@@ -165,7 +165,10 @@ fn run_paired(
         for t in &times {
             let mut gains: Vec<f64> = times[0].iter().zip(t).map(|(a, b)| a / b).collect();
             let gain = median(&mut gains);
-            print!("{:>18}", format!("{:.2} ({gain:.2}×)", median(&mut t.clone())));
+            print!(
+                "{:>18}",
+                format!("{:.2} ({gain:.2}×)", median(&mut t.clone()))
+            );
         }
         println!();
     }

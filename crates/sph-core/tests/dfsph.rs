@@ -273,8 +273,10 @@ fn identical_with_surface_tension_for_1_2_and_4_threads() {
 }
 
 /// The same for 1, 2, 3 and 7 threads at 10,000 particles
-/// (`dam-break-fine`): three of the 4,096-particle chunks whose sums make
-/// the solves' error means and the CG's dot products.
+/// (`dam-break-fine`): each Jacobi and CG iteration runs in one parallel
+/// region of 157 blocks, claimed a few at a time by however many threads
+/// arrive, whose sums make the solves' error means and the CG's dot
+/// products in block order.
 #[test]
 fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     let scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Dfsph);

@@ -358,10 +358,12 @@ fn identical_with_surface_tension_for_1_2_and_4_threads() {
 }
 
 /// The same for 1, 2, 3 and 7 threads at 10,000 particles
-/// (`dam-break-fine`), past the 4,096 particles of a chunk of the fixed-order
-/// sums (the report's density errors, the CG's dot products): three chunks,
-/// which a thread count that split them otherwise would sum in another
-/// order.
+/// (`dam-break-fine`), past the 4,096 particles of a chunk of the report's
+/// fixed-order density errors (three chunks, which a thread count that
+/// split them otherwise would sum in another order), and with the
+/// density solve, the vorticity and XSPH station and the CG iterations
+/// each in one parallel region: 157 blocks, claimed a few at a time by
+/// however many threads arrive, their sums added in block order.
 #[test]
 fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     let fine = Scene::dam_break(0.25, 0.08, 0.01);
