@@ -718,7 +718,7 @@ pub struct SolveDensity {
     /// leaves, in turn.
     rows: [Vec<[f32; 4]>; 2],
     constraints: Vec<Constraint>,
-    /// Each iteration's largest density, per block.
+    /// The first and the last iteration's largest density, per block.
     densest: Vec<f32>,
     /// Whether a block's final positions are all finite.
     finite: Vec<bool>,
@@ -789,7 +789,7 @@ impl Processor for SolveDensity {
             rows.resize(n, [0.0; 4]);
         }
         self.constraints.resize(n, Constraint::default());
-        self.densest.resize(iterations * per_pass, 0.0);
+        self.densest.resize(2 * per_pass, 0.0);
         self.finite.resize(per_pass, true);
         {
             let f = particles.fields_mut();
@@ -820,9 +820,17 @@ impl Processor for SolveDensity {
                     let out = unsafe { constraints.block(r.clone()) };
                     fill_block(&Lambdas { model, rows, lists }, r.start, out);
                     let rho = out.iter().fold(0.0, |m: f32, c| m.max(c.rho));
-                    unsafe {
-                        densest.block(k * per_pass + block..k * per_pass + block + 1)[0] = rho
+                    // Row 0 keeps the first iteration's, row 1 the last's.
+                    let keep = |row: usize| {
+                        let at = row * per_pass + block;
+                        unsafe { densest.block(at..at + 1)[0] = rho };
                     };
+                    if k == 0 {
+                        keep(0);
+                    }
+                    if k + 1 == iterations {
+                        keep(1);
+                    }
                 }
             };
             // Lines 12–21: each particle moves by its correction and out of
@@ -879,13 +887,13 @@ impl Processor for SolveDensity {
         }
         // The solve's headway: the largest density at the first and the
         // last iteration.
-        let worst_at = |k: usize| {
-            let blocks = &self.densest[k * per_pass..(k + 1) * per_pass];
+        let worst_at = |row: usize| {
+            let blocks = &self.densest[row * per_pass..(row + 1) * per_pass];
             blocks.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0
         };
         let (first, worst) = match iterations {
             0 => (None, 0.0f32),
-            _ => (Some(worst_at(0)), worst_at(iterations - 1)),
+            _ => (Some(worst_at(0)), worst_at(1)),
         };
         ctx.counters.iterations += pbf.iterations;
         ctx.invalidate_grid(); // positions moved; the lists stay

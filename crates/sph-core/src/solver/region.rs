@@ -6,9 +6,9 @@
 //! costs more than the pass gains (issue 45's 16-core table). [`run`]
 //! instead starts the threads once for a whole sequence of passes. The
 //! particles are cut into fixed [`BLOCK`]s; each pass's blocks are claimed
-//! one at a time from a counter shared by the whole sequence, and a block
-//! of pass p starts only when every block of the passes before it is done:
-//! the barrier between passes is a count of finished blocks, not of
+//! a few at a time from a counter shared by the whole sequence, and a claim
+//! of pass p starts only when every claim of the passes before it is done:
+//! the barrier between passes is a count of finished claims, not of
 //! arrived threads.
 //!
 //! So a thread that never arrives (busy elsewhere in the pool) holds nobody
@@ -25,7 +25,7 @@ use std::marker::PhantomData;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
-/// Particles per block: small enough that 10,000 particles make 156
+/// Particles per block: small enough that 10,000 particles make 157
 /// blocks, so that 16 threads share a pass evenly; large enough that a
 /// block's claim (one atomic add) is noise against its work.
 pub(super) const BLOCK: usize = 64;
@@ -44,8 +44,14 @@ pub(super) type OwnedPass<'a> = Box<dyn Fn(Range<usize>, usize) + Sync + 'a>;
 /// Runs `passes` in order over `n` particles, each over every block, in one
 /// parallel region of the current rayon pool.
 ///
+/// A pass must not use rayon itself: a thread waiting in a `join` inside it
+/// could pick up a helper of this region (or of another) and spin there
+/// for a pass that the suspended block below it on the same stack holds
+/// back.
+///
 /// # Panics
-/// Where a pass panics; the others stop at the next block.
+/// Where a pass panics; the other threads finish the claims of that pass
+/// they hold or can still take, and stop before the next pass.
 pub(super) fn run(n: usize, passes: &[Pass<'_>]) {
     let per_pass = blocks(n);
     let range = |b: usize| b * BLOCK..((b + 1) * BLOCK).min(n);
@@ -183,7 +189,9 @@ mod tests {
     /// gives the same values on one thread and on seven.
     #[test]
     fn passes_see_the_whole_of_the_pass_before() {
-        let n = 1000;
+        // 17 blocks, the last one short: on 2 threads claims of 3 blocks,
+        // the last of 2.
+        let n = 1050;
         let chain = |threads: usize| {
             let mut a: Vec<u64> = (0..n as u64).collect();
             let mut b = vec![0u64; n];

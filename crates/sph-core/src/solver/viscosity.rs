@@ -36,6 +36,7 @@
 //! sample walls with particles; this is that sampling's continuous limit.
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
@@ -402,6 +403,10 @@ impl Processor for ImplicitViscosity {
             let [pap, rz_new, rr] = &mut self.sums;
             let (pap, rz_new, rr_new) = (Blocks::new(pap), Blocks::new(rz_new), Blocks::new(rr));
             let total = |sums: &[f64]| sums.iter().sum::<f64>();
+            // Σ p·Ap and Σ r·z, each summed once, by the first block that
+            // needs it, in block order.
+            let (pap_total, rz_total) = (OnceLock::new(), OnceLock::new());
+            let pap_sum = || *pap_total.get_or_init(|| total(unsafe { pap.all() }));
             // p·Ap ≤ 0 (or NaN): p is 0, converged to round-off; the
             // passes after it leave everything as it is.
             let stalled = |pap: f64| pap.is_nan() || pap <= 0.0;
@@ -421,7 +426,7 @@ impl Processor for ImplicitViscosity {
             };
             // x += αp, r −= αAp, z = M⁻¹r, and r·z and r·r per block.
             let descend = |range: Range<usize>, block: usize| {
-                let pap = total(unsafe { pap.all() });
+                let pap = pap_sum();
                 if stalled(pap) {
                     return;
                 }
@@ -444,10 +449,11 @@ impl Processor for ImplicitViscosity {
             };
             // p = z + βp.
             let turn = |range: Range<usize>, _| {
-                if stalled(total(unsafe { pap.all() })) {
+                if stalled(pap_sum()) {
                     return;
                 }
-                let beta = (total(unsafe { rz_new.all() }) / rz) as f32;
+                let rz_new = *rz_total.get_or_init(|| total(unsafe { rz_new.all() }));
+                let beta = (rz_new / rz) as f32;
                 let z = unsafe { z.all() };
                 let p = unsafe { p.block(range.clone()) };
                 for (p, i) in p.iter_mut().zip(range) {
