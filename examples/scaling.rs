@@ -133,11 +133,7 @@ fn run_paired(
     println!(
         "slab dam break, {count} frames of 1/60 s after 2 untimed, stepped in turn at each thread count; median ms (median per-frame speed-up over 1 thread)"
     );
-    print!("{:<34}", "");
-    for n in threads {
-        print!("{:>18}", format!("{n} threads"));
-    }
-    println!();
+    header(threads);
     for (name, scene, _) in cases {
         let pools = (threads.iter())
             .map(|&n| rayon::ThreadPoolBuilder::new().num_threads(n).build())
@@ -175,6 +171,15 @@ fn run_paired(
     Ok(())
 }
 
+/// The table's header: a column per thread count.
+fn header(threads: &[usize]) {
+    print!("{:<34}", "");
+    for n in threads {
+        print!("{:>18}", format!("{n} threads"));
+    }
+    println!();
+}
+
 /// The default rows: PBF at 10k and 100k (each with the extraction of its
 /// last state) and DFSPH at 10k.
 fn scaling_cases(
@@ -205,11 +210,7 @@ fn run(
             "steps on at most useful_threads(n) of them"
         }
     );
-    print!("{:<34}", "");
-    for n in threads {
-        print!("{:>18}", format!("{n} threads"));
-    }
-    println!();
+    header(threads);
     for (name, scene, extract) in cases {
         let particles = scene.particles()?.len();
         let mut rows = vec![(format!("{name} ({particles})"), Vec::new())];
