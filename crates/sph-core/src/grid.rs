@@ -16,7 +16,7 @@
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
 //! contiguous slot ranges ("rows"), computed once per cell at build time. A query
 //! scans those 9 ranges a chunk of candidates at a time (AVX-512, AVX2 or SSE2 on
-//! x86-64, chosen at run time: [`simd_level`], see `scan.rs`). [`Neighbourhood::poly6_sums`] sums kernel-weighted values
+//! x86-64, chosen at run time: [`crate::simd::simd_level`], see `scan.rs`). [`Neighbourhood::poly6_sums`] sums kernel-weighted values
 //! straight from the chunks (`sums.rs`), for the colour field and density.
 //!
 //! # Exactness
@@ -46,12 +46,10 @@ mod chunks;
 mod layout;
 mod lists;
 mod scan;
-mod simd;
 mod sums;
 pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_lanes};
 pub use lists::NeighbourLists;
 use scan::Scan;
-pub use simd::{Simd, simd_level};
 pub use sums::{Poly6Sums, SecondMoment};
 /// For tests elsewhere in the crate: the scan's hit buffer and a test cloud.
 #[cfg(test)]

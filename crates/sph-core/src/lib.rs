@@ -23,16 +23,18 @@ mod light;
 pub mod particles;
 pub mod processor;
 pub mod scene;
+pub mod simd;
 pub mod solver;
 
 pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
-pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood, Poly6Sums, Simd, simd_level};
+pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood, Poly6Sums};
 pub use io::{FrameWriter, PointCloud};
 pub use kernels::{CubicSpline, Kernel, Kernels, Poly6, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;
+pub use simd::{Simd, simd_level};
 pub use solver::{
     DfsphParams, FluidParams, FrameReport, PbfParams, PbfViscosity, PressureKernel, Solver,
     SolverKind, SurfaceTensionModel, TimeStepping, World, useful_threads,

@@ -17,7 +17,7 @@ use glam::Vec3;
 
 use super::SlotRange;
 #[cfg(target_arch = "x86_64")]
-use super::simd::{Simd, simd_level};
+use crate::simd::{Simd, simd_level};
 
 /// Entries past the last slot that the coordinate arrays must carry (any finite
 /// or NaN value): the AVX2 and SSE2 paths load whole 8- and 4-lane chunks.

@@ -17,9 +17,9 @@ use glam::Vec3;
 
 #[cfg(target_arch = "x86_64")]
 use super::scan::{offsets_avx2, offsets_avx512};
-#[cfg(target_arch = "x86_64")]
-use super::simd::{Simd, simd_level};
 use super::{Neighbourhood, SlotRange};
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Simd, simd_level};
 use crate::{Kernel, Poly6};
 
 /// Σ_j w_j W, Σ_j w_j ∇W, Σ_j w_j ∇²W of the poly6 kernel over the neighbours

@@ -107,7 +107,7 @@ use std::sync::{Arc, Mutex};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::f32x8::{F32x8, LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
+use super::lane_map::{LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
 use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
 use super::params::FluidParams;
 use super::region::{self, Blocks};
@@ -121,6 +121,7 @@ use crate::grid::NeighbourLists;
 use crate::kernels::{CubicSpline, Kernel};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
+use crate::simd::F32x8;
 
 /// The parameters of DFSPH. Scene files give them under `[solver.dfsph]`; a
 /// field left out takes its default.
@@ -1041,7 +1042,7 @@ mod tests {
     use super::*;
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
-    use crate::solver::f32x8::every_kind_rows;
+    use crate::solver::lane_map::every_kind_rows;
     use crate::solver::lanes::jittered_block;
 
     /// The factor pass gives bitwise the same factors and G_ij with every

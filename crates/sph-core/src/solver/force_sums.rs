@@ -11,7 +11,7 @@ use glam::Vec3;
 
 use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, reduce_lanes as reduce};
 #[cfg(target_arch = "x86_64")]
-use crate::grid::{Simd, simd_level};
+use crate::simd::{Simd, simd_level};
 
 /// Per-particle data of the force sums, in slot order (see
 /// [`crate::NeighbourGrid::to_slot_order`]).

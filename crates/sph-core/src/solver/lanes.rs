@@ -7,12 +7,12 @@
 //! The sums are written over [`F32x8`] lanes: here the chunk's gather
 //! ([`Near`]) and the kernels per lane ([`LaneKernels`] for PBF,
 //! [`LaneCubic`] for DFSPH); the passes run through
-//! [`super::f32x8::par_map`] and [`super::f32x8::par_map_rows`], which pick
+//! [`super::lane_map::par_map`] and [`super::lane_map::par_map_rows`], which pick
 //! the lanes the CPU has.
 
 use glam::Vec3;
 
-use super::f32x8::F32x8;
+use crate::simd::F32x8;
 
 use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 

@@ -21,8 +21,8 @@
 //! [`ExternalAcceleration`]).
 
 pub mod dfsph;
-mod f32x8;
 mod force_sums;
+mod lane_map;
 mod lanes;
 pub mod params;
 pub mod pbf;

@@ -81,7 +81,7 @@ use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
-use super::f32x8::{F32x8, LaneMap, fill_block};
+use super::lane_map::{LaneMap, fill_block};
 use super::lanes::{DensitySums, LaneKernels, Near};
 use super::region::{self, Blocks, OwnedPass, Pass};
 use super::stations::lists;
@@ -89,6 +89,7 @@ pub use super::stations::{BodyForces, FindNeighbours};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::Walls;
+use crate::simd::F32x8;
 
 /// The parameters of position-based fluids. Scene files give them under
 /// `[solver.pbf]`; a field left out takes its default.
@@ -1097,7 +1098,7 @@ mod tests {
     use super::*;
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
-    use crate::solver::f32x8::every_kind;
+    use crate::solver::lane_map::every_kind;
     use crate::solver::lanes::{jittered_block, rows_of};
 
     /// The four lane passes give bitwise the same values with every kind of

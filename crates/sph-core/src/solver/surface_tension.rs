@@ -56,7 +56,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use super::f32x8::{F32x8, LaneMap, par_map};
+use super::lane_map::{LaneMap, par_map};
 use super::lanes::Near;
 use super::params::FluidParams;
 use super::stations::lists;
@@ -66,6 +66,7 @@ use crate::error::Result;
 use crate::kernels::{Kernel, Poly6};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor};
+use crate::simd::F32x8;
 
 /// σ = `AKINCI_SCALE` ρ0 h² γ: the measured ratio of water's σ to the
 /// paper's γ, scaled by ρ0 h², set between what the period and the

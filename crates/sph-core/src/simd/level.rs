@@ -1,4 +1,4 @@
-//! Which vector instructions the neighbour scan and the sums use: the best this
+//! Which vector instructions the SIMD code uses: the best this
 //! CPU has (detected once at run time), or a lower level named by the
 //! `SPH_SIMD` environment variable. Every level gives bitwise the same results,
 //! so the variable changes only the speed: it is there to measure the paths
@@ -6,7 +6,7 @@
 
 use std::sync::OnceLock;
 
-/// A set of vector instructions the grid's inner loops are written for.
+/// A set of vector instructions the inner loops are written for.
 ///
 /// Ordered from the least to the most capable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -49,7 +49,7 @@ impl Simd {
     }
 }
 
-/// The level the grid uses: [`Simd::detect`], lowered to `SPH_SIMD` when that
+/// The level every SIMD path uses: [`Simd::detect`], lowered to `SPH_SIMD` when that
 /// is set to `baseline`, `avx2` or `avx512` (a level above the CPU's is not
 /// taken). Read once per process; an unknown value is reported on stderr once
 /// and ignored.

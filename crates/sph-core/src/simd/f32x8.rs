@@ -1,11 +1,8 @@
 //! Eight f32 lanes, written once and compiled three ways: for AVX2 (`Avx2`,
 //! one 256-bit register), for any x86-64 CPU (`Sse2`, two 128-bit
 //! registers) and for any CPU ([`Scalar`], an array the compiler may or may
-//! not vectorise). The solvers' pair sums are generic over [`F32x8`] and
-//! run through [`par_map`], which picks the AVX2 lanes where [`simd_level`]
-//! allows (compiled with AVX-512VL's 32 registers where the CPU has them:
-//! [`wide_registers`]), else SSE2 on x86-64 (`SPH_SIMD=baseline`
-//! included), else the plain arrays.
+//! not vectorise). Code generic over [`F32x8`] runs through [`with_lanes`],
+//! which picks the kind once per process ([`Lanes::best`]).
 //!
 //! Every kind does the same IEEE operations in the same order (add,
 //! subtract, multiply, divide and square root are correctly rounded in
@@ -18,15 +15,14 @@
 //! "PBF's pair sums in AVX2 lanes").
 
 use std::ops::{Add, Div, Mul, Sub};
+use std::sync::OnceLock;
 
 use glam::Vec3;
-use rayon::prelude::*;
 
-use crate::NeighbourLists;
-use crate::grid::{Simd, simd_level};
+use super::{Simd, simd_level};
 
 /// Eight f32 lanes.
-pub(super) trait F32x8:
+pub trait F32x8:
     Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
 {
     /// Every lane `v`.
@@ -44,6 +40,25 @@ pub(super) trait F32x8:
     /// Four lane sets from eight rows of four floats, lane l of set k
     /// getting `row(l)[k]`: what the gathers below are made of.
     fn transpose<'a>(row: impl Fn(usize) -> &'a [f32; 4]) -> [Self; 4];
+
+    /// Eight lane sets from eight rows of eight floats, lane l of set k
+    /// getting `row(l)[k]`: two 4 × 4 transposes per half unless a kind
+    /// has a better way.
+    #[inline(always)]
+    fn transpose8<'a>(row: impl Fn(usize) -> &'a [f32; 8]) -> [Self; 8] {
+        let [a, b, c, d] = Self::transpose(|l| first_four(row(l)));
+        let [e, f, g, h] = Self::transpose(|l| first_four(&row(l)[4..]));
+        [a, b, c, d, e, f, g, h]
+    }
+
+    /// Eight lane sets, lane l of set k getting `rows[slots[l]][k]`.
+    ///
+    /// # Panics
+    /// If a slot is out of bounds.
+    #[inline(always)]
+    fn gather_rows8(rows: &[[f32; 8]], slots: &[u32; 8]) -> [Self; 8] {
+        Self::transpose8(|l| &rows[slots[l] as usize])
+    }
 
     /// Lane l gets `values[slots[l]]`.
     ///
@@ -96,10 +111,9 @@ fn first_four(values: &[f32]) -> &[f32; 4] {
 }
 
 /// Eight lanes as an array: the lanes of CPUs other than x86-64, and the
-/// reference the tests hold the other kinds to (on x86-64 only they use it).
+/// reference the tests hold the other kinds to ([`Lanes::every`]'s first).
 #[derive(Debug, Clone, Copy)]
-#[cfg_attr(all(target_arch = "x86_64", not(test)), allow(dead_code))]
-pub(super) struct Scalar([f32; 8]);
+pub struct Scalar([f32; 8]);
 
 macro_rules! scalar_op {
     ($trait:ident, $fn:ident, $op:tt) => {
@@ -166,9 +180,9 @@ mod avx2 {
     use super::F32x8;
 
     /// Eight lanes in one AVX2 register. Only code compiled with AVX2
-    /// enabled (under [`super::par_map`]'s dispatch) makes one.
+    /// enabled (under [`super::Lanes::run`]'s dispatch) makes one.
     #[derive(Debug, Clone, Copy)]
-    pub(super) struct Avx2(__m256);
+    pub(in crate::simd) struct Avx2(__m256);
 
     macro_rules! avx_op {
         ($trait:ident, $fn:ident, $intrinsic:ident) => {
@@ -188,14 +202,13 @@ mod avx2 {
     avx_op!(Div, div, _mm256_div_ps);
 
     // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
-    // is available. The type is private to `f32x8.rs`, and the only code
-    // that names it is `fill_avx2`, `row_avx2`, `fill_avx512vl` and
-    // `row_avx512vl` (`unsafe fn`s that `par_map`, `par_map_rows`,
-    // `every_kind` and `every_kind_rows` call after checking for AVX2, or
-    // for AVX-512VL with [`wide_registers`]) and a test that checks first,
-    // so the functions that make one
-    // from nothing (`splat`, `from_array`, `first`, `transpose`) run only
-    // there. The loads read whole `[f32; 4]`s and arrays of eight.
+    // is available. The type is private to the `simd` module, and the only
+    // code that names it is `call_avx2` and `call_avx512vl` (`unsafe fn`s
+    // that `Lanes::run` calls only for a `Lanes` made after checking for
+    // AVX2, or for AVX-512VL with `wide_registers`) and a test that checks
+    // first, so the functions that make one from nothing (`splat`,
+    // `from_array`, `first`, `transpose`, `transpose8`) run only there.
+    // The loads read whole `[f32; 4]`s, `[f32; 8]`s and arrays of eight.
     impl F32x8 for Avx2 {
         #[inline(always)]
         fn splat(v: f32) -> Self {
@@ -252,6 +265,51 @@ mod avx2 {
                 ]
             }
         }
+        #[inline(always)]
+        fn transpose8<'a>(row: impl Fn(usize) -> &'a [f32; 8]) -> [Self; 8] {
+            // SAFETY: each row holds eight floats.
+            let row = |l: usize| unsafe { _mm256_loadu_ps(row(l).as_ptr()) };
+            let r = [
+                row(0),
+                row(1),
+                row(2),
+                row(3),
+                row(4),
+                row(5),
+                row(6),
+                row(7),
+            ];
+            // Unpack pairs of rows, shuffle quadruples, then swap 128-bit
+            // halves.
+            unsafe {
+                let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+                let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+                let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+                let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+                let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+                let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+                let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+                let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+                let s0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+                let s1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+                let s2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+                let s3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+                let s4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+                let s5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+                let s6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+                let s7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+                [
+                    Avx2(_mm256_permute2f128_ps::<0x20>(s0, s4)),
+                    Avx2(_mm256_permute2f128_ps::<0x20>(s1, s5)),
+                    Avx2(_mm256_permute2f128_ps::<0x20>(s2, s6)),
+                    Avx2(_mm256_permute2f128_ps::<0x20>(s3, s7)),
+                    Avx2(_mm256_permute2f128_ps::<0x31>(s0, s4)),
+                    Avx2(_mm256_permute2f128_ps::<0x31>(s1, s5)),
+                    Avx2(_mm256_permute2f128_ps::<0x31>(s2, s6)),
+                    Avx2(_mm256_permute2f128_ps::<0x31>(s3, s7)),
+                ]
+            }
+        }
     }
 }
 
@@ -268,7 +326,7 @@ mod sse2 {
     /// Eight lanes in two SSE2 registers: the lanes of every x86-64 CPU
     /// without AVX2 (SSE2 is part of x86-64, so no check is needed).
     #[derive(Debug, Clone, Copy)]
-    pub(super) struct Sse2([__m128; 2]);
+    pub(in crate::simd) struct Sse2([__m128; 2]);
 
     macro_rules! sse_op {
         ($trait:ident, $fn:ident, $intrinsic:ident) => {
@@ -350,116 +408,147 @@ mod sse2 {
     }
 }
 
-/// A per-particle computation written over lanes of any kind.
-pub(super) trait LaneMap: Sync {
-    /// What it gives per particle.
-    type Out: Send + Copy + Default;
-    /// Particle `i`'s value, computed with lanes `S`.
-    fn particle<S: F32x8>(&self, i: usize) -> Self::Out;
-}
-
-/// Particles per parallel task: a fixed size, so that nothing depends on the
-/// number of threads.
-const BLOCK: usize = 256;
-
-/// Sets `out` to `map`'s value for each of `n` particles, in parallel, with
-/// the AVX2 lanes where [`simd_level`] allows (every kind gives bitwise the
-/// same values).
-pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
-    // Every value is written below; the memory is only sized here.
-    out.resize(n, M::Out::default());
-    out.par_chunks_mut(BLOCK)
-        .enumerate()
-        .for_each(|(b, block)| fill_block(map, b * BLOCK, block));
-}
-
-/// Sets `block[k]` to `map`'s value for particle `first + k`, on this
-/// thread, with the lanes [`par_map`] picks.
-#[inline]
-pub(super) fn fill_block<M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if wide_registers() {
-            // SAFETY: checked by `wide_registers`.
-            unsafe { fill_avx512vl(map, first, block) };
-        } else if simd_level() >= Simd::Avx2 {
-            // SAFETY: `simd_level` never exceeds what the CPU supports.
-            unsafe { fill_avx2(map, first, block) };
-        } else {
-            fill::<Sse2, M>(map, first, block);
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    fill::<Scalar, M>(map, first, block);
-}
-
-/// A per-particle computation over lanes of any kind that also writes a
-/// value per neighbour pair, into the particle's row (laid out as
-/// [`NeighbourLists::row`] lays them out).
-pub(super) trait LaneRowMap: Sync {
-    /// What it gives per particle.
-    type Out: Send;
-    /// What it writes per pair.
-    type Pair: Send;
-    /// Particle `i`'s value, computed with lanes `S`; `pairs` is its row.
-    fn particle<S: F32x8>(&self, i: usize, pairs: &mut [Self::Pair]) -> Self::Out;
-}
-
-/// Sets `out[i]` and row i of `pairs` by `map` for every particle of
-/// `lists`, in parallel ([`NeighbourLists::par_map_rows`]), with the best
-/// lanes as [`par_map`] picks them, chosen per particle.
+/// A computation written once over lanes of any kind: [`with_lanes`] runs
+/// it with the best kind this CPU has, [`Lanes::every`] with each kind in
+/// turn.
 ///
-/// # Panics
-/// As [`NeighbourLists::par_map_rows`]: unless `out` holds a value per
-/// particle and `pairs` one per pair.
-pub(super) fn par_map_rows<M: LaneRowMap>(
-    map: &M,
-    lists: &NeighbourLists,
-    out: &mut [M::Out],
-    pairs: &mut [M::Pair],
-) {
+/// `call` must be `#[inline(always)]`, and so must whatever it calls with
+/// the lanes: the kinds are compiled for their instructions only where
+/// they are inlined into the dispatch's `#[target_feature]` functions.
+/// Outside them each lane operation would be a function call. Closures
+/// (`array::map`, a callback) are compiled on their own, so the lanes
+/// should not be used inside one unless it is inlined for certain: write
+/// loops, and dispatch inside a callback rather than around it.
+pub trait LaneFn {
+    /// What the computation gives.
+    type Out;
+    /// The computation with lanes `S`.
+    fn call<S: F32x8>(self) -> Self::Out;
+}
+
+/// Which kind of lanes: private, so that a [`Lanes`] can only name a kind
+/// this CPU runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// [`Scalar`]: arrays, for any CPU.
+    Plain,
+    /// `Sse2`: two 128-bit registers, for any x86-64 CPU.
     #[cfg(target_arch = "x86_64")]
-    let (avx2, wide) = (simd_level() >= Simd::Avx2, wide_registers());
-    lists.par_map_rows(out, pairs, |i, _, row| {
+    Sse2,
+    /// `Avx2`: one 256-bit register.
+    #[cfg(target_arch = "x86_64")]
+    Avx2,
+    /// `Avx2` compiled with AVX-512VL's 32 registers ([`wide_registers`]).
+    #[cfg(target_arch = "x86_64")]
+    Avx2Wide,
+}
+
+/// A kind of eight f32 lanes this CPU runs: [`Lanes::best`], or one of
+/// [`Lanes::every`]. Every kind gives bitwise the same results; they differ
+/// only in speed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Lanes(Kind);
+
+impl Lanes {
+    /// The lanes [`with_lanes`] uses: AVX2 where [`simd_level`] allows it
+    /// (compiled with AVX-512VL's registers where the CPU has them), else
+    /// SSE2 on x86-64 (`SPH_SIMD=baseline` included), else plain arrays.
+    /// Chosen once per process.
+    pub fn best() -> Lanes {
+        static BEST: OnceLock<Lanes> = OnceLock::new();
+        *BEST.get_or_init(|| {
+            #[cfg(target_arch = "x86_64")]
+            {
+                if wide_registers() {
+                    return Lanes(Kind::Avx2Wide);
+                }
+                if simd_level() >= Simd::Avx2 {
+                    return Lanes(Kind::Avx2);
+                }
+                Lanes(Kind::Sse2)
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            Lanes(Kind::Plain)
+        })
+    }
+
+    /// Every kind this CPU runs, whatever `SPH_SIMD` says, the plain arrays
+    /// first: what tests run a computation with to compare the kinds.
+    pub fn every() -> Vec<Lanes> {
+        #[allow(unused_mut)]
+        let mut kinds = vec![Lanes(Kind::Plain)];
         #[cfg(target_arch = "x86_64")]
         {
-            if wide {
-                // SAFETY: checked by `wide_registers`.
-                return unsafe { row_avx512vl(map, i, row) };
+            kinds.push(Lanes(Kind::Sse2));
+            if Simd::detect() >= Simd::Avx2 {
+                kinds.push(Lanes(Kind::Avx2));
             }
-            if avx2 {
-                // SAFETY: `simd_level` never exceeds what the CPU supports.
-                return unsafe { row_avx2(map, i, row) };
+            if wide_registers() {
+                kinds.push(Lanes(Kind::Avx2Wide));
             }
-            map.particle::<Sse2>(i, row)
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        map.particle::<Scalar>(i, row)
-    });
+        kinds
+    }
+
+    /// The kind's name: `plain`, `sse2`, `avx2` or `avx2+avx512vl`.
+    pub fn name(self) -> &'static str {
+        match self.0 {
+            Kind::Plain => "plain",
+            #[cfg(target_arch = "x86_64")]
+            Kind::Sse2 => "sse2",
+            #[cfg(target_arch = "x86_64")]
+            Kind::Avx2 => "avx2",
+            #[cfg(target_arch = "x86_64")]
+            Kind::Avx2Wide => "avx2+avx512vl",
+        }
+    }
+
+    /// Runs `f` with these lanes.
+    #[inline]
+    pub fn run<F: LaneFn>(self, f: F) -> F::Out {
+        match self.0 {
+            Kind::Plain => f.call::<Scalar>(),
+            #[cfg(target_arch = "x86_64")]
+            Kind::Sse2 => f.call::<Sse2>(),
+            // SAFETY: a `Lanes` names AVX2 only where the CPU has it
+            // (`best` and `every` check, and nothing else makes one).
+            #[cfg(target_arch = "x86_64")]
+            Kind::Avx2 => unsafe { call_avx2(f) },
+            // SAFETY: as above, checked by `wide_registers`.
+            #[cfg(target_arch = "x86_64")]
+            Kind::Avx2Wide => unsafe { call_avx512vl(f) },
+        }
+    }
 }
 
-/// [`LaneRowMap::particle`] with the AVX2 lanes, compiled with AVX2.
+/// Runs `f` with [`Lanes::best`].
+#[inline]
+pub fn with_lanes<F: LaneFn>(f: F) -> F::Out {
+    Lanes::best().run(f)
+}
+
+/// [`LaneFn::call`] with the AVX2 lanes, compiled with AVX2.
 ///
 /// # Safety
 /// The CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn row_avx2<M: LaneRowMap>(map: &M, i: usize, row: &mut [M::Pair]) -> M::Out {
-    map.particle::<Avx2>(i, row)
+unsafe fn call_avx2<F: LaneFn>(f: F) -> F::Out {
+    f.call::<Avx2>()
 }
 
-/// [`LaneRowMap::particle`] with the AVX2 lanes, compiled with AVX-512VL
-/// as well (see [`wide_registers`]).
+/// [`LaneFn::call`] with the AVX2 lanes, compiled with AVX-512VL as well
+/// (see [`wide_registers`]).
 ///
 /// # Safety
 /// The CPU must support AVX2, AVX-512F and AVX-512VL.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
-unsafe fn row_avx512vl<M: LaneRowMap>(map: &M, i: usize, row: &mut [M::Pair]) -> M::Out {
-    map.particle::<Avx2>(i, row)
+unsafe fn call_avx512vl<F: LaneFn>(f: F) -> F::Out {
+    f.call::<Avx2>()
 }
 
-/// Whether to compile the AVX2 lanes' passes with AVX-512VL too: the same
+/// Whether to compile the AVX2 lanes' code with AVX-512VL too: the same
 /// 8-lane instructions, but with 32 vector registers instead of 16, so the
 /// sums of a pass stay in registers instead of spilling to the stack
 /// (AVX-512's own 16-lane registers were slower on Zen 4, which splits
@@ -472,138 +561,26 @@ fn wide_registers() -> bool {
     simd_level() >= Simd::Avx512 && has!("avx512vl") && has!("fma") && has!("f16c")
 }
 
-/// `block[k]` = particle `first + k`'s value, with lanes `S`.
-#[inline(always)]
-fn fill<S: F32x8, M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
-    for (k, out) in block.iter_mut().enumerate() {
-        *out = map.particle::<S>(first + k);
-    }
-}
-
-/// [`fill`] with the AVX2 lanes, compiled with AVX2.
-///
-/// # Safety
-/// The CPU must support AVX2.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn fill_avx2<M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
-    fill::<Avx2, M>(map, first, block);
-}
-
-/// [`fill`] with the AVX2 lanes, compiled with AVX-512VL as well (see
-/// [`wide_registers`]).
-///
-/// # Safety
-/// The CPU must support AVX2, AVX-512F and AVX-512VL.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512vl")]
-unsafe fn fill_avx512vl<M: LaneMap>(map: &M, first: usize, block: &mut [M::Out]) {
-    fill::<Avx2, M>(map, first, block);
-}
-
-/// `map`'s values for `n` particles with every kind of lanes this CPU
-/// runs, the plain arrays first: what the solvers' tests compare.
-#[cfg(test)]
-pub(super) fn every_kind<M: LaneMap>(map: &M, n: usize) -> Vec<(&'static str, Vec<M::Out>)> {
-    let run = |fill: &dyn Fn(&mut [M::Out])| {
-        let mut out = vec![M::Out::default(); n];
-        fill(&mut out);
-        out
-    };
-    #[allow(unused_mut)]
-    let mut kinds = vec![("plain", run(&|out| fill::<Scalar, M>(map, 0, out)))];
-    #[cfg(target_arch = "x86_64")]
-    {
-        kinds.push(("sse2", run(&|out| fill::<Sse2, M>(map, 0, out))));
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: checked just above.
-            kinds.push(("avx2", run(&|out| unsafe { fill_avx2(map, 0, out) })));
-        }
-        if wide_registers() {
-            // SAFETY: checked just above.
-            kinds.push((
-                "avx2+avx512vl",
-                run(&|out| unsafe { fill_avx512vl(map, 0, out) }),
-            ));
-        }
-    }
-    kinds
-}
-
-/// One kind of lanes' run of a [`LaneRowMap`]: its name, the values per
-/// particle and the rows of per-pair values.
-#[cfg(test)]
-pub(super) type KindRows<M> = (
-    &'static str,
-    Vec<<M as LaneRowMap>::Out>,
-    Vec<<M as LaneRowMap>::Pair>,
-);
-
-/// `map`'s values and rows for every particle of `lists` with every kind
-/// of lanes this CPU runs, the plain arrays first: what the solvers' tests
-/// compare for the passes that write per-pair data.
-#[cfg(test)]
-pub(super) fn every_kind_rows<M: LaneRowMap>(map: &M, lists: &NeighbourLists) -> Vec<KindRows<M>>
-where
-    M::Pair: Clone + Default,
-{
-    type Particle<'a, M> =
-        &'a dyn Fn(usize, &mut [<M as LaneRowMap>::Pair]) -> <M as LaneRowMap>::Out;
-    let run = |particle: Particle<'_, M>| {
-        let mut pairs = vec![M::Pair::default(); lists.pairs()];
-        let mut out = Vec::with_capacity(lists.len());
-        let mut rest = &mut pairs[..];
-        for i in 0..lists.len() {
-            let (row, tail) = std::mem::take(&mut rest).split_at_mut(lists.of(i).len());
-            out.push(particle(i, row));
-            rest = tail;
-        }
-        (out, pairs)
-    };
-    let mut kinds = Vec::new();
-    let (out, pairs) = run(&|i, row| map.particle::<Scalar>(i, row));
-    kinds.push(("plain", out, pairs));
-    #[cfg(target_arch = "x86_64")]
-    {
-        let (out, pairs) = run(&|i, row| map.particle::<Sse2>(i, row));
-        kinds.push(("sse2", out, pairs));
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: checked just above.
-            let (out, pairs) = run(&|i, row| unsafe { row_avx2(map, i, row) });
-            kinds.push(("avx2", out, pairs));
-        }
-        if wide_registers() {
-            // SAFETY: checked just above.
-            let (out, pairs) = run(&|i, row| unsafe { row_avx512vl(map, i, row) });
-            kinds.push(("avx2+avx512vl", out, pairs));
-        }
-    }
-    kinds
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// Both kinds give bitwise the same lanes for each operation, signed
-    /// zeros, NaNs and infinities in `max` included.
-    #[test]
-    fn both_kinds_agree_bit_for_bit() {
-        let a = [1.5, -0.0, 0.0, f32::NAN, 3.0, -2.0, f32::INFINITY, 1e-30];
-        let b = [0.25, 0.0, -0.0, 1.0, f32::NAN, 7.0, 2.0, 3e-38];
-        let rows: Vec<[f32; 4]> = (0..20)
-            .map(|i| std::array::from_fn(|k| i as f32 * 0.37 + k as f32))
-            .collect();
-        let values: Vec<f32> = (0..20).map(|i| i as f32 * 1.1).collect();
-        let slots = [3, 19, 0, 7, 7, 12, 5, 1];
-        fn run<S: F32x8>(
-            a: [f32; 8],
-            b: [f32; 8],
-            rows: &[[f32; 4]],
-            values: &[f32],
-            slots: &[u32; 8],
-        ) -> Vec<[f32; 8]> {
-            let (a, b) = (S::from_array(a), S::from_array(b));
+    /// Every lane operation, on fixed inputs.
+    #[derive(Clone, Copy)]
+    struct Ops<'a> {
+        a: [f32; 8],
+        b: [f32; 8],
+        rows: &'a [[f32; 4]],
+        rows8: &'a [[f32; 8]],
+        values: &'a [f32],
+        slots: &'a [u32; 8],
+    }
+
+    impl LaneFn for Ops<'_> {
+        type Out = Vec<[f32; 8]>;
+        #[inline(always)]
+        fn call<S: F32x8>(self) -> Vec<[f32; 8]> {
+            let (a, b, slots) = (S::from_array(self.a), S::from_array(self.b), self.slots);
             let mut out = vec![
                 (a + b).to_array(),
                 (a - b).to_array(),
@@ -612,7 +589,7 @@ mod tests {
                 a.max(b).to_array(),
                 b.max(a).to_array(),
                 a.sqrt().to_array(),
-                S::gather(values, slots).to_array(),
+                S::gather(self.values, slots).to_array(),
                 S::first(3).to_array(),
                 S::first(8).to_array(),
                 S::first(1).to_array(),
@@ -627,11 +604,37 @@ mod tests {
                     0.0,
                 ],
             ];
-            out.extend(S::gather_rows(rows, slots).map(S::to_array));
-            let v: Vec<Vec3> = rows.iter().map(|r| Vec3::new(r[0], r[1], r[2])).collect();
+            out.extend(S::gather_rows(self.rows, slots).map(S::to_array));
+            let v: Vec<Vec3> = self
+                .rows
+                .iter()
+                .map(|r| Vec3::new(r[0], r[1], r[2]))
+                .collect();
             out.extend(S::load_vec3s(&v[5..]).map(S::to_array));
+            out.extend(S::gather_rows8(self.rows8, slots).map(S::to_array));
             out
         }
+    }
+
+    /// Every kind this CPU runs gives bitwise the same lanes for each
+    /// operation, signed zeros, NaNs and infinities in `max` included.
+    #[test]
+    fn every_kind_agrees_bit_for_bit() {
+        let rows: Vec<[f32; 4]> = (0..20)
+            .map(|i| std::array::from_fn(|k| i as f32 * 0.37 + k as f32))
+            .collect();
+        let rows8: Vec<[f32; 8]> = (0..20)
+            .map(|i| std::array::from_fn(|k| i as f32 * 0.53 - k as f32))
+            .collect();
+        let values: Vec<f32> = (0..20).map(|i| i as f32 * 1.1).collect();
+        let ops = Ops {
+            a: [1.5, -0.0, 0.0, f32::NAN, 3.0, -2.0, f32::INFINITY, 1e-30],
+            b: [0.25, 0.0, -0.0, 1.0, f32::NAN, 7.0, 2.0, 3e-38],
+            rows: &rows,
+            rows8: &rows8,
+            values: &values,
+            slots: &[3, 19, 0, 7, 7, 12, 5, 1],
+        };
         // Bits, with every NaN one pattern: a NaN's sign and payload are
         // not results (the compiler folds 0/0 to a different one than the
         // CPU makes).
@@ -639,61 +642,32 @@ mod tests {
             let bits = |x: f32| if x.is_nan() { u32::MAX } else { x.to_bits() };
             v.into_iter().map(|l| l.map(bits)).collect()
         };
-        let scalar = run::<Scalar>(a, b, &rows, &values, &slots);
-        assert_eq!(scalar[4][0], 1.5);
+        let kinds = Lanes::every();
+        assert_eq!(kinds[0].name(), "plain");
+        #[cfg(target_arch = "x86_64")]
+        assert!(kinds.len() >= 2, "SSE2 on every x86-64 CPU");
+        assert!(kinds.contains(&Lanes::best()));
+        let plain = kinds[0].run(ops);
+        assert_eq!(plain[4][0], 1.5);
         assert_eq!(
-            scalar[4][1].to_bits(),
+            plain[4][1].to_bits(),
             0.0f32.to_bits(),
             "max(-0, +0) is the second"
         );
-        assert!(scalar[4][4].is_nan(), "max(3, NaN) is the second");
-        assert_eq!(scalar[4][3], 1.0, "max(NaN, 1) is the second");
-        assert_eq!(scalar[8], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
-        assert_eq!(scalar[9], [1.0; 8]);
-        assert_eq!(scalar[12][1], 19.0 * 0.37, "gathered row 19, first entry");
-        assert_eq!(scalar[16][0], 5.0 * 0.37, "vector 5's x in lane 0");
-        assert_eq!(scalar[18][7], 12.0 * 0.37 + 2.0, "vector 12's z in lane 7");
-        assert_eq!(
-            scalar[15][0],
-            3.0 * 0.37 + 3.0,
-            "gathered row 3, last entry"
-        );
-        #[cfg(target_arch = "x86_64")]
-        assert_eq!(
-            bits(run::<Sse2>(a, b, &rows, &values, &slots)),
-            bits(scalar.clone())
-        );
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            #[target_feature(enable = "avx2")]
-            fn run_avx2(
-                a: [f32; 8],
-                b: [f32; 8],
-                rows: &[[f32; 4]],
-                values: &[f32],
-                slots: &[u32; 8],
-            ) -> Vec<[f32; 8]> {
-                run::<Avx2>(a, b, rows, values, slots)
-            }
-            // SAFETY: checked just above.
-            let avx = unsafe { run_avx2(a, b, &rows, &values, &slots) };
-            assert_eq!(bits(avx), bits(scalar));
+        assert!(plain[4][4].is_nan(), "max(3, NaN) is the second");
+        assert_eq!(plain[4][3], 1.0, "max(NaN, 1) is the second");
+        assert_eq!(plain[8], [1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert_eq!(plain[9], [1.0; 8]);
+        assert_eq!(plain[12][1], 19.0 * 0.37, "gathered row 19, first entry");
+        assert_eq!(plain[16][0], 5.0 * 0.37, "vector 5's x in lane 0");
+        assert_eq!(plain[18][7], 12.0 * 0.37 + 2.0, "vector 12's z in lane 7");
+        assert_eq!(plain[15][0], 3.0 * 0.37 + 3.0, "gathered row 3, last entry");
+        assert_eq!(plain[19][1], 19.0 * 0.53, "gathered 8-row 19, entry 0");
+        assert_eq!(plain[26][0], 3.0 * 0.53 - 7.0, "gathered 8-row 3, entry 7");
+        assert_eq!(plain[23][7], 1.0 * 0.53 - 4.0, "gathered 8-row 1, entry 4");
+        let plain = bits(plain);
+        for kind in &kinds[1..] {
+            assert_eq!(bits(kind.run(ops)), plain, "{}", kind.name());
         }
-    }
-
-    /// `par_map` fills every particle's value, whatever the block split.
-    #[test]
-    fn par_map_fills_every_particle() {
-        struct Square;
-        impl LaneMap for Square {
-            type Out = f32;
-            fn particle<S: F32x8>(&self, i: usize) -> f32 {
-                (S::splat(i as f32) * S::splat(i as f32)).to_array()[3]
-            }
-        }
-        let mut out = vec![7.0; 3];
-        par_map(&Square, 1000, &mut out);
-        assert_eq!(out.len(), 1000);
-        assert!(out.iter().enumerate().all(|(i, &v)| v == (i * i) as f32));
     }
 }
