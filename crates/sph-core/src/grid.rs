@@ -16,8 +16,10 @@
 //! (x+1, y, z) are adjacent in slot order: the 27 cells around a cell are 9
 //! contiguous slot ranges ("rows"), computed once per cell at build time. A query
 //! scans those 9 ranges a chunk of candidates at a time (AVX-512, AVX2 or SSE2 on
-//! x86-64, chosen at run time: [`crate::simd::simd_level`], see `scan.rs`). [`Neighbourhood::poly6_sums`] sums kernel-weighted values
-//! straight from the chunks (`sums.rs`), for the colour field and density.
+//! x86-64, chosen at run time: [`crate::simd::simd_level`], see `scan.rs`).
+//! The grid holds no physics: [`Neighbourhood::poly6_sums`], the colour
+//! field's and WCSPH's density sums straight from the candidate rows, lives
+//! with the kernels (`kernels/sums.rs`), the solvers' sums with the solvers.
 //!
 //! # Exactness
 //!
@@ -46,14 +48,16 @@ mod chunks;
 mod layout;
 mod lists;
 mod scan;
-mod sums;
 pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_lanes};
 pub use lists::NeighbourLists;
-use scan::Scan;
-pub use sums::{Poly6Sums, SecondMoment};
 /// For tests elsewhere in the crate: the scan's hit buffer and a test cloud.
 #[cfg(test)]
-pub(crate) use {scan::HIT_CAPACITY, sums::tests::cloud};
+pub(crate) use scan::HIT_CAPACITY;
+use scan::Scan;
+/// For the kernel sums over a neighbourhood (`kernels/sums.rs`): the
+/// scan's distance test in vector registers.
+#[cfg(target_arch = "x86_64")]
+pub(crate) use scan::{offsets_avx2, offsets_avx512};
 
 /// The most particles a grid holds: slots are 32-bit, one value reserved.
 pub const MAX_PARTICLES: usize = u32::MAX as usize - 1;
@@ -78,9 +82,9 @@ fn zyx(c: Cell) -> (i32, i32, i32) {
 
 /// A half-open range of slots.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-struct SlotRange {
-    start: u32,
-    end: u32,
+pub(crate) struct SlotRange {
+    pub(crate) start: u32,
+    pub(crate) end: u32,
 }
 
 /// A neighbour grid over a snapshot of particle positions.

@@ -12,10 +12,17 @@
 //! | [`Spiky`] | 15/(πh⁶)(h−r)³ | −45/(πh⁶)(h−r)² **r̂** | 90/(πh⁶)(h−r)(2r−h)/r |
 //! | [`Viscosity`] | 15/(2πh³)(−q³/2 + q² + 1/2q − 1), q = r/h | −15/(2πh⁴)(1−q)²(3q²+2q+1)/(2q²) **r̂** | 45/(πh⁶)(h−r) |
 //! | [`CubicSpline`] (DFSPH) | 8/(πh³)(2a³ − 8b³), a = (1−q)⁺, b = (½−q)⁺ | 8/(πh⁴)(24b² − 6a²) **r̂** | W'' + 2W'/r |
+//!
+//! [`Neighbourhood::poly6_sums`](crate::Neighbourhood::poly6_sums) sums poly6, its gradient and
+//! laplacian over a neighbourhood straight from the grid's candidate rows
+//! (`kernels/sums.rs`): the colour field's and WCSPH's density sums.
 
 use glam::Vec3;
 
 use crate::error::{Result, check_kernel_h};
+
+pub(crate) mod sums;
+pub use sums::{Poly6Sums, SecondMoment};
 
 /// A radially symmetric smoothing kernel with compact support h.
 ///

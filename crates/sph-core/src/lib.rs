@@ -28,9 +28,9 @@ pub mod solver;
 
 pub use boundary::{Aabb, Boundary, Obstacle};
 pub use error::{Error, Result};
-pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood, Poly6Sums};
+pub use grid::{NeighbourGrid, NeighbourLists, Neighbourhood};
 pub use io::{FrameWriter, PointCloud};
-pub use kernels::{CubicSpline, Kernel, Kernels, Poly6, Spiky, Viscosity};
+pub use kernels::{CubicSpline, Kernel, Kernels, Poly6, Poly6Sums, Spiky, Viscosity};
 pub use particles::{FieldsMut, Particles};
 pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;

@@ -12,6 +12,42 @@
 //! written over [`F32x8`]. The neighbour grid's scan and its poly6 sums
 //! (`grid`), WCSPH's force sums and the anisotropic kernels' covariances
 //! are still 16-lane plain Rust compiled per [`Simd`] level.
+//!
+//! # Example
+//!
+//! A sum written once over lanes, run with the best kind and checked
+//! against every kind this CPU runs:
+//!
+//! ```
+//! use sph_core::simd::{F32x8, LaneFn, Lanes, with_lanes};
+//!
+//! /// Σ x² over a slice, eight at a time.
+//! struct SumOfSquares<'a>(&'a [f32]);
+//!
+//! impl LaneFn for SumOfSquares<'_> {
+//!     type Out = f32;
+//!     #[inline(always)]
+//!     fn call<S: F32x8>(self) -> f32 {
+//!         let mut acc = S::splat(0.0);
+//!         // A loop, not a closure: see `LaneFn`.
+//!         for chunk in self.0.chunks(8) {
+//!             let mut lanes = [0.0; 8];
+//!             lanes[..chunk.len()].copy_from_slice(chunk);
+//!             let x = S::from_array(lanes);
+//!             acc = acc + x * x;
+//!         }
+//!         acc.sum()
+//!     }
+//! }
+//!
+//! let x: Vec<f32> = (0..100).map(|i| i as f32 * 0.1).collect();
+//! let best = with_lanes(SumOfSquares(&x));
+//! assert!((best - 3283.5).abs() < 1e-2);
+//! for lanes in Lanes::every() {
+//!     let sum = lanes.run(SumOfSquares(&x));
+//!     assert_eq!(sum.to_bits(), best.to_bits(), "{}", lanes.name());
+//! }
+//! ```
 
 mod f32x8;
 mod level;

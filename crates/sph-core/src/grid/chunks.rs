@@ -18,8 +18,7 @@
 
 use glam::Vec3;
 
-use super::sums::{LANES, reduce};
-use super::{Neighbourhood, scan};
+use super::{Neighbourhood, SlotRange, scan};
 
 /// Lanes of a [`Chunk`].
 pub const CHUNK_LANES: usize = LANES;
@@ -40,6 +39,19 @@ pub struct Chunk {
     pub d: [[f32; CHUNK_LANES]; 3],
     /// |centre − x_j|², the value the scan tested against h².
     pub r2: [f32; CHUNK_LANES],
+}
+
+/// Lanes of every chunk and of every 16-lane sum.
+const LANES: usize = 16;
+
+/// Sums 16 lanes by the tree the AVX-512 paths use: lane i + lane i+8,
+/// then i + i+4, i + i+2, and the last two.
+#[inline]
+fn reduce(l: &[f32; LANES]) -> f32 {
+    let a: [f32; 8] = std::array::from_fn(|i| l[i] + l[i + 8]);
+    let b: [f32; 4] = std::array::from_fn(|i| a[i] + a[i + 4]);
+    let c: [f32; 2] = std::array::from_fn(|i| b[i] + b[i + 2]);
+    c[0] + c[1]
 }
 
 /// Sums 16 lanes by the grid's fixed tree (lane i + lane i+8, then i + i+4,
@@ -83,6 +95,12 @@ impl Neighbourhood<'_> {
     #[inline(always)]
     pub(crate) fn radius(&self) -> (f32, f32) {
         (self.grid.h, self.grid.h2)
+    }
+
+    /// The 9 slot ranges (rows of cells) the query scans, in scan order.
+    #[inline(always)]
+    pub(crate) fn rows(&self) -> &[SlotRange; 9] {
+        &self.rows
     }
 
     /// Slots in the grid.

@@ -240,7 +240,7 @@ impl Lanes {
 mod tests {
     use super::*;
     use crate::NeighbourGrid;
-    use crate::grid::cloud;
+    use crate::kernels::sums::tests::cloud;
     use crate::kernels::{Kernel, Poly6, Spiky, Viscosity};
 
     /// The sums term by term with the kernels' own functions, and the scale

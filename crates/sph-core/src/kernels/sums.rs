@@ -15,9 +15,9 @@
 
 use glam::Vec3;
 
+use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, SlotRange, reduce_lanes as reduce};
 #[cfg(target_arch = "x86_64")]
-use super::scan::{offsets_avx2, offsets_avx512};
-use super::{Neighbourhood, SlotRange};
+use crate::grid::{offsets_avx2, offsets_avx512};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Simd, simd_level};
 use crate::{Kernel, Poly6};
@@ -41,9 +41,6 @@ pub struct Poly6Sums {
 /// d_j = x − x_j, as [xx, xy, xz, yy, yz, zz].
 pub type SecondMoment = [f32; 6];
 
-/// Lanes of every sum, on every path (AVX2 keeps them as two 8-lane halves).
-pub(super) const LANES: usize = 16;
-
 /// Raw sums before the kernel's constants: with t = h² − r²,
 /// Σ w t³, Σ w t² d, Σ w t (7r² − 3h²) and Σ d dᵀ.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -63,16 +60,6 @@ struct Lanes {
     second: [[f32; LANES]; 6],
 }
 
-/// Sums 16 lanes by the tree the AVX-512 path uses: lane i + lane i+8, then
-/// i + i+4, i + i+2, and the last two.
-#[inline]
-pub(super) fn reduce(l: &[f32; LANES]) -> f32 {
-    let a: [f32; 8] = std::array::from_fn(|i| l[i] + l[i + 8]);
-    let b: [f32; 4] = std::array::from_fn(|i| a[i] + a[i + 4]);
-    let c: [f32; 2] = std::array::from_fn(|i| b[i] + b[i + 2]);
-    c[0] + c[1]
-}
-
 impl Raw {
     fn finish(self, kernel: &Poly6) -> Poly6Sums {
         let (w, grad) = kernel.coefficients();
@@ -88,7 +75,7 @@ impl Raw {
 impl Neighbourhood<'_> {
     /// Poly6 sums over the neighbours, neighbour j weighted by
     /// `weights_by_slot[k]` where slot k holds j (see
-    /// [`super::NeighbourGrid::to_slot_order`]). `kernel` must have the grid's h.
+    /// [`crate::NeighbourGrid::to_slot_order`]). `kernel` must have the grid's h.
     ///
     /// # Panics
     /// If `weights_by_slot` is shorter than the grid or the kernel's h is not
@@ -113,10 +100,14 @@ impl Neighbourhood<'_> {
     #[inline]
     fn raw<const SECOND: bool>(&self, kernel: &Poly6, weights: &[f32]) -> Raw {
         assert!(
-            weights.len() >= self.grid.len(),
+            weights.len() >= self.slots(),
             "one weight per particle, in slot order"
         );
-        assert_eq!(kernel.h(), self.grid.h, "the kernel's h must be the grid's");
+        assert_eq!(
+            kernel.h(),
+            self.radius().0,
+            "the kernel's h must be the grid's"
+        );
         #[cfg(target_arch = "x86_64")]
         match simd_level() {
             // SAFETY: `simd_level` never exceeds what the CPU supports.
@@ -130,8 +121,8 @@ impl Neighbourhood<'_> {
 
     /// The AVX-512 path's lanes and operations, one candidate at a time.
     fn raw_scalar<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
-        let [xs, ys, zs] = &self.grid.layout.coords;
-        let (c, h2) = (self.centre, self.grid.h2);
+        let [xs, ys, zs] = self.slot_coords();
+        let (c, h2) = (self.centre(), self.radius().1);
         let three_h2 = 3.0 * h2;
         let mut l = Lanes {
             t3: [0.0; LANES],
@@ -140,7 +131,7 @@ impl Neighbourhood<'_> {
             second: [[0.0; LANES]; 6],
         };
         let mut count = 0;
-        for &SlotRange { start, end } in &self.rows {
+        for &SlotRange { start, end } in self.rows() {
             for k in start as usize..end as usize {
                 let lane = (k - start as usize) % LANES;
                 // The scan's distance test, operation for operation.
@@ -192,8 +183,8 @@ impl Neighbourhood<'_> {
     #[target_feature(enable = "avx2,popcnt")]
     unsafe fn raw_avx2<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
         use std::arch::x86_64::*;
-        let [xs, ys, zs] = &self.grid.layout.coords;
-        let (c, h2) = (self.centre, self.grid.h2);
+        let [xs, ys, zs] = self.slot_coords();
+        let (c, h2) = (self.centre(), self.radius().1);
         let cs = [
             _mm256_set1_ps(c.x),
             _mm256_set1_ps(c.y),
@@ -206,7 +197,7 @@ impl Neighbourhood<'_> {
         // [half][sum]: t3, t2d x/y/z, lap, then the second moment's six.
         let mut acc = [[zero; 11]; 2];
         let mut count = 0u32;
-        for &SlotRange { start, end } in &self.rows {
+        for &SlotRange { start, end } in self.rows() {
             let (mut k, end) = (start as usize, end as usize);
             let mut half = 0;
             while k < end {
@@ -303,8 +294,8 @@ impl Neighbourhood<'_> {
     #[target_feature(enable = "avx512f,popcnt")]
     unsafe fn raw_avx512<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
         use std::arch::x86_64::*;
-        let [xs, ys, zs] = &self.grid.layout.coords;
-        let (c, h2) = (self.centre, self.grid.h2);
+        let [xs, ys, zs] = self.slot_coords();
+        let (c, h2) = (self.centre(), self.radius().1);
         let (cx, cy, cz) = (
             _mm512_set1_ps(c.x),
             _mm512_set1_ps(c.y),
@@ -316,7 +307,7 @@ impl Neighbourhood<'_> {
         let (mut t3, mut gx, mut gy, mut gz, mut lap) = (zero, zero, zero, zero, zero);
         let mut second = [zero; 6];
         let mut count = 0u32;
-        for &SlotRange { start, end } in &self.rows {
+        for &SlotRange { start, end } in self.rows() {
             let (mut k, end) = (start as usize, end as usize);
             while k < end {
                 let valid: __mmask16 = if end - k >= 16 {
@@ -420,7 +411,7 @@ fn reduce_avx2(lo: std::arch::x86_64::__m256, hi: std::arch::x86_64::__m256) -> 
 }
 
 #[cfg(test)]
-pub(super) mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::NeighbourGrid;
 
