@@ -8,10 +8,10 @@
 //! bit ([`Lanes::every`]). `SPH_SIMD=baseline|avx2|avx512` lowers the level
 //! to measure the paths side by side on one machine.
 //!
-//! The solvers' pair sums and the surface field's anisotropic sums are
-//! written over [`F32x8`]. The neighbour grid's scan and its poly6 sums
-//! (`grid`), WCSPH's force sums and the anisotropic kernels' covariances
-//! are still 16-lane plain Rust compiled per [`Simd`] level.
+//! The solvers' pair sums and surfel-extract's anisotropic kernels and
+//! field sums are written over [`F32x8`]. The neighbour grid's scan, the
+//! poly6 sums ([`crate::Neighbourhood::poly6_sums`]) and WCSPH's force sums
+//! are still 16-lane code of their own per [`Simd`] level.
 //!
 //! # Example
 //!

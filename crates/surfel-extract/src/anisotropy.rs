@@ -45,9 +45,8 @@
 use glam::{DMat3, DVec3, Mat3, Vec3};
 use sph_core::error::positive;
 use sph_core::grid::{CHUNK_LANES, reduce_lanes};
+use sph_core::simd::{F32x8, LaneFn, with_lanes};
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Result};
-#[cfg(target_arch = "x86_64")]
-use sph_core::{Simd, simd_level};
 
 /// The anisotropic kernels' parameters (Yu & Turk 2013's λ, k_r, N_ε, k_n;
 /// the paper's k_s is replaced by normalising each kernel's longest axis to
@@ -419,19 +418,12 @@ pub fn kernels(
         |i, nb| {
             let xi = positions[i];
             NEAR.with_borrow_mut(|near| {
-                #[cfg(target_arch = "x86_64")]
-                match simd_level() {
-                    // SAFETY: `simd_level` never exceeds what the CPU supports.
-                    Simd::Avx512 => unsafe {
-                        return kernel_avx512(nb, xi, near, &pass);
-                    },
-                    // SAFETY: as above.
-                    Simd::Avx2 => unsafe {
-                        return kernel_avx2(nb, xi, near, &pass);
-                    },
-                    Simd::Baseline => {}
-                }
-                kernel_of(nb, xi, near, &pass)
+                with_lanes(KernelOf {
+                    nb,
+                    xi,
+                    near,
+                    pass: &pass,
+                })
             })
         },
         out,
@@ -454,121 +446,145 @@ struct Near {
     w: [f32; CHUNK_LANES],
 }
 
-/// Defines `$name`: [`kernel_of`] compiled with the target features
-/// `$features` (the same code, vectorised for them).
-macro_rules! kernel_with {
-    ($name:ident, $features:literal) => {
-        /// # Safety
-        /// The CPU must support the target features this function enables.
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $name(
-            nb: Neighbourhood<'_>,
-            xi: Vec3,
-            near: &mut Vec<Near>,
-            pass: &Pass<'_>,
-        ) -> (Vec3, Ellipsoid) {
-            kernel_of(nb, xi, near, pass)
-        }
-    };
+/// Lanes `8 half .. 8 half + 8` of a chunk's 16.
+#[inline(always)]
+fn half<S: F32x8>(lanes: &[f32; CHUNK_LANES], half: usize) -> S {
+    let mut a = [0.0; 8];
+    a.copy_from_slice(&lanes[8 * half..8 * half + 8]);
+    S::from_array(a)
 }
 
-kernel_with!(kernel_avx2, "avx2");
-kernel_with!(kernel_avx512, "avx512f,avx2");
+/// Sets lanes `8 half .. 8 half + 8` of a chunk's 16.
+#[inline(always)]
+fn set_half<S: F32x8>(lanes: &mut [f32; CHUNK_LANES], half: usize, v: S) {
+    lanes[8 * half..8 * half + 8].copy_from_slice(&v.to_array());
+}
+
+/// 16 lanes held as two halves, summed by the grid's fixed tree.
+#[inline(always)]
+fn reduce<S: F32x8>(lo: S, hi: S) -> f32 {
+    let mut lanes = [0.0; CHUNK_LANES];
+    set_half(&mut lanes, 0, lo);
+    set_half(&mut lanes, 1, hi);
+    reduce_lanes(&lanes)
+}
 
 /// The smoothed centre and the kernel of the particle at `xi`, whose
 /// neighbours (itself included) within the pass's r are `nb`'s. Each sum is
-/// kept in 16 lanes (`sph-core`'s chunks of neighbours) and reduced by the
-/// grid's fixed tree, so every vector path gives bitwise the same kernels.
-// Lane loops index several arrays by lane, which is what vectorises.
-#[allow(clippy::needless_range_loop)]
-#[inline(always)]
-fn kernel_of(
-    nb: Neighbourhood<'_>,
+/// kept in 16 lanes (`sph-core`'s chunks of neighbours, as two halves of
+/// [`F32x8`]) and reduced by the grid's fixed tree, so every kind of lanes
+/// gives bitwise the same kernels.
+struct KernelOf<'a> {
+    nb: Neighbourhood<'a>,
     xi: Vec3,
-    near: &mut Vec<Near>,
-    pass: &Pass<'_>,
-) -> (Vec3, Ellipsoid) {
-    const L: usize = CHUNK_LANES;
-    let &Pass {
-        params,
-        h,
-        inv_r,
-        isolated,
-    } = pass;
-    // Weighted mean and second moment about x_i (offsets are at most r, so
-    // f32 sums of a few hundred terms are exact enough), the second moment
-    // as its 6 distinct entries: [w, w o (3), w o oᵀ (6)].
-    let mut acc = [[0.0f32; L]; 10];
-    let mut count = 0;
-    near.clear();
-    for ch in nb.chunks() {
-        count += ch.len;
-        let mut n = Near {
-            o: [[0.0; L]; 3],
-            w: [0.0; L],
-        };
-        for k in 0..L {
-            let q = ch.r2[k].sqrt() * inv_r;
-            let w = ch.weight[k] * (1.0 - q * q * q);
-            // d = x_i − x_j: the offset of x_j from x_i is −d.
-            let o = [-ch.d[0][k], -ch.d[1][k], -ch.d[2][k]];
-            let wo = [w * o[0], w * o[1], w * o[2]];
-            acc[0][k] += w;
-            acc[1][k] += wo[0];
-            acc[2][k] += wo[1];
-            acc[3][k] += wo[2];
-            acc[4][k] += wo[0] * o[0];
-            acc[5][k] += wo[0] * o[1];
-            acc[6][k] += wo[0] * o[2];
-            acc[7][k] += wo[1] * o[1];
-            acc[8][k] += wo[1] * o[2];
-            acc[9][k] += wo[2] * o[2];
-            n.w[k] = w;
-            for a in 0..3 {
-                n.o[a][k] = o[a];
-            }
-        }
-        near.push(n);
-    }
-    let [sw, mx, my, mz, xx, xy, xz, yy, yz, zz] = acc.map(|l| reduce_lanes(&l));
-    let neighbours = count.saturating_sub(1);
-    let inv = 1.0 / sw;
-    let mean = Vec3::new(mx, my, mz) * inv;
-    let c = Mat3::from_cols(
-        Vec3::new(xx, xy, xz) * inv - mean * mean.x,
-        Vec3::new(xy, yy, yz) * inv - mean * mean.y,
-        Vec3::new(xz, yz, zz) * inv - mean * mean.z,
-    );
-    let principal = (neighbours >= params.min_neighbours as usize)
-        .then(|| Principal::of(c))
-        .flatten();
-    let shape = principal.map_or(isolated, |p| {
-        Ellipsoid::from_principal(&p, params.max_ratio)
-    });
-    let centre = match (params.centres, principal) {
-        (Centres::Layer { thickness }, Some(p)) => {
-            // The mean height over the neighbours in x_i's own layer across
-            // the normal n (the smallest axis).
-            let n = p.axes[2];
-            let inv_tau = 1.0 / (thickness * h);
-            let (mut sw, mut sum) = ([0.0f32; L], [0.0f32; L]);
-            for chunk in near.iter() {
-                for k in 0..L {
-                    let t = chunk.o[0][k] * n.x + chunk.o[1][k] * n.y + chunk.o[2][k] * n.z;
-                    let u = t * inv_tau;
-                    // 0 outside the layer, |u| ≥ 1, without a branch.
-                    let a = (1.0 - u * u).max(0.0);
-                    let wg = chunk.w[k] * (a * a);
-                    sw[k] += wg;
-                    sum[k] += wg * t;
+    near: &'a mut Vec<Near>,
+    pass: &'a Pass<'a>,
+}
+
+impl LaneFn for KernelOf<'_> {
+    type Out = (Vec3, Ellipsoid);
+
+    // Loops over halves, not closures: see `LaneFn`.
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn call<S: F32x8>(self) -> (Vec3, Ellipsoid) {
+        let KernelOf { nb, xi, near, pass } = self;
+        let &Pass {
+            params,
+            h,
+            inv_r,
+            isolated,
+        } = pass;
+        let (zero, one, minus) = (S::splat(0.0), S::splat(1.0), S::splat(-1.0));
+        let inv_r = S::splat(inv_r);
+        // Weighted mean and second moment about x_i (offsets are at most r,
+        // so f32 sums of a few hundred terms are exact enough), the second
+        // moment as its 6 distinct entries: [w, w o (3), w o oᵀ (6)], per
+        // half.
+        let mut acc = [[zero; 10]; 2];
+        let mut count = 0;
+        near.clear();
+        for ch in nb.chunks() {
+            count += ch.len;
+            let mut n = Near {
+                o: [[0.0; CHUNK_LANES]; 3],
+                w: [0.0; CHUNK_LANES],
+            };
+            for k in 0..2 {
+                let q = half::<S>(&ch.r2, k).sqrt() * inv_r;
+                let w = half::<S>(&ch.weight, k) * (one - q * q * q);
+                // d = x_i − x_j: the offset of x_j from x_i is −d (−1 · d
+                // is exactly −d, signed zeros included).
+                let o = [
+                    minus * half(&ch.d[0], k),
+                    minus * half(&ch.d[1], k),
+                    minus * half(&ch.d[2], k),
+                ];
+                let wo = [w * o[0], w * o[1], w * o[2]];
+                let a = &mut acc[k];
+                a[0] = a[0] + w;
+                a[1] = a[1] + wo[0];
+                a[2] = a[2] + wo[1];
+                a[3] = a[3] + wo[2];
+                a[4] = a[4] + wo[0] * o[0];
+                a[5] = a[5] + wo[0] * o[1];
+                a[6] = a[6] + wo[0] * o[2];
+                a[7] = a[7] + wo[1] * o[1];
+                a[8] = a[8] + wo[1] * o[2];
+                a[9] = a[9] + wo[2] * o[2];
+                set_half(&mut n.w, k, w);
+                for axis in 0..3 {
+                    set_half(&mut n.o[axis], k, o[axis]);
                 }
             }
-            xi + params.smoothing * (reduce_lanes(&sum) / reduce_lanes(&sw)) * n
+            near.push(n);
         }
-        _ => xi + params.smoothing * mean,
-    };
-    (centre, shape)
+        let mut sums = [0.0f32; 10];
+        for e in 0..10 {
+            sums[e] = reduce(acc[0][e], acc[1][e]);
+        }
+        let [sw, mx, my, mz, xx, xy, xz, yy, yz, zz] = sums;
+        let neighbours = count.saturating_sub(1);
+        let inv = 1.0 / sw;
+        let mean = Vec3::new(mx, my, mz) * inv;
+        let c = Mat3::from_cols(
+            Vec3::new(xx, xy, xz) * inv - mean * mean.x,
+            Vec3::new(xy, yy, yz) * inv - mean * mean.y,
+            Vec3::new(xz, yz, zz) * inv - mean * mean.z,
+        );
+        let principal = (neighbours >= params.min_neighbours as usize)
+            .then(|| Principal::of(c))
+            .flatten();
+        let shape = principal.map_or(isolated, |p| {
+            Ellipsoid::from_principal(&p, params.max_ratio)
+        });
+        let centre = match (params.centres, principal) {
+            (Centres::Layer { thickness }, Some(p)) => {
+                // The mean height over the neighbours in x_i's own layer
+                // across the normal n (the smallest axis).
+                let n = p.axes[2];
+                let (nx, ny, nz) = (S::splat(n.x), S::splat(n.y), S::splat(n.z));
+                let inv_tau = S::splat(1.0 / (thickness * h));
+                let (mut sw, mut sum) = ([zero; 2], [zero; 2]);
+                for chunk in near.iter() {
+                    for k in 0..2 {
+                        let t = half::<S>(&chunk.o[0], k) * nx
+                            + half::<S>(&chunk.o[1], k) * ny
+                            + half::<S>(&chunk.o[2], k) * nz;
+                        let u = t * inv_tau;
+                        // 0 outside the layer, |u| ≥ 1, without a branch.
+                        let a = (one - u * u).max(zero);
+                        let wg = half::<S>(&chunk.w, k) * (a * a);
+                        sw[k] = sw[k] + wg;
+                        sum[k] = sum[k] + wg * t;
+                    }
+                }
+                xi + params.smoothing * (reduce(sum[0], sum[1]) / reduce(sw[0], sw[1])) * n
+            }
+            _ => xi + params.smoothing * mean,
+        };
+        (centre, shape)
+    }
 }
 
 #[cfg(test)]
@@ -593,6 +609,52 @@ mod tests {
         let mut out = Vec::new();
         kernels(&grid, x, params, &mut out);
         out.into_iter().unzip()
+    }
+
+    /// Every kind of lanes gives bitwise the same centres and kernels, on
+    /// a jittered block with faces, edges and corners (partial chunks).
+    #[test]
+    fn every_kind_of_lanes_gives_the_same_kernels() {
+        use sph_core::simd::Lanes;
+        let s = 0.02;
+        let mut x = lattice(7, s);
+        for (i, p) in x.iter_mut().enumerate() {
+            let f = (i as f32 * 0.618).fract() - 0.5;
+            *p += Vec3::new(f, -0.7 * f, 0.3 * f) * 0.2 * s;
+        }
+        let params = Anisotropy::default();
+        let grid = NeighbourGrid::build(&x, params.radius * 2.0 * s).unwrap();
+        let pass = Pass {
+            params: &params,
+            h: 2.0 * s,
+            inv_r: 1.0 / grid.h(),
+            isolated: Ellipsoid::sphere(params.isolated_scale),
+        };
+        let kinds = Lanes::every();
+        let mut flattened = 0;
+        for i in 0..x.len() {
+            let bits = |lanes: Lanes| {
+                let mut near = Vec::new();
+                let (c, e) = lanes.run(KernelOf {
+                    nb: grid.neighbourhood(i),
+                    xi: x[i],
+                    near: &mut near,
+                    pass: &pass,
+                });
+                (
+                    c.to_array().map(f32::to_bits),
+                    e.m.map(f32::to_bits),
+                    e.det.to_bits(),
+                )
+            };
+            let plain = bits(kinds[0]);
+            flattened += usize::from(f32::from_bits(plain.2) > 1.01);
+            for &kind in &kinds[1..] {
+                assert_eq!(bits(kind), plain, "particle {i}, {}", kind.name());
+            }
+        }
+        // The faces' kernels are flattened: the sums are not all trivial.
+        assert!(flattened > 100, "{flattened} flattened kernels");
     }
 
     /// In a lattice's interior the kernel is the isotropic one and the centre
