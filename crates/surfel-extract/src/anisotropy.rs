@@ -632,12 +632,12 @@ mod tests {
         };
         let kinds = Lanes::every();
         let mut flattened = 0;
-        for i in 0..x.len() {
+        for (i, &xi) in x.iter().enumerate() {
             let bits = |lanes: Lanes| {
                 let mut near = Vec::new();
                 let (c, e) = lanes.run(KernelOf {
                     nb: grid.neighbourhood(i),
-                    xi: x[i],
+                    xi,
                     near: &mut near,
                     pass: &pass,
                 });
