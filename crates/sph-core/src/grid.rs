@@ -50,7 +50,7 @@ mod lists;
 mod scan;
 pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_lanes};
 pub use lists::NeighbourLists;
-/// For tests elsewhere in the crate: the scan's hit buffer and a test cloud.
+/// For tests elsewhere in the crate: the scan's hit buffer.
 #[cfg(test)]
 pub(crate) use scan::HIT_CAPACITY;
 use scan::Scan;

@@ -55,7 +55,8 @@ fn reduce(l: &[f32; LANES]) -> f32 {
 }
 
 /// Sums 16 lanes by the grid's fixed tree (lane i + lane i+8, then i + i+4,
-/// i + i+2, and the last two), as every sum of the grid is reduced.
+/// i + i+2, and the last two), as every 16-lane sum over a neighbourhood
+/// is reduced.
 #[inline]
 pub fn reduce_lanes(lanes: &[f32; CHUNK_LANES]) -> f32 {
     reduce(lanes)

@@ -3,7 +3,7 @@
 //! A [`Scan`] walks the 9 slot ranges ("rows") of a neighbourhood and writes the
 //! slots within h of the centre into a hit buffer, a chunk of candidates at a
 //! time: 16 lanes with AVX-512F, 8 with AVX2, 4 with SSE2 (part of every x86-64
-//! CPU), else one at a time ([`super::simd_level`] picks). The chunks write
+//! CPU), else one at a time ([`crate::simd::simd_level`] picks). The chunks write
 //! their hits branch-free (packed in a register and stored whole), and the caller
 //! then visits the buffer in one loop: its closure has a single call site, so the
 //! compiler inlines it and keeps the caller's sums in registers.

@@ -19,11 +19,19 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 
+#[cfg(target_arch = "x86_64")]
 use super::{Simd, simd_level};
 
-/// Eight f32 lanes.
+/// Eight f32 lanes: the kinds of this module, and no others (the trait is
+/// sealed, so that every kind keeps the promise of bitwise the same
+/// results).
 pub trait F32x8:
-    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self> + Div<Output = Self>
+    sealed::Sealed
+    + Copy
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
 {
     /// Every lane `v`.
     fn splat(v: f32) -> Self;
@@ -42,12 +50,22 @@ pub trait F32x8:
     fn transpose<'a>(row: impl Fn(usize) -> &'a [f32; 4]) -> [Self; 4];
 
     /// Eight lane sets from eight rows of eight floats, lane l of set k
-    /// getting `row(l)[k]`: two 4 × 4 transposes per half unless a kind
-    /// has a better way.
+    /// getting `row(l)[k]`: two 4 × 4 transposes unless a kind has a better
+    /// way. `row` is called once per lane, in lane order.
     #[inline(always)]
     fn transpose8<'a>(row: impl Fn(usize) -> &'a [f32; 8]) -> [Self; 8] {
-        let [a, b, c, d] = Self::transpose(|l| first_four(row(l)));
-        let [e, f, g, h] = Self::transpose(|l| first_four(&row(l)[4..]));
+        let rows = [
+            row(0),
+            row(1),
+            row(2),
+            row(3),
+            row(4),
+            row(5),
+            row(6),
+            row(7),
+        ];
+        let [a, b, c, d] = Self::transpose(|l| first_four(rows[l]));
+        let [e, f, g, h] = Self::transpose(|l| first_four(&rows[l][4..]));
         [a, b, c, d, e, f, g, h]
     }
 
@@ -99,6 +117,16 @@ pub trait F32x8:
         let a = self.to_array();
         ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]))
     }
+}
+
+/// Only this module's kinds implement [`F32x8`].
+mod sealed {
+    pub trait Sealed {}
+    impl Sealed for super::Scalar {}
+    #[cfg(target_arch = "x86_64")]
+    impl Sealed for super::Avx2 {}
+    #[cfg(target_arch = "x86_64")]
+    impl Sealed for super::Sse2 {}
 }
 
 /// The first four floats of `values`.
@@ -179,8 +207,8 @@ mod avx2 {
 
     use super::F32x8;
 
-    /// Eight lanes in one AVX2 register. Only code compiled with AVX2
-    /// enabled (under [`super::Lanes::run`]'s dispatch) makes one.
+    /// Eight lanes in one AVX2 register, made only on a CPU with AVX2
+    /// (under [`super::Lanes::run`]'s dispatch).
     #[derive(Debug, Clone, Copy)]
     pub(in crate::simd) struct Avx2(__m256);
 
@@ -201,14 +229,15 @@ mod avx2 {
     avx_op!(Mul, mul, _mm256_mul_ps);
     avx_op!(Div, div, _mm256_div_ps);
 
-    // SAFETY (every `unsafe` block below): an `Avx2` exists only where AVX2
-    // is available. The type is private to the `simd` module, and the only
+    // SAFETY (every `unsafe` block below): an `Avx2` is made only on a CPU
+    // with AVX2. The type is private to the `simd` module, and the only
     // code that names it is `call_avx2` and `call_avx512vl` (`unsafe fn`s
-    // that `Lanes::run` calls only for a `Lanes` made after checking for
-    // AVX2, or for AVX-512VL with `wide_registers`) and a test that checks
-    // first, so the functions that make one from nothing (`splat`,
-    // `from_array`, `first`, `transpose`, `transpose8`) run only there.
-    // The loads read whole `[f32; 4]`s, `[f32; 8]`s and arrays of eight.
+    // that `Lanes::run` calls only for a `Lanes` made after checking the
+    // CPU for AVX2, or for AVX-512VL with `wide_registers`), so the
+    // functions that make one from nothing (`splat`, `from_array`, `first`,
+    // `transpose`, `transpose8`) run only on such a CPU, whether or not the
+    // code around them was compiled for it. The loads read whole
+    // `[f32; 4]`s, `[f32; 8]`s and arrays of eight.
     impl F32x8 for Avx2 {
         #[inline(always)]
         fn splat(v: f32) -> Self {
@@ -268,8 +297,7 @@ mod avx2 {
         #[inline(always)]
         fn transpose8<'a>(row: impl Fn(usize) -> &'a [f32; 8]) -> [Self; 8] {
             // SAFETY: each row holds eight floats.
-            let row = |l: usize| unsafe { _mm256_loadu_ps(row(l).as_ptr()) };
-            let r = [
+            let rows = [
                 row(0),
                 row(1),
                 row(2),
@@ -279,6 +307,19 @@ mod avx2 {
                 row(6),
                 row(7),
             ];
+            // Loads written out, not in a closure (see `LaneFn`).
+            let r = unsafe {
+                [
+                    _mm256_loadu_ps(rows[0].as_ptr()),
+                    _mm256_loadu_ps(rows[1].as_ptr()),
+                    _mm256_loadu_ps(rows[2].as_ptr()),
+                    _mm256_loadu_ps(rows[3].as_ptr()),
+                    _mm256_loadu_ps(rows[4].as_ptr()),
+                    _mm256_loadu_ps(rows[5].as_ptr()),
+                    _mm256_loadu_ps(rows[6].as_ptr()),
+                    _mm256_loadu_ps(rows[7].as_ptr()),
+                ]
+            };
             // Unpack pairs of rows, shuffle quadruples, then swap 128-bit
             // halves.
             unsafe {
@@ -483,14 +524,17 @@ impl Lanes {
             if Simd::detect() >= Simd::Avx2 {
                 kinds.push(Lanes(Kind::Avx2));
             }
-            if wide_registers() {
+            if wide_cpu() {
                 kinds.push(Lanes(Kind::Avx2Wide));
             }
         }
         kinds
     }
 
-    /// The kind's name: `plain`, `sse2`, `avx2` or `avx2+avx512vl`.
+    /// The kind's name: `plain`, `sse2`, `avx2` or `avx2+avx512vl`. At
+    /// `SPH_SIMD=baseline` (the [`Simd::Baseline`] level) the best kind is
+    /// `sse2` on x86-64 and `plain` elsewhere; at `avx2` it is `avx2`; at
+    /// `avx512` `avx2+avx512vl` where the CPU has AVX-512VL.
     pub fn name(self) -> &'static str {
         match self.0 {
             Kind::Plain => "plain",
@@ -503,7 +547,8 @@ impl Lanes {
         }
     }
 
-    /// Runs `f` with these lanes.
+    /// Runs `f` with these lanes. `f`'s `call` must be `#[inline(always)]`
+    /// (see [`LaneFn`]).
     #[inline]
     pub fn run<F: LaneFn>(self, f: F) -> F::Out {
         match self.0 {
@@ -541,7 +586,8 @@ unsafe fn call_avx2<F: LaneFn>(f: F) -> F::Out {
 /// (see [`wide_registers`]).
 ///
 /// # Safety
-/// The CPU must support AVX2, AVX-512F and AVX-512VL.
+/// The CPU must support AVX2, AVX-512F, AVX-512VL, FMA and F16C (which
+/// AVX-512F implies to the compiler).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl")]
 unsafe fn call_avx512vl<F: LaneFn>(f: F) -> F::Out {
@@ -556,9 +602,17 @@ unsafe fn call_avx512vl<F: LaneFn>(f: F) -> F::Out {
 /// an operation differently, not change it.
 #[cfg(target_arch = "x86_64")]
 fn wide_registers() -> bool {
+    simd_level() >= Simd::Avx512 && wide_cpu()
+}
+
+/// Whether this CPU, whatever `SPH_SIMD` says, has what
+/// [`wide_registers`]' code is compiled for.
+#[cfg(target_arch = "x86_64")]
+fn wide_cpu() -> bool {
     use std::arch::is_x86_feature_detected as has;
-    // AVX-512F implies FMA and F16C to the compiler: a VM could hide them.
-    simd_level() >= Simd::Avx512 && has!("avx512vl") && has!("fma") && has!("f16c")
+    // AVX-512F implies FMA and F16C to the compiler: a VM could hide them
+    // (`Simd::detect` checks them for the AVX-512 level too).
+    Simd::detect() >= Simd::Avx512 && has!("avx512vl") && has!("fma") && has!("f16c")
 }
 
 #[cfg(test)]

@@ -8,8 +8,10 @@ use std::sync::OnceLock;
 
 /// A set of vector instructions the inner loops are written for.
 ///
-/// Ordered from the least to the most capable.
+/// Ordered from the least to the most capable. More levels may come (other
+/// architectures), so a match on it outside this crate needs a `_` arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+#[non_exhaustive]
 pub enum Simd {
     /// What every CPU of the target has: SSE2 on x86-64 (4-lane scan, scalar
     /// sums), scalar code elsewhere.
@@ -38,7 +40,8 @@ impl Simd {
             use std::arch::is_x86_feature_detected as has;
             // `SPH_SIMD=avx2` takes the AVX2 path on such a CPU, so the AVX-512
             // level needs AVX2 too (every AVX-512 CPU has it; a VM could hide it).
-            if has!("avx512f") && has!("avx2") && has!("popcnt") {
+            // AVX-512F also implies FMA and F16C to the compiler.
+            if has!("avx512f") && has!("avx2") && has!("popcnt") && has!("fma") && has!("f16c") {
                 return Simd::Avx512;
             }
             if has!("avx2") && has!("popcnt") {

@@ -7,15 +7,14 @@
 use rayon::prelude::*;
 
 use crate::NeighbourLists;
-#[cfg(test)]
-use crate::simd::Lanes;
-use crate::simd::{F32x8, LaneFn, with_lanes};
+use crate::simd::{F32x8, LaneFn, Lanes, with_lanes};
 
 /// A per-particle computation written over lanes of any kind.
 pub(super) trait LaneMap: Sync {
     /// What it gives per particle.
     type Out: Send + Copy + Default;
-    /// Particle `i`'s value, computed with lanes `S`.
+    /// Particle `i`'s value, computed with lanes `S`. Implementations
+    /// must be `#[inline(always)]` (see [`LaneFn`]).
     fn particle<S: F32x8>(&self, i: usize) -> Self::Out;
 }
 
@@ -66,6 +65,7 @@ pub(super) trait LaneRowMap: Sync {
     /// What it writes per pair.
     type Pair: Send;
     /// Particle `i`'s value, computed with lanes `S`; `pairs` is its row.
+    /// Implementations must be `#[inline(always)]` (see [`LaneFn`]).
     fn particle<S: F32x8>(&self, i: usize, pairs: &mut [Self::Pair]) -> Self::Out;
 }
 
@@ -86,7 +86,7 @@ impl<M: LaneRowMap> LaneFn for Row<'_, M> {
 
 /// Sets `out[i]` and row i of `pairs` by `map` for every particle of
 /// `lists`, in parallel ([`NeighbourLists::par_map_rows`]), with the lanes
-/// [`with_lanes`] picks.
+/// [`with_lanes`] picks ([`Lanes::best`]).
 ///
 /// # Panics
 /// As [`NeighbourLists::par_map_rows`]: unless `out` holds a value per
@@ -97,7 +97,8 @@ pub(super) fn par_map_rows<M: LaneRowMap>(
     out: &mut [M::Out],
     pairs: &mut [M::Pair],
 ) {
-    lists.par_map_rows(out, pairs, |i, _, pairs| with_lanes(Row { map, i, pairs }));
+    let lanes = Lanes::best();
+    lists.par_map_rows(out, pairs, |i, _, pairs| lanes.run(Row { map, i, pairs }));
 }
 
 /// `map`'s values for `n` particles with every kind of lanes this CPU
