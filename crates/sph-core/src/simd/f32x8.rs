@@ -43,6 +43,8 @@ pub trait F32x8:
     fn max(self, other: Self) -> Self;
     /// Per lane √.
     fn sqrt(self) -> Self;
+    /// Per lane `self > 0 ? value : +0` (a NaN in `self` gives +0).
+    fn where_positive(self, value: Self) -> Self;
     /// 1 in the first `count` lanes, 0 in the others.
     fn first(count: usize) -> Self;
     /// Four lane sets from eight rows of four floats, lane l of set k
@@ -76,6 +78,18 @@ pub trait F32x8:
     #[inline(always)]
     fn gather_rows8(rows: &[[f32; 8]], slots: &[u32; 8]) -> [Self; 8] {
         Self::transpose8(|l| &rows[slots[l] as usize])
+    }
+
+    /// Lanes `8 half .. 8 half + 8` of sixteen (`half` 0 or 1): a
+    /// 16-lane sum kept as two kinds' halves.
+    ///
+    /// # Panics
+    /// If `half` > 1.
+    #[inline(always)]
+    fn half(lanes: &[f32; 16], half: usize) -> Self {
+        let mut a = [0.0; 8];
+        a.copy_from_slice(&lanes[8 * half..8 * half + 8]);
+        Self::from_array(a)
     }
 
     /// Lane l gets `values[slots[l]]`.
@@ -187,6 +201,12 @@ impl F32x8 for Scalar {
         Scalar(self.0.map(f32::sqrt))
     }
     #[inline(always)]
+    fn where_positive(self, value: Self) -> Self {
+        Scalar(std::array::from_fn(|l| {
+            if self.0[l] > 0.0 { value.0[l] } else { 0.0 }
+        }))
+    }
+    #[inline(always)]
     fn first(count: usize) -> Self {
         Scalar(std::array::from_fn(|l| if l < count { 1.0 } else { 0.0 }))
     }
@@ -260,6 +280,15 @@ mod avx2 {
         #[inline(always)]
         fn sqrt(self) -> Self {
             Avx2(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn where_positive(self, value: Self) -> Self {
+            // All ones where self > 0 (ordered: false for NaN), then the
+            // value's bits or +0.
+            unsafe {
+                let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, _mm256_setzero_ps());
+                Avx2(_mm256_and_ps(positive, value.0))
+            }
         }
         #[inline(always)]
         fn first(count: usize) -> Self {
@@ -418,6 +447,18 @@ mod sse2 {
         #[inline(always)]
         fn sqrt(self) -> Self {
             Sse2(self.0.map(|r| unsafe { _mm_sqrt_ps(r) }))
+        }
+        #[inline(always)]
+        fn where_positive(self, value: Self) -> Self {
+            let [a, b] = self.0;
+            let [c, d] = value.0;
+            unsafe {
+                let zero = _mm_setzero_ps();
+                Sse2([
+                    _mm_and_ps(_mm_cmpgt_ps(a, zero), c),
+                    _mm_and_ps(_mm_cmpgt_ps(b, zero), d),
+                ])
+            }
         }
         #[inline(always)]
         fn first(count: usize) -> Self {
@@ -666,6 +707,10 @@ mod tests {
                 .collect();
             out.extend(S::load_vec3s(&v[5..]).map(S::to_array));
             out.extend(S::gather_rows8(self.rows8, slots).map(S::to_array));
+            out.push(a.where_positive(b).to_array());
+            out.push(b.where_positive(a).to_array());
+            let sixteen: [f32; 16] = std::array::from_fn(|l| l as f32 * 0.25);
+            out.push(S::half(&sixteen, 1).to_array());
             out
         }
     }
@@ -719,6 +764,20 @@ mod tests {
         assert_eq!(plain[19][1], 19.0 * 0.53, "gathered 8-row 19, entry 0");
         assert_eq!(plain[26][0], 3.0 * 0.53 - 7.0, "gathered 8-row 3, entry 7");
         assert_eq!(plain[23][7], 1.0 * 0.53 - 4.0, "gathered 8-row 1, entry 4");
+        // a = [1.5, -0, 0, NaN, 3, -2, inf, 1e-30], b = [0.25, 0, -0, 1, NaN, 7, 2, 3e-38].
+        assert!(plain[27][4].is_nan(), "3 > 0: b's NaN");
+        let mut positive = plain[27];
+        positive[4] = 9.0;
+        assert_eq!(positive, [0.25, 0.0, 0.0, 0.0, 9.0, 0.0, 2.0, 3e-38]);
+        assert_eq!(plain[27][1].to_bits(), 0, "−0 is not positive: +0");
+        assert!(plain[28][3].is_nan(), "1 > 0: a's NaN");
+        let mut positive = plain[28];
+        positive[3] = 9.0;
+        assert_eq!(
+            positive,
+            [1.5, 0.0, 0.0, 9.0, 0.0, -2.0, f32::INFINITY, 1e-30]
+        );
+        assert_eq!(plain[29], [2.0, 2.25, 2.5, 2.75, 3.0, 3.25, 3.5, 3.75]);
         let plain = bits(plain);
         for kind in &kinds[1..] {
             assert_eq!(bits(kind.run(ops)), plain, "{}", kind.name());

@@ -1,17 +1,15 @@
 //! WCSPH's force sums over a particle's neighbours (eq. 15, 17, 19–20) in
 //! 16 lanes: hit m of a neighbourhood goes to lane m mod 16
 //! (`Neighbourhood::hit_chunks`), and the lanes are reduced by the
-//! grid's fixed tree ([`reduce_lanes`]). The per-lane code is plain Rust
-//! compiled three times — for AVX-512 (where the compiler vectorises the 16
-//! lanes), for AVX2 and without target features — with the same operations
-//! in the same order (Rust contracts nothing into FMAs), so every CPU gets
-//! bitwise the same forces.
+//! grid's fixed tree ([`reduce_lanes`]). The 16 lanes are two halves of
+//! [`F32x8`] (`crate::simd`), with the same operations in the same order on
+//! every kind (Rust contracts nothing into FMAs), so every CPU gets bitwise
+//! the same forces.
 
 use glam::Vec3;
 
 use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, reduce_lanes as reduce};
-#[cfg(target_arch = "x86_64")]
-use crate::simd::{Simd, simd_level};
+use crate::simd::{F32x8, LaneFn, with_lanes};
 
 /// Per-particle data of the force sums, in slot order (see
 /// [`crate::NeighbourGrid::to_slot_order`]).
@@ -61,33 +59,6 @@ pub(crate) struct ForceSums {
     pub laplacian: f32,
 }
 
-/// The sums' 16 lanes.
-struct Lanes {
-    pressure: [[f32; LANES]; 3],
-    viscosity: [[f32; LANES]; 3],
-    normal: [[f32; LANES]; 3],
-    laplacian: [f32; LANES],
-}
-
-/// Defines `$name`: [`force_sums_lanes`] compiled with the target
-/// features `$features` (the same code, vectorised for them).
-macro_rules! force_sums_with {
-    ($name:ident, $features:literal) => {
-        /// # Safety
-        /// The CPU must support the target features this function enables.
-        #[cfg(target_arch = "x86_64")]
-        #[target_feature(enable = $features)]
-        unsafe fn $name(
-            nb: &Neighbourhood<'_>,
-            centre: Centre,
-            kernels: &ForceKernels,
-            fluid: &SlotFluid<'_>,
-        ) -> ForceSums {
-            force_sums_lanes(nb, centre, kernels, fluid)
-        }
-    };
-}
-
 /// The force sums of the neighbourhood `nb`'s `centre`. The centre itself
 /// adds to `normal` and `laplacian` only (its pressure and viscosity terms
 /// are exact zeros).
@@ -108,57 +79,77 @@ pub(crate) fn force_sums(
             .all(|s| s.len() >= n),
         "one value per slot"
     );
-    #[cfg(target_arch = "x86_64")]
-    match simd_level() {
-        // SAFETY: `simd_level` never exceeds what the CPU supports.
-        Simd::Avx512 => unsafe {
-            return force_sums_avx512(nb, centre, kernels, fluid);
-        },
-        // SAFETY: as above.
-        Simd::Avx2 => unsafe {
-            return force_sums_avx2(nb, centre, kernels, fluid);
-        },
-        Simd::Baseline => {}
-    }
-    force_sums_lanes(nb, centre, kernels, fluid)
+    with_lanes(Sums {
+        nb,
+        centre,
+        kernels,
+        fluid,
+    })
 }
 
-force_sums_with!(force_sums_avx2, "avx2");
-force_sums_with!(force_sums_avx512, "avx512f,avx2");
-
-/// The force sums with hit m of the neighbourhood (in slot order, row by
-/// row) in lane m mod 16.
-#[inline(always)]
-fn force_sums_lanes(
-    nb: &Neighbourhood<'_>,
+/// [`force_sums`]' work, for [`with_lanes`].
+struct Sums<'a> {
+    nb: &'a Neighbourhood<'a>,
     centre: Centre,
-    kernels: &ForceKernels,
-    fluid: &SlotFluid<'_>,
-) -> ForceSums {
-    let mut l = Lanes::new();
-    let mut hits = nb.hit_chunks();
-    while let Some(fill) = hits.next_fill() {
-        for chunk in fill.chunks(LANES) {
-            add_chunk(nb, &mut l, chunk, centre, kernels, fluid);
+    kernels: &'a ForceKernels,
+    fluid: &'a SlotFluid<'a>,
+}
+
+/// Per half of the 16 lanes: pressure (3), viscosity (3), normal (3),
+/// laplacian.
+type Acc<S> = [[S; 10]; 2];
+
+impl LaneFn for Sums<'_> {
+    type Out = ForceSums;
+
+    /// The force sums with hit m of the neighbourhood (in slot order, row
+    /// by row) in lane m mod 16.
+    #[inline(always)]
+    fn call<S: F32x8>(self) -> ForceSums {
+        let mut acc: Acc<S> = [[S::splat(0.0); 10]; 2];
+        let mut hits = self.nb.hit_chunks();
+        while let Some(fill) = hits.next_fill() {
+            for chunk in fill.chunks(LANES) {
+                add_chunk(&self, &mut acc, chunk);
+            }
         }
+        finish(&acc)
     }
-    l.finish()
+}
+
+/// The lanes reduced by [`reduce`]'s tree, each sum's halves as lanes
+/// 0–7 and 8–15.
+#[inline(always)]
+fn finish<S: F32x8>(acc: &Acc<S>) -> ForceSums {
+    let mut r = [0.0f32; 10];
+    for (e, sum) in r.iter_mut().enumerate() {
+        let mut lanes = [0.0; LANES];
+        lanes[..8].copy_from_slice(&acc[0][e].to_array());
+        lanes[8..].copy_from_slice(&acc[1][e].to_array());
+        *sum = reduce(&lanes);
+    }
+    ForceSums {
+        pressure: Vec3::new(r[0], r[1], r[2]),
+        viscosity: Vec3::new(r[3], r[4], r[5]),
+        normal: Vec3::new(r[6], r[7], r[8]),
+        laplacian: r[9],
+    }
 }
 
 /// Adds up to 16 hits (slots), hit k to lane k, to the lanes.
+// Loops over halves and axes, not closures: see `LaneFn`.
+#[allow(clippy::needless_range_loop)]
 #[inline(always)]
-fn add_chunk(
-    nb: &Neighbourhood<'_>,
-    l: &mut Lanes,
-    chunk: &[u32],
-    centre: Centre,
-    kernels: &ForceKernels,
-    fluid: &SlotFluid<'_>,
-) {
+fn add_chunk<S: F32x8>(sums: &Sums<'_>, acc: &mut Acc<S>, chunk: &[u32]) {
+    let Sums {
+        nb,
+        centre,
+        kernels,
+        fluid,
+    } = sums;
     let [xs, ys, zs] = nb.slot_coords();
     let c = nb.centre();
     let (h, h2) = nb.radius();
-    let three_h2 = 3.0 * h2;
     // Lanes past the hits repeat the chunk's first hit with weight 0: its
     // values are finite (it lies within h), and finite values times 0 add
     // exact zeros.
@@ -166,8 +157,7 @@ fn add_chunk(
     let mut weight = [0.0f32; LANES];
     slot[..chunk.len()].copy_from_slice(chunk);
     weight[..chunk.len()].fill(1.0);
-    // Gather the lanes' data, then compute on whole arrays: the second
-    // loop has no indexing by slot, so the compiler vectorises it.
+    // Gather the lanes' data, then compute on whole lanes.
     let mut g = [[0.0f32; LANES]; 9];
     for k in 0..LANES {
         let s = slot[k] as usize;
@@ -185,54 +175,48 @@ fn add_chunk(
             g[8][k] = *fluid.v[2].get_unchecked(s);
         }
     }
-    for k in 0..LANES {
-        let (vol, m, pr) = (weight[k] * g[3][k], weight[k] * g[4][k], g[5][k]);
+    let (hv, h2v, three_h2) = (S::splat(h), S::splat(h2), S::splat(3.0 * h2));
+    let (poly6_grad, visc_lap) = (S::splat(kernels.poly6_grad), S::splat(kernels.visc_lap));
+    let minus_poly6_grad = S::splat(-kernels.poly6_grad);
+    let centre_pressure = S::splat(centre.pressure);
+    let v_i = [
+        S::splat(centre.velocity.x),
+        S::splat(centre.velocity.y),
+        S::splat(centre.velocity.z),
+    ];
+    let cs = [S::splat(c.x), S::splat(c.y), S::splat(c.z)];
+    for half in 0..2 {
+        let w = S::half(&weight, half);
+        let vol = w * S::half(&g[3], half);
+        let m = w * S::half(&g[4], half);
+        let pr = S::half(&g[5], half);
         // The scan's arithmetic, so r² is the value it tested.
-        let d = [c.x - g[0][k], c.y - g[1][k], c.z - g[2][k]];
+        let d = [
+            cs[0] - S::half(&g[0], half),
+            cs[1] - S::half(&g[1], half),
+            cs[2] - S::half(&g[2], half),
+        ];
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        let t = h2 - r2;
-        let g6 = -kernels.poly6_grad * t * t;
+        let t = h2v - r2;
+        let g6 = minus_poly6_grad * t * t;
         let len = r2.sqrt();
         let gp = match kernels.spiky_grad {
             None => g6,
             Some(spiky) => {
-                let e = h - len;
-                let q = -spiky * e * e / len;
-                if len > 0.0 { q } else { 0.0 }
+                let e = hv - len;
+                len.where_positive(S::splat(-spiky) * e * e / len)
             }
         };
-        let fp = m * (centre.pressure + pr) * gp;
-        let fv = vol * (kernels.visc_lap * (h - len));
-        let v_i = centre.velocity;
-        let dv = [g[6][k] - v_i.x, g[7][k] - v_i.y, g[8][k] - v_i.z];
-        for a in 0..3 {
-            l.normal[a][k] += vol * (g6 * d[a]);
-            l.pressure[a][k] -= fp * d[a];
-            l.viscosity[a][k] += fv * dv[a];
+        let fp = m * (centre_pressure + pr) * gp;
+        let fv = vol * (visc_lap * (hv - len));
+        let a = &mut acc[half];
+        for axis in 0..3 {
+            let dv = S::half(&g[6 + axis], half) - v_i[axis];
+            a[axis] = a[axis] - fp * d[axis];
+            a[3 + axis] = a[3 + axis] + fv * dv;
+            a[6 + axis] = a[6 + axis] + vol * (g6 * d[axis]);
         }
-        l.laplacian[k] += vol * (kernels.poly6_grad * t * (7.0 * r2 - three_h2));
-    }
-}
-
-impl Lanes {
-    fn new() -> Self {
-        Self {
-            pressure: [[0.0; LANES]; 3],
-            viscosity: [[0.0; LANES]; 3],
-            normal: [[0.0; LANES]; 3],
-            laplacian: [0.0; LANES],
-        }
-    }
-
-    /// The lanes reduced by [`reduce`]'s tree.
-    fn finish(&self) -> ForceSums {
-        let v3 = |a: &[[f32; LANES]; 3]| Vec3::new(reduce(&a[0]), reduce(&a[1]), reduce(&a[2]));
-        ForceSums {
-            pressure: v3(&self.pressure),
-            viscosity: v3(&self.viscosity),
-            normal: v3(&self.normal),
-            laplacian: reduce(&self.laplacian),
-        }
+        a[9] = a[9] + vol * (poly6_grad * t * (S::splat(7.0) * r2 - three_h2));
     }
 }
 
@@ -242,6 +226,7 @@ mod tests {
     use crate::NeighbourGrid;
     use crate::kernels::sums::tests::cloud;
     use crate::kernels::{Kernel, Poly6, Spiky, Viscosity};
+    use crate::simd::Lanes;
 
     /// The sums term by term with the kernels' own functions, and the scale
     /// of their terms (Σ |term| per sum) for the rounding tolerance.
@@ -346,6 +331,24 @@ mod tests {
         }
     }
 
+    /// The sums over a list of hits cut into chunks of 16 here.
+    struct ByChunks<'a> {
+        sums: Sums<'a>,
+        hits: &'a [u32],
+    }
+
+    impl LaneFn for ByChunks<'_> {
+        type Out = ForceSums;
+        #[inline(always)]
+        fn call<S: F32x8>(self) -> ForceSums {
+            let mut acc: Acc<S> = [[S::splat(0.0); 10]; 2];
+            for chunk in self.hits.chunks(LANES) {
+                add_chunk(&self.sums, &mut acc, chunk);
+            }
+            finish(&acc)
+        }
+    }
+
     /// Hit m of a neighbourhood goes to lane m mod 16 however the scan's
     /// fills (whose lengths depend on the SIMD path) cut the hits: the sums
     /// of neighbourhoods of up to some 600 hits, more than two buffers, equal
@@ -364,12 +367,15 @@ mod tests {
                 let nb = grid.neighbourhood(i);
                 let mut hits = Vec::new();
                 nb.for_each_slot(|k, _, _| hits.push(k as u32));
-                let mut lanes = Lanes::new();
-                for chunk in hits.chunks(LANES) {
-                    add_chunk(&nb, &mut lanes, chunk, fluid.centre(i), &kernels, &by_slot);
-                }
+                let sums = Sums {
+                    nb: &nb,
+                    centre: fluid.centre(i),
+                    kernels: &kernels,
+                    fluid: &by_slot,
+                };
+                let by_chunks = Lanes::best().run(ByChunks { sums, hits: &hits });
                 let got = force_sums(&nb, fluid.centre(i), &kernels, &by_slot);
-                assert_eq!(got, lanes.finish(), "particle {i}, {} hits", hits.len());
+                assert_eq!(got, by_chunks, "particle {i}, {} hits", hits.len());
                 most = most.max(hits.len());
             }
         }
@@ -415,20 +421,14 @@ mod tests {
                     "{got:?} vs {want:?}"
                 );
                 found += nb.count();
-                let plain = force_sums_lanes(&nb, centre, &kernels, &fluid);
-                assert_eq!(got, plain, "the path this CPU runs");
-                #[cfg(target_arch = "x86_64")]
-                {
-                    if Simd::detect() >= Simd::Avx2 {
-                        // SAFETY: AVX2 was detected.
-                        let avx2 = unsafe { force_sums_avx2(&nb, centre, &kernels, &fluid) };
-                        assert_eq!(avx2, plain, "AVX2");
-                    }
-                    if Simd::detect() >= Simd::Avx512 {
-                        // SAFETY: AVX-512F and AVX2 were detected.
-                        let avx512 = unsafe { force_sums_avx512(&nb, centre, &kernels, &fluid) };
-                        assert_eq!(avx512, plain, "AVX-512");
-                    }
+                for lanes in Lanes::every() {
+                    let sums = Sums {
+                        nb: &nb,
+                        centre,
+                        kernels: &kernels,
+                        fluid: &fluid,
+                    };
+                    assert_eq!(lanes.run(sums), got, "{}", lanes.name());
                 }
             }
         }
