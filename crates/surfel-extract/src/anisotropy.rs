@@ -446,14 +446,6 @@ struct Near {
     w: [f32; CHUNK_LANES],
 }
 
-/// Lanes `8 half .. 8 half + 8` of a chunk's 16.
-#[inline(always)]
-fn half<S: F32x8>(lanes: &[f32; CHUNK_LANES], half: usize) -> S {
-    let mut a = [0.0; 8];
-    a.copy_from_slice(&lanes[8 * half..8 * half + 8]);
-    S::from_array(a)
-}
-
 /// Sets lanes `8 half .. 8 half + 8` of a chunk's 16.
 #[inline(always)]
 fn set_half<S: F32x8>(lanes: &mut [f32; CHUNK_LANES], half: usize, v: S) {
@@ -511,14 +503,14 @@ impl LaneFn for KernelOf<'_> {
                 w: [0.0; CHUNK_LANES],
             };
             for k in 0..2 {
-                let q = half::<S>(&ch.r2, k).sqrt() * inv_r;
-                let w = half::<S>(&ch.weight, k) * (one - q * q * q);
+                let q = S::half(&ch.r2, k).sqrt() * inv_r;
+                let w = S::half(&ch.weight, k) * (one - q * q * q);
                 // d = x_i − x_j: the offset of x_j from x_i is −d (−1 · d
                 // is exactly −d, signed zeros included).
                 let o = [
-                    minus * half(&ch.d[0], k),
-                    minus * half(&ch.d[1], k),
-                    minus * half(&ch.d[2], k),
+                    minus * S::half(&ch.d[0], k),
+                    minus * S::half(&ch.d[1], k),
+                    minus * S::half(&ch.d[2], k),
                 ];
                 let wo = [w * o[0], w * o[1], w * o[2]];
                 let a = &mut acc[k];
@@ -568,13 +560,13 @@ impl LaneFn for KernelOf<'_> {
                 let (mut sw, mut sum) = ([zero; 2], [zero; 2]);
                 for chunk in near.iter() {
                     for k in 0..2 {
-                        let t = half::<S>(&chunk.o[0], k) * nx
-                            + half::<S>(&chunk.o[1], k) * ny
-                            + half::<S>(&chunk.o[2], k) * nz;
+                        let t = S::half(&chunk.o[0], k) * nx
+                            + S::half(&chunk.o[1], k) * ny
+                            + S::half(&chunk.o[2], k) * nz;
                         let u = t * inv_tau;
                         // 0 outside the layer, |u| ≥ 1, without a branch.
                         let a = (one - u * u).max(zero);
-                        let wg = half::<S>(&chunk.w, k) * (a * a);
+                        let wg = S::half(&chunk.w, k) * (a * a);
                         sw[k] = sw[k] + wg;
                         sum[k] = sum[k] + wg * t;
                     }
