@@ -48,7 +48,7 @@ mod chunks;
 mod layout;
 mod lists;
 mod scan;
-pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_lanes};
+pub use chunks::{CHUNK_LANES, Chunk, Chunks, reduce_halves, reduce_lanes};
 pub use lists::NeighbourLists;
 /// For tests elsewhere in the crate: the scan's hit buffer.
 #[cfg(test)]

@@ -44,7 +44,7 @@
 
 use glam::{DMat3, DVec3, Mat3, Vec3};
 use sph_core::error::positive;
-use sph_core::grid::{CHUNK_LANES, reduce_lanes};
+use sph_core::grid::{CHUNK_LANES, reduce_halves};
 use sph_core::simd::{F32x8, LaneFn, with_lanes};
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Result};
 
@@ -446,21 +446,6 @@ struct Near {
     w: [f32; CHUNK_LANES],
 }
 
-/// Sets lanes `8 half .. 8 half + 8` of a chunk's 16.
-#[inline(always)]
-fn set_half<S: F32x8>(lanes: &mut [f32; CHUNK_LANES], half: usize, v: S) {
-    lanes[8 * half..8 * half + 8].copy_from_slice(&v.to_array());
-}
-
-/// 16 lanes held as two halves, summed by the grid's fixed tree.
-#[inline(always)]
-fn reduce<S: F32x8>(lo: S, hi: S) -> f32 {
-    let mut lanes = [0.0; CHUNK_LANES];
-    set_half(&mut lanes, 0, lo);
-    set_half(&mut lanes, 1, hi);
-    reduce_lanes(&lanes)
-}
-
 /// The smoothed centre and the kernel of the particle at `xi`, whose
 /// neighbours (itself included) within the pass's r are `nb`'s. Each sum is
 /// kept in 16 lanes (`sph-core`'s chunks of neighbours, as two halves of
@@ -524,16 +509,16 @@ impl LaneFn for KernelOf<'_> {
                 a[7] = a[7] + wo[1] * o[1];
                 a[8] = a[8] + wo[1] * o[2];
                 a[9] = a[9] + wo[2] * o[2];
-                set_half(&mut n.w, k, w);
+                w.store_half(&mut n.w, k);
                 for axis in 0..3 {
-                    set_half(&mut n.o[axis], k, o[axis]);
+                    o[axis].store_half(&mut n.o[axis], k);
                 }
             }
             near.push(n);
         }
         let mut sums = [0.0f32; 10];
         for e in 0..10 {
-            sums[e] = reduce(acc[0][e], acc[1][e]);
+            sums[e] = reduce_halves(acc[0][e], acc[1][e]);
         }
         let [sw, mx, my, mz, xx, xy, xz, yy, yz, zz] = sums;
         let neighbours = count.saturating_sub(1);
@@ -571,7 +556,9 @@ impl LaneFn for KernelOf<'_> {
                         sum[k] = sum[k] + wg * t;
                     }
                 }
-                xi + params.smoothing * (reduce(sum[0], sum[1]) / reduce(sw[0], sw[1])) * n
+                xi + params.smoothing
+                    * (reduce_halves(sum[0], sum[1]) / reduce_halves(sw[0], sw[1]))
+                    * n
             }
             _ => xi + params.smoothing * mean,
         };

@@ -19,6 +19,7 @@
 use glam::Vec3;
 
 use super::{Neighbourhood, SlotRange, scan};
+use crate::simd::F32x8;
 
 /// Lanes of a [`Chunk`].
 pub const CHUNK_LANES: usize = LANES;
@@ -60,6 +61,16 @@ fn reduce(l: &[f32; LANES]) -> f32 {
 #[inline]
 pub fn reduce_lanes(lanes: &[f32; CHUNK_LANES]) -> f32 {
     reduce(lanes)
+}
+
+/// [`reduce_lanes`] of 16 lanes held as two halves of [`F32x8`] (lanes 0–7
+/// and 8–15), as the lane code over the chunks keeps them.
+#[inline(always)]
+pub fn reduce_halves<S: F32x8>(lo: S, hi: S) -> f32 {
+    let mut lanes = [0.0; CHUNK_LANES];
+    lo.store_half(&mut lanes, 0);
+    hi.store_half(&mut lanes, 1);
+    reduce(&lanes)
 }
 
 impl Neighbourhood<'_> {

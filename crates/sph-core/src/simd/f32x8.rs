@@ -92,6 +92,16 @@ pub trait F32x8:
         Self::from_array(a)
     }
 
+    /// Writes the lanes to `lanes[8 half .. 8 half + 8]`: [`F32x8::half`]
+    /// the other way.
+    ///
+    /// # Panics
+    /// If `half` > 1.
+    #[inline(always)]
+    fn store_half(self, lanes: &mut [f32; 16], half: usize) {
+        lanes[8 * half..8 * half + 8].copy_from_slice(&self.to_array());
+    }
+
     /// Lane l gets `values[slots[l]]`.
     ///
     /// # Panics

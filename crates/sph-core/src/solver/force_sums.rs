@@ -1,14 +1,14 @@
 //! WCSPH's force sums over a particle's neighbours (eq. 15, 17, 19–20) in
 //! 16 lanes: hit m of a neighbourhood goes to lane m mod 16
 //! (`Neighbourhood::hit_chunks`), and the lanes are reduced by the
-//! grid's fixed tree ([`reduce_lanes`]). The 16 lanes are two halves of
+//! grid's fixed tree ([`crate::grid::reduce_halves`]). The 16 lanes are two halves of
 //! [`F32x8`] (`crate::simd`), with the same operations in the same order on
 //! every kind (Rust contracts nothing into FMAs), so every CPU gets bitwise
 //! the same forces.
 
 use glam::Vec3;
 
-use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, reduce_lanes as reduce};
+use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, reduce_halves};
 use crate::simd::{F32x8, LaneFn, with_lanes};
 
 /// Per-particle data of the force sums, in slot order (see
@@ -117,16 +117,13 @@ impl LaneFn for Sums<'_> {
     }
 }
 
-/// The lanes reduced by [`reduce`]'s tree, each sum's halves as lanes
+/// The lanes reduced by the grid's tree ([`reduce_halves`]), each sum's halves as lanes
 /// 0–7 and 8–15.
 #[inline(always)]
 fn finish<S: F32x8>(acc: &Acc<S>) -> ForceSums {
     let mut r = [0.0f32; 10];
     for (e, sum) in r.iter_mut().enumerate() {
-        let mut lanes = [0.0; LANES];
-        lanes[..8].copy_from_slice(&acc[0][e].to_array());
-        lanes[8..].copy_from_slice(&acc[1][e].to_array());
-        *sum = reduce(&lanes);
+        *sum = reduce_halves(acc[0][e], acc[1][e]);
     }
     ForceSums {
         pressure: Vec3::new(r[0], r[1], r[2]),
