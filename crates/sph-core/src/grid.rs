@@ -34,8 +34,8 @@
 //! Slot order depends only on (cell, input index), and each query visits rows in a
 //! fixed order and slots in increasing order, so every particle sees its neighbours
 //! in the same order for any number of threads: sums over neighbours are bitwise
-//! reproducible. [`Neighbourhood::poly6_sums`] is too, and its AVX-512, AVX2 and
-//! scalar paths give bitwise the same sums, so results do not depend on the CPU.
+//! reproducible. [`Neighbourhood::poly6_sums`] is too, and every kind of its
+//! lanes gives bitwise the same sums, so results do not depend on the CPU.
 
 use std::borrow::Cow;
 
@@ -54,10 +54,6 @@ pub use lists::NeighbourLists;
 #[cfg(test)]
 pub(crate) use scan::HIT_CAPACITY;
 use scan::Scan;
-/// For the kernel sums over a neighbourhood (`kernels/sums.rs`): the
-/// scan's distance test in vector registers.
-#[cfg(target_arch = "x86_64")]
-pub(crate) use scan::{offsets_avx2, offsets_avx512};
 
 /// The most particles a grid holds: slots are 32-bit, one value reserved.
 pub const MAX_PARTICLES: usize = u32::MAX as usize - 1;

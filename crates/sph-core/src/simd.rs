@@ -8,12 +8,11 @@
 //! bit ([`Lanes::every`]). `SPH_SIMD=baseline|avx2|avx512` lowers the level
 //! to measure the paths side by side on one machine.
 //!
-//! The solvers' pair sums (WCSPH's 16-lane force sums as two halves) and
-//! surfel-extract's anisotropic kernels and field sums are written over
-//! [`F32x8`]. The neighbour grid's scan and the poly6 sums
-//! ([`crate::Neighbourhood::poly6_sums`]), which mask candidates by the
-//! distance test as they load them, are still intrinsics of their own per
-//! [`Simd`] level.
+//! The solvers' pair sums (WCSPH's 16-lane force sums as two halves), the
+//! poly6 sums ([`crate::Neighbourhood::poly6_sums`]) and surfel-extract's
+//! anisotropic kernels and field sums are written over [`F32x8`]. The
+//! neighbour grid's scan, which packs its hits with each instruction set's
+//! own shuffles, is still intrinsics of its own per [`Simd`] level.
 //!
 //! # Example
 //!

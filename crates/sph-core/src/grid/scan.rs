@@ -272,7 +272,7 @@ impl<'a> Scan<'a> {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
-pub(crate) fn offsets_avx512(
+fn offsets_avx512(
     c: [std::arch::x86_64::__m512; 3],
     x: [std::arch::x86_64::__m512; 3],
 ) -> ([std::arch::x86_64::__m512; 3], std::arch::x86_64::__m512) {
@@ -313,7 +313,7 @@ static PACK: [u64; 256] = {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-pub(crate) fn offsets_avx2(
+fn offsets_avx2(
     c: [std::arch::x86_64::__m256; 3],
     x: [std::arch::x86_64::__m256; 3],
 ) -> ([std::arch::x86_64::__m256; 3], std::arch::x86_64::__m256) {

@@ -1,25 +1,24 @@
 //! Weighted poly6 sums over a neighbourhood, vectorised: the colour field and
 //! the density are Σ_j w_j W(x − x_j) and its derivatives, and computing them
-//! straight from the candidate chunks (16 lanes with AVX-512, 8 with AVX2,
-//! masked at a row's end) skips the hit buffer and the per-neighbour scalar loop of [`Neighbourhood::for_each`].
+//! straight from the candidate chunks (eight [`F32x8`] lanes at a time, the
+//! row's last chunk loaded only up to its end) skips the hit buffer and the
+//! per-neighbour scalar loop of [`Neighbourhood::for_each`].
 //!
 //! Neighbours are exactly [`Neighbourhood::for_each`]'s: the distance test is
 //! the scan's (same operations, no fused multiply-add). Each sum is kept in 16
-//! lanes, lane l taking the candidates 16m + l of each row, and the lanes are
-//! reduced by a fixed tree. The AVX2 path keeps the 16 lanes as two 8-lane
-//! halves, and the scalar path (the baseline) visits them one candidate at a
-//! time; both do the same operations in the same order (no fused multiply-add
-//! anywhere), so every path gives bitwise the same sums: a simulation or an
-//! extraction gives the same result on every CPU and for any number of
-//! threads.
+//! lanes, lane l taking the candidates 16m + l of each row, as two halves of
+//! eight, and the lanes are reduced by the grid's fixed tree
+//! ([`crate::grid::reduce_halves`]). Every kind of lanes does the same
+//! operations in the same order, and the tests hold them to a reference that
+//! visits the candidates one at a time, so the sums are bitwise the same on
+//! every CPU and for any number of threads.
 
 use glam::Vec3;
 
-use crate::grid::{CHUNK_LANES as LANES, Neighbourhood, SlotRange, reduce_lanes as reduce};
-#[cfg(target_arch = "x86_64")]
-use crate::grid::{offsets_avx2, offsets_avx512};
-#[cfg(target_arch = "x86_64")]
-use crate::simd::{Simd, simd_level};
+#[cfg(test)]
+use crate::grid::{CHUNK_LANES as LANES, reduce_lanes as reduce};
+use crate::grid::{Neighbourhood, SlotRange, reduce_halves};
+use crate::simd::{F32x8, LaneFn, with_lanes};
 use crate::{Kernel, Poly6};
 
 /// Σ_j w_j W, Σ_j w_j ∇W, Σ_j w_j ∇²W of the poly6 kernel over the neighbours
@@ -52,7 +51,8 @@ struct Raw {
     second: [f32; 6],
 }
 
-/// The per-lane sums of the scalar path, in [`Raw`]'s order.
+/// The per-lane sums of the scalar reference, in [`Raw`]'s order.
+#[cfg(test)]
 struct Lanes {
     t3: [f32; LANES],
     t2d: [[f32; LANES]; 3],
@@ -108,18 +108,12 @@ impl Neighbourhood<'_> {
             self.radius().0,
             "the kernel's h must be the grid's"
         );
-        #[cfg(target_arch = "x86_64")]
-        match simd_level() {
-            // SAFETY: `simd_level` never exceeds what the CPU supports.
-            Simd::Avx512 => return unsafe { self.raw_avx512::<SECOND>(weights) },
-            // SAFETY: as above.
-            Simd::Avx2 => return unsafe { self.raw_avx2::<SECOND>(weights) },
-            Simd::Baseline => {}
-        }
-        self.raw_scalar::<SECOND>(weights)
+        with_lanes(RawSums::<SECOND> { nb: self, weights })
     }
 
-    /// The AVX-512 path's lanes and operations, one candidate at a time.
+    /// The lanes' sums one candidate at a time: the reference the lane
+    /// kinds are tested against.
+    #[cfg(test)]
     fn raw_scalar<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
         let [xs, ys, zs] = self.slot_coords();
         let (c, h2) = (self.centre(), self.radius().1);
@@ -172,106 +166,93 @@ impl Neighbourhood<'_> {
             },
         }
     }
+}
 
-    /// The AVX-512 path's 16 lanes as two 8-lane halves: lanes 0–7 and 8–15 of
-    /// each chunk, every sum kept per half and lane and reduced at the end by
-    /// the same tree. Masked loads at a row's end (the weights are not padded).
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and POPCNT.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt")]
-    unsafe fn raw_avx2<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
-        use std::arch::x86_64::*;
-        let [xs, ys, zs] = self.slot_coords();
-        let (c, h2) = (self.centre(), self.radius().1);
-        let cs = [
-            _mm256_set1_ps(c.x),
-            _mm256_set1_ps(c.y),
-            _mm256_set1_ps(c.z),
-        ];
-        let lim = _mm256_set1_ps(h2);
-        let (seven, three_h2) = (_mm256_set1_ps(7.0), _mm256_set1_ps(3.0 * h2));
-        let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
-        let zero = _mm256_setzero_ps();
+/// The raw sums of a neighbourhood over [`F32x8`] lanes: each row's
+/// candidates eight at a time, alternating between the two halves of the
+/// 16 lanes (lane l of a row's chunk m taking candidate 16m + l), and the
+/// halves reduced by the grid's tree at the end.
+struct RawSums<'a, const SECOND: bool> {
+    nb: &'a Neighbourhood<'a>,
+    weights: &'a [f32],
+}
+
+impl<const SECOND: bool> LaneFn for RawSums<'_, SECOND> {
+    type Out = Raw;
+
+    #[inline(always)]
+    fn call<S: F32x8>(self) -> Raw {
+        let (nb, weights) = (self.nb, self.weights);
+        let [xs, ys, zs] = nb.slot_coords();
+        let (c, h2) = (nb.centre(), nb.radius().1);
+        let cs = [S::splat(c.x), S::splat(c.y), S::splat(c.z)];
+        let lim = S::splat(h2);
+        let (seven, three_h2) = (S::splat(7.0), S::splat(3.0 * h2));
+        let zero = S::splat(0.0);
         // [half][sum]: t3, t2d x/y/z, lap, then the second moment's six.
         let mut acc = [[zero; 11]; 2];
         let mut count = 0u32;
-        for &SlotRange { start, end } in self.rows() {
+        for &SlotRange { start, end } in nb.rows() {
             let (mut k, end) = (start as usize, end as usize);
             let mut half = 0;
             while k < end {
-                // The lanes before the row's end, as a mask.
-                let valid = _mm256_cmpgt_epi32(_mm256_set1_epi32((end - k).min(8) as i32), lane);
-                // SAFETY: full chunks lie inside the arrays; a row's last chunk
-                // loads only the lanes before `end`. Its other lanes take the
-                // centre (weight 0), as on the AVX-512 path: d = 0 there, so
-                // they add exact zeros even where |c|² would overflow.
-                let (x, y, z, w) = unsafe {
-                    if end - k >= 8 {
-                        (
-                            _mm256_loadu_ps(xs.as_ptr().add(k)),
-                            _mm256_loadu_ps(ys.as_ptr().add(k)),
-                            _mm256_loadu_ps(zs.as_ptr().add(k)),
-                            _mm256_loadu_ps(weights.as_ptr().add(k)),
-                        )
-                    } else {
-                        let at = |c, a: &[f32]| {
-                            _mm256_blendv_ps(
-                                c,
-                                _mm256_maskload_ps(a.as_ptr().add(k), valid),
-                                _mm256_castsi256_ps(valid),
-                            )
-                        };
-                        (
-                            at(cs[0], xs),
-                            at(cs[1], ys),
-                            at(cs[2], zs),
-                            _mm256_maskload_ps(weights.as_ptr().add(k), valid),
-                        )
-                    }
+                let n = end - k;
+                // A row's last chunk loads only the candidates before `end`
+                // (the weights are not padded); its other lanes take the
+                // centre with weight 0: d = 0 there, so they add exact
+                // zeros even where |c|² would overflow.
+                let (x, y, z, w) = if n >= 8 {
+                    (
+                        S::load(xs, k),
+                        S::load(ys, k),
+                        S::load(zs, k),
+                        S::load(weights, k),
+                    )
+                } else {
+                    (
+                        S::load_first(xs, k, n, cs[0]),
+                        S::load_first(ys, k, n, cs[1]),
+                        S::load_first(zs, k, n, cs[2]),
+                        S::load_first(weights, k, n, zero),
+                    )
                 };
-                // The scan's distance test, operation for operation. Lanes past
-                // `end` hold the centre and are masked out.
-                let ([dx, dy, dz], r2) = offsets_avx2(cs, [x, y, z]);
-                let hit = _mm256_and_ps(
-                    _mm256_castsi256_ps(valid),
-                    _mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim),
-                );
-                count += (_mm256_movemask_ps(hit) as u32).count_ones();
-                let t = _mm256_sub_ps(lim, r2);
-                // As the AVX-512 path: zero outside the hits, no fused multiply-add.
-                let wt = _mm256_and_ps(hit, _mm256_mul_ps(w, t));
-                let wt2 = _mm256_mul_ps(wt, t);
+                // The scan's distance test, operation for operation.
+                let (dx, dy, dz) = (cs[0] - x, cs[1] - y, cs[2] - z);
+                let r2 = dx * dx + dy * dy + dz * dz;
+                count += r2.count_le(lim, n);
+                let t = lim - r2;
+                // Zero outside the hits, so every product below is too, and
+                // adding it leaves a lane as the scalar sums leave it. No
+                // fused multiply-add: the reference has none to match.
+                let wt = r2.where_le(lim, w * t);
+                let wt2 = wt * t;
                 let a = &mut acc[half];
-                let add = |acc: &mut __m256, p, q| *acc = _mm256_add_ps(*acc, _mm256_mul_ps(p, q));
-                add(&mut a[0], wt2, t);
-                add(&mut a[1], wt2, dx);
-                add(&mut a[2], wt2, dy);
-                add(&mut a[3], wt2, dz);
-                add(
-                    &mut a[4],
-                    wt,
-                    _mm256_sub_ps(_mm256_mul_ps(seven, r2), three_h2),
-                );
+                a[0] = a[0] + wt2 * t;
+                a[1] = a[1] + wt2 * dx;
+                a[2] = a[2] + wt2 * dy;
+                a[3] = a[3] + wt2 * dz;
+                a[4] = a[4] + wt * (seven * r2 - three_h2);
                 if SECOND {
                     let (dx, dy, dz) = (
-                        _mm256_and_ps(hit, dx),
-                        _mm256_and_ps(hit, dy),
-                        _mm256_and_ps(hit, dz),
+                        r2.where_le(lim, dx),
+                        r2.where_le(lim, dy),
+                        r2.where_le(lim, dz),
                     );
-                    add(&mut a[5], dx, dx);
-                    add(&mut a[6], dx, dy);
-                    add(&mut a[7], dx, dz);
-                    add(&mut a[8], dy, dy);
-                    add(&mut a[9], dy, dz);
-                    add(&mut a[10], dz, dz);
+                    a[5] = a[5] + dx * dx;
+                    a[6] = a[6] + dx * dy;
+                    a[7] = a[7] + dx * dz;
+                    a[8] = a[8] + dy * dy;
+                    a[9] = a[9] + dy * dz;
+                    a[10] = a[10] + dz * dz;
                 }
                 half ^= 1;
                 k += 8;
             }
         }
-        let r: [f32; 11] = std::array::from_fn(|i| reduce_avx2(acc[0][i], acc[1][i]));
+        let mut r = [0.0; 11];
+        for (i, r) in r.iter_mut().enumerate() {
+            *r = reduce_halves(acc[0][i], acc[1][i]);
+        }
         Raw {
             count,
             t3: r[0],
@@ -284,130 +265,6 @@ impl Neighbourhood<'_> {
             },
         }
     }
-
-    /// Sixteen candidates at a time: masked loads at a row's end, every sum
-    /// kept per lane and reduced once at the end.
-    ///
-    /// # Safety
-    /// The CPU must support AVX-512F and POPCNT.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f,popcnt")]
-    unsafe fn raw_avx512<const SECOND: bool>(&self, weights: &[f32]) -> Raw {
-        use std::arch::x86_64::*;
-        let [xs, ys, zs] = self.slot_coords();
-        let (c, h2) = (self.centre(), self.radius().1);
-        let (cx, cy, cz) = (
-            _mm512_set1_ps(c.x),
-            _mm512_set1_ps(c.y),
-            _mm512_set1_ps(c.z),
-        );
-        let lim = _mm512_set1_ps(h2);
-        let (seven, three_h2) = (_mm512_set1_ps(7.0), _mm512_set1_ps(3.0 * h2));
-        let zero = _mm512_setzero_ps();
-        let (mut t3, mut gx, mut gy, mut gz, mut lap) = (zero, zero, zero, zero, zero);
-        let mut second = [zero; 6];
-        let mut count = 0u32;
-        for &SlotRange { start, end } in self.rows() {
-            let (mut k, end) = (start as usize, end as usize);
-            while k < end {
-                let valid: __mmask16 = if end - k >= 16 {
-                    u16::MAX
-                } else {
-                    (1u16 << (end - k)) - 1
-                };
-                // SAFETY: the masked loads touch only lanes k..end, and every
-                // row lies inside the coordinate arrays and, as the grid has
-                // `weights.len()` or fewer slots (asserted), inside `weights`.
-                // Lanes past `end` take the centre (weight 0): d = 0 there, so
-                // they add exact zeros even where |c|² would overflow.
-                let (x, y, z, w) = unsafe {
-                    (
-                        _mm512_mask_loadu_ps(cx, valid, xs.as_ptr().add(k)),
-                        _mm512_mask_loadu_ps(cy, valid, ys.as_ptr().add(k)),
-                        _mm512_mask_loadu_ps(cz, valid, zs.as_ptr().add(k)),
-                        _mm512_maskz_loadu_ps(valid, weights.as_ptr().add(k)),
-                    )
-                };
-                // The scan's distance test, operation for operation.
-                let ([dx, dy, dz], r2) = offsets_avx512([cx, cy, cz], [x, y, z]);
-                let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OQ>(valid, r2, lim);
-                count += hit.count_ones();
-                let t = _mm512_sub_ps(lim, r2);
-                // Zero outside the hits, so every product below is too, and
-                // adding it leaves a lane as the scalar path leaves it. No
-                // fused multiply-add: the scalar path has none to match.
-                let wt = _mm512_maskz_mul_ps(hit, w, t);
-                let wt2 = _mm512_mul_ps(wt, t);
-                let add = |acc, a, b| _mm512_add_ps(acc, _mm512_mul_ps(a, b));
-                t3 = add(t3, wt2, t);
-                gx = add(gx, wt2, dx);
-                gy = add(gy, wt2, dy);
-                gz = add(gz, wt2, dz);
-                lap = add(lap, wt, _mm512_sub_ps(_mm512_mul_ps(seven, r2), three_h2));
-                if SECOND {
-                    let (dx, dy, dz) = (
-                        _mm512_maskz_mov_ps(hit, dx),
-                        _mm512_maskz_mov_ps(hit, dy),
-                        _mm512_maskz_mov_ps(hit, dz),
-                    );
-                    second[0] = add(second[0], dx, dx);
-                    second[1] = add(second[1], dx, dy);
-                    second[2] = add(second[2], dx, dz);
-                    second[3] = add(second[3], dy, dy);
-                    second[4] = add(second[4], dy, dz);
-                    second[5] = add(second[5], dz, dz);
-                }
-                k += 16;
-            }
-        }
-        Raw {
-            count,
-            t3: reduce_avx512(t3),
-            t2d: [reduce_avx512(gx), reduce_avx512(gy), reduce_avx512(gz)],
-            lap: reduce_avx512(lap),
-            second: [
-                reduce_avx512(second[0]),
-                reduce_avx512(second[1]),
-                reduce_avx512(second[2]),
-                reduce_avx512(second[3]),
-                reduce_avx512(second[4]),
-                reduce_avx512(second[5]),
-            ],
-        }
-    }
-}
-
-/// [`reduce`]'s tree on a vector's 16 lanes.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-#[inline]
-fn reduce_avx512(v: std::arch::x86_64::__m512) -> f32 {
-    use std::arch::x86_64::*;
-    // a[i] = l[i] + l[i + 8], as two 4-lane halves.
-    let a_lo = _mm_add_ps(
-        _mm512_extractf32x4_ps::<0>(v),
-        _mm512_extractf32x4_ps::<2>(v),
-    );
-    let a_hi = _mm_add_ps(
-        _mm512_extractf32x4_ps::<1>(v),
-        _mm512_extractf32x4_ps::<3>(v),
-    );
-    let b = _mm_add_ps(a_lo, a_hi);
-    let c = _mm_add_ps(b, _mm_movehl_ps(b, b));
-    _mm_cvtss_f32(_mm_add_ss(c, _mm_shuffle_ps::<0b01>(c, c)))
-}
-
-/// [`reduce`]'s tree on 16 lanes held as two 8-lane halves.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn reduce_avx2(lo: std::arch::x86_64::__m256, hi: std::arch::x86_64::__m256) -> f32 {
-    use std::arch::x86_64::*;
-    // a[i] = l[i] + l[i + 8].
-    let a = _mm256_add_ps(lo, hi);
-    let b = _mm_add_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps::<1>(a));
-    let c = _mm_add_ps(b, _mm_movehl_ps(b, b));
-    _mm_cvtss_f32(_mm_add_ss(c, _mm_shuffle_ps::<0b01>(c, c)))
 }
 
 #[cfg(test)]
@@ -511,24 +368,36 @@ pub(crate) mod tests {
             assert_close(got, want);
             assert_eq!(nb.poly6_sums(&kernel, &by_slot), got.0);
             assert_eq!(got.0.count as usize, nb.count());
-            // Bitwise the path this CPU runs, and every vector path it can
-            // run: results do not depend on the CPU.
+            // Bitwise the scalar reference on every kind of lanes this CPU
+            // runs: results do not depend on the CPU.
             let scalar = nb.raw_scalar::<true>(&by_slot);
             assert_eq!(scalar, nb.raw::<true>(&kernel, &by_slot));
-            #[cfg(target_arch = "x86_64")]
-            {
-                if Simd::detect() >= Simd::Avx2 {
-                    // SAFETY: AVX2 and POPCNT were detected.
-                    let avx2 = unsafe { nb.raw_avx2::<true>(&by_slot) };
-                    assert_eq!(avx2, scalar, "AVX2");
-                    let avx2 = unsafe { nb.raw_avx2::<false>(&by_slot) };
-                    assert_eq!(avx2.t2d, scalar.t2d, "AVX2");
-                }
-                if Simd::detect() >= Simd::Avx512 {
-                    // SAFETY: AVX-512F and POPCNT were detected.
-                    let avx512 = unsafe { nb.raw_avx512::<true>(&by_slot) };
-                    assert_eq!(avx512, scalar, "AVX-512");
-                }
+            for lanes in crate::simd::Lanes::every() {
+                let bits = |r: Raw| {
+                    let mut v = vec![r.count, r.t3.to_bits(), r.lap.to_bits()];
+                    v.extend(r.t2d.map(f32::to_bits));
+                    v.extend(r.second.map(f32::to_bits));
+                    v
+                };
+                let sums = |second| {
+                    let (nb, weights) = (nb, &by_slot[..]);
+                    if second {
+                        lanes.run(RawSums::<true> { nb, weights })
+                    } else {
+                        lanes.run(RawSums::<false> { nb, weights })
+                    }
+                };
+                assert_eq!(bits(sums(true)), bits(scalar), "{}", lanes.name());
+                let first = sums(false);
+                assert_eq!(
+                    bits(Raw {
+                        second: [0.0; 6],
+                        ..scalar
+                    }),
+                    bits(first),
+                    "{}",
+                    lanes.name()
+                );
             }
             assert_eq!((scalar.finish(&kernel), scalar.second), got);
         }

@@ -45,6 +45,11 @@ pub trait F32x8:
     fn sqrt(self) -> Self;
     /// Per lane `self > 0 ? value : +0` (a NaN in `self` gives +0).
     fn where_positive(self, value: Self) -> Self;
+    /// Per lane `self <= limit ? value : +0` (a NaN on either side gives +0).
+    fn where_le(self, limit: Self, value: Self) -> Self;
+    /// How many of the first `lanes` lanes (at most 8) have
+    /// `self <= limit` (a NaN on either side does not count).
+    fn count_le(self, limit: Self, lanes: usize) -> u32;
     /// 1 in the first `count` lanes, 0 in the others.
     fn first(count: usize) -> Self;
     /// Four lane sets from eight rows of four floats, lane l of set k
@@ -78,6 +83,31 @@ pub trait F32x8:
     #[inline(always)]
     fn gather_rows8(rows: &[[f32; 8]], slots: &[u32; 8]) -> [Self; 8] {
         Self::transpose8(|l| &rows[slots[l] as usize])
+    }
+
+    /// Lanes from `values[at..at + 8]`.
+    ///
+    /// # Panics
+    /// If `values` holds fewer than `at + 8` floats.
+    #[inline(always)]
+    fn load(values: &[f32], at: usize) -> Self {
+        let mut a = [0.0; 8];
+        a.copy_from_slice(&values[at..at + 8]);
+        Self::from_array(a)
+    }
+
+    /// The first `count` lanes (all eight if `count` ≥ 8) from
+    /// `values[at..]`, the others `fill`'s: the last chunk of a run of
+    /// values, read without touching anything past its end.
+    ///
+    /// # Panics
+    /// If `values` holds fewer than `at + min(count, 8)` floats.
+    #[inline(always)]
+    fn load_first(values: &[f32], at: usize, count: usize, fill: Self) -> Self {
+        let mut a = fill.to_array();
+        let n = count.min(8);
+        a[..n].copy_from_slice(&values[at..at + n]);
+        Self::from_array(a)
     }
 
     /// Lanes `8 half .. 8 half + 8` of sixteen (`half` 0 or 1): a
@@ -217,6 +247,22 @@ impl F32x8 for Scalar {
         }))
     }
     #[inline(always)]
+    fn where_le(self, limit: Self, value: Self) -> Self {
+        Scalar(std::array::from_fn(|l| {
+            if self.0[l] <= limit.0[l] {
+                value.0[l]
+            } else {
+                0.0
+            }
+        }))
+    }
+    #[inline(always)]
+    fn count_le(self, limit: Self, lanes: usize) -> u32 {
+        (0..lanes.min(8))
+            .map(|l| u32::from(self.0[l] <= limit.0[l]))
+            .sum()
+    }
+    #[inline(always)]
     fn first(count: usize) -> Self {
         Scalar(std::array::from_fn(|l| if l < count { 1.0 } else { 0.0 }))
     }
@@ -298,6 +344,40 @@ mod avx2 {
             unsafe {
                 let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, _mm256_setzero_ps());
                 Avx2(_mm256_and_ps(positive, value.0))
+            }
+        }
+        #[inline(always)]
+        fn where_le(self, limit: Self, value: Self) -> Self {
+            // All ones where self <= limit (ordered: false for NaN).
+            unsafe {
+                let le = _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, limit.0);
+                Avx2(_mm256_and_ps(le, value.0))
+            }
+        }
+        #[inline(always)]
+        fn count_le(self, limit: Self, lanes: usize) -> u32 {
+            let le = unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, limit.0)) };
+            let first = (1u32 << lanes.min(8)) - 1;
+            (le as u32 & first).count_ones()
+        }
+        #[inline(always)]
+        fn load(values: &[f32], at: usize) -> Self {
+            let v = &values[at..at + 8];
+            Avx2(unsafe { _mm256_loadu_ps(v.as_ptr()) })
+        }
+        #[inline(always)]
+        fn load_first(values: &[f32], at: usize, count: usize, fill: Self) -> Self {
+            if count >= 8 {
+                return Self::load(values, at);
+            }
+            let v = &values[at..at + count];
+            // The masked load reads only the first `count` lanes, which
+            // `v` holds; a blend puts `fill` in the others.
+            unsafe {
+                let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+                let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(count as i32), lane);
+                let loaded = _mm256_maskload_ps(v.as_ptr(), mask);
+                Avx2(_mm256_blendv_ps(fill.0, loaded, _mm256_castsi256_ps(mask)))
             }
         }
         #[inline(always)]
@@ -471,6 +551,33 @@ mod sse2 {
             }
         }
         #[inline(always)]
+        fn where_le(self, limit: Self, value: Self) -> Self {
+            let [a, b] = self.0;
+            let [c, d] = limit.0;
+            let [e, f] = value.0;
+            unsafe {
+                Sse2([
+                    _mm_and_ps(_mm_cmple_ps(a, c), e),
+                    _mm_and_ps(_mm_cmple_ps(b, d), f),
+                ])
+            }
+        }
+        #[inline(always)]
+        fn count_le(self, limit: Self, lanes: usize) -> u32 {
+            let [a, b] = self.0;
+            let [c, d] = limit.0;
+            let le = unsafe {
+                _mm_movemask_ps(_mm_cmple_ps(a, c)) | (_mm_movemask_ps(_mm_cmple_ps(b, d)) << 4)
+            };
+            let first = (1u32 << lanes.min(8)) - 1;
+            (le as u32 & first).count_ones()
+        }
+        #[inline(always)]
+        fn load(values: &[f32], at: usize) -> Self {
+            let v = &values[at..at + 8];
+            unsafe { Sse2([_mm_loadu_ps(v.as_ptr()), _mm_loadu_ps(v.as_ptr().add(4))]) }
+        }
+        #[inline(always)]
         fn first(count: usize) -> Self {
             unsafe {
                 let lane = |l: f32| _mm_setr_ps(l, l + 1.0, l + 2.0, l + 3.0);
@@ -626,9 +733,9 @@ pub fn with_lanes<F: LaneFn>(f: F) -> F::Out {
 /// [`LaneFn::call`] with the AVX2 lanes, compiled with AVX2.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// The CPU must support AVX2 and POPCNT (which the AVX2 level requires).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,popcnt")]
 unsafe fn call_avx2<F: LaneFn>(f: F) -> F::Out {
     f.call::<Avx2>()
 }
@@ -640,7 +747,7 @@ unsafe fn call_avx2<F: LaneFn>(f: F) -> F::Out {
 /// The CPU must support AVX2, AVX-512F, AVX-512VL, FMA and F16C (which
 /// AVX-512F implies to the compiler).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,avx512f,avx512vl")]
+#[target_feature(enable = "avx2,avx512f,avx512vl,popcnt")]
 unsafe fn call_avx512vl<F: LaneFn>(f: F) -> F::Out {
     f.call::<Avx2>()
 }
@@ -721,6 +828,17 @@ mod tests {
             out.push(b.where_positive(a).to_array());
             let sixteen: [f32; 16] = std::array::from_fn(|l| l as f32 * 0.25);
             out.push(S::half(&sixteen, 1).to_array());
+            out.push(a.where_le(b, S::splat(4.0)).to_array());
+            out.push(b.where_le(a, a).to_array());
+            let counts = [0, 1, 5, 8, 9].map(|n| a.count_le(b, n) as f32);
+            out.push([
+                counts[0], counts[1], counts[2], counts[3], counts[4], 0.0, 0.0, 0.0,
+            ]);
+            out.push(S::load(self.values, 3).to_array());
+            let fill = S::splat(-1.0);
+            out.push(S::load_first(self.values, 17, 3, fill).to_array());
+            out.push(S::load_first(self.values, 12, 8, fill).to_array());
+            out.push(S::load_first(self.values, 20, 0, fill).to_array());
             out
         }
     }
@@ -788,6 +906,29 @@ mod tests {
             [1.5, 0.0, 0.0, 9.0, 0.0, -2.0, f32::INFINITY, 1e-30]
         );
         assert_eq!(plain[29], [2.0, 2.25, 2.5, 2.75, 3.0, 3.25, 3.5, 3.75]);
+        // a <= b: 1.5 no, −0 <= 0, 0 <= −0, NaN no, 3 <= NaN no, −2 <= 7,
+        // inf no, 1e-30 no.
+        assert_eq!(plain[30], [0.0, 4.0, 4.0, 0.0, 0.0, 4.0, 0.0, 0.0]);
+        assert_eq!(plain[31][0], 1.5, "0.25 <= 1.5: a's lane");
+        assert_eq!(plain[31][4], 0.0, "NaN <= 3 is false");
+        assert_eq!(plain[31][7], 1e-30, "3e-38 <= 1e-30");
+        assert_eq!(plain[32][..5], [0.0, 0.0, 2.0, 3.0, 3.0]);
+        assert_eq!(plain[33], std::array::from_fn(|l| (3 + l) as f32 * 1.1));
+        assert_eq!(
+            plain[34],
+            [
+                17.0 * 1.1,
+                18.0 * 1.1,
+                19.0 * 1.1,
+                -1.0,
+                -1.0,
+                -1.0,
+                -1.0,
+                -1.0
+            ]
+        );
+        assert_eq!(plain[35], std::array::from_fn(|l| (12 + l) as f32 * 1.1));
+        assert_eq!(plain[36], [-1.0; 8], "none loaded past the end");
         let plain = bits(plain);
         for kind in &kinds[1..] {
             assert_eq!(bits(kind.run(ops)), plain, "{}", kind.name());
