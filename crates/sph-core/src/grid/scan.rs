@@ -2,11 +2,17 @@
 //!
 //! A [`Scan`] walks the 9 slot ranges ("rows") of a neighbourhood and writes the
 //! slots within h of the centre into a hit buffer, a chunk of candidates at a
-//! time: 16 lanes with AVX-512F, 8 with AVX2, 4 with SSE2 (part of every x86-64
-//! CPU), else one at a time ([`crate::simd::simd_level`] picks). The chunks write
-//! their hits branch-free (packed in a register and stored whole), and the caller
-//! then visits the buffer in one loop: its closure has a single call site, so the
-//! compiler inlines it and keeps the caller's sums in registers.
+//! time: eight [`F32x8`] lanes (the kind [`with_lanes`] picks: AVX2, SSE2 or
+//! plain arrays), or 16 with AVX-512F. The chunks write their hits branch-free
+//! (packed in a register and stored whole: [`F32x8::pack_le`], AVX-512's
+//! compress), and the caller then visits the buffer in one loop: its closure has
+//! a single call site, so the compiler inlines it and keeps the caller's sums in
+//! registers.
+//!
+//! The AVX-512 path is the one piece of SIMD outside [`crate::simd`]: its
+//! 16-lane compress made the neighbour search 8 % faster than the AVX2 path on
+//! the one AVX-512 machine measured (BENCHMARKS.md, "CPU paths side by side"),
+//! and the room's lanes are eight wide.
 //!
 //! Every path computes `d = c − x` and `d.x² + d.y² + d.z²` with the same
 //! operations in the same order (no fused multiply-add), so all of them accept
@@ -16,11 +22,12 @@
 use glam::Vec3;
 
 use super::SlotRange;
+use crate::simd::{F32x8, LaneFn, with_lanes};
 #[cfg(target_arch = "x86_64")]
 use crate::simd::{Simd, simd_level};
 
 /// Entries past the last slot that the coordinate arrays must carry (any finite
-/// or NaN value): the AVX2 and SSE2 paths load whole 8- and 4-lane chunks.
+/// or NaN value): the eight-lane path loads whole chunks of 8.
 pub(super) const PADDING: usize = 7;
 
 /// Hit buffer size of the scans that keep a buffer for many neighbourhoods
@@ -92,17 +99,16 @@ impl<'a> Scan<'a> {
         };
         assert!(start <= MAX_LANES, "at most one chunk carried over");
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `simd_level` never exceeds what the CPU supports (AVX-512F and
-        // POPCNT, or AVX2), and SSE2 is part of the x86-64 baseline.
-        unsafe {
-            match simd_level() {
-                Simd::Avx512 => self.fill_avx512(hits, start),
-                Simd::Avx2 => self.fill_avx2(hits, start),
-                Simd::Baseline => self.fill_sse2(hits, start),
-            }
+        if simd_level() == Simd::Avx512 {
+            // SAFETY: `simd_level` never exceeds what the CPU supports
+            // (AVX-512F and POPCNT).
+            return unsafe { self.fill_avx512(hits, start) };
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        self.fill_scalar(hits, start)
+        with_lanes(Fill {
+            scan: self,
+            hits,
+            start,
+        })
     }
 
     /// The row loop shared by every path: `chunk(k, end, hits, n)` tests the slots
@@ -135,90 +141,13 @@ impl<'a> Scan<'a> {
     }
 
     /// One candidate at a time: the reference the vector paths are tested against.
-    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+    #[cfg(test)]
     fn fill_scalar<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
         let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
         self.drive::<1, N>(hits, start, |k, _, hits, n| {
             let d = Vec3::new(c.x - xs[k], c.y - ys[k], c.z - zs[k]);
             hits[n] = k as u32;
             n + usize::from(d.x * d.x + d.y * d.y + d.z * d.z <= h2)
-        })
-    }
-
-    /// Four candidates at a time; each lane writes its slot and advances the
-    /// count by its test result, so there is no branch per hit.
-    ///
-    /// # Safety
-    /// The CPU must support SSE2 (every x86-64 CPU does).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "sse2")]
-    unsafe fn fill_sse2<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
-        use std::arch::x86_64::*;
-        let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
-        let (cx, cy, cz) = (_mm_set1_ps(c.x), _mm_set1_ps(c.y), _mm_set1_ps(c.z));
-        let lim = _mm_set1_ps(h2);
-        self.drive::<4, N>(hits, start, |k, end, hits, mut n| {
-            // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
-            // row's end (asserted in `new`), so xs/ys/zs[k..k + 4] are in bounds.
-            let (x, y, z) = unsafe {
-                (
-                    _mm_loadu_ps(xs.as_ptr().add(k)),
-                    _mm_loadu_ps(ys.as_ptr().add(k)),
-                    _mm_loadu_ps(zs.as_ptr().add(k)),
-                )
-            };
-            let (dx, dy, dz) = (_mm_sub_ps(cx, x), _mm_sub_ps(cy, y), _mm_sub_ps(cz, z));
-            let r2 = _mm_add_ps(
-                _mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
-                _mm_mul_ps(dz, dz),
-            );
-            let valid = (1u32 << (end - k).min(4)) - 1;
-            let mask = _mm_movemask_ps(_mm_cmple_ps(r2, lim)) as u32 & valid;
-            for l in 0..4 {
-                hits[n] = (k + l) as u32;
-                n += ((mask >> l) & 1) as usize;
-            }
-            n
-        })
-    }
-
-    /// Eight candidates at a time; the hit slots are packed to the front of a
-    /// register by a permutation looked up by the hit mask ([`PACK`]) and
-    /// stored with one 8-lane store.
-    ///
-    /// # Safety
-    /// The CPU must support AVX2 and POPCNT.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,popcnt")]
-    unsafe fn fill_avx2<const N: usize>(&mut self, hits: &mut [u32; N], start: usize) -> usize {
-        use std::arch::x86_64::*;
-        let (c, h2, [xs, ys, zs]) = (self.centre, self.h2, self.coords);
-        let cs = [
-            _mm256_set1_ps(c.x),
-            _mm256_set1_ps(c.y),
-            _mm256_set1_ps(c.z),
-        ];
-        let lim = _mm256_set1_ps(h2);
-        self.drive::<8, N>(hits, start, |k, end, hits, n| {
-            // SAFETY: k < end and the arrays extend PADDING = 7 entries past every
-            // row's end (asserted in `new`), so xs/ys/zs[k..k + 8] are in bounds;
-            // the store writes 8 entries at hits[n..], and the driver calls with
-            // n <= N - MAX_LANES (N >= 2 MAX_LANES, asserted in `fill`).
-            debug_assert!(n + 8 <= N);
-            unsafe {
-                let x = [
-                    _mm256_loadu_ps(xs.as_ptr().add(k)),
-                    _mm256_loadu_ps(ys.as_ptr().add(k)),
-                    _mm256_loadu_ps(zs.as_ptr().add(k)),
-                ];
-                let (_, r2) = offsets_avx2(cs, x);
-                let valid = (1u32 << (end - k).min(8)) - 1;
-                let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(r2, lim)) as u32 & valid;
-                let order = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(PACK[mask as usize] as i64));
-                let packed = _mm256_add_epi32(_mm256_set1_epi32(k as i32), order);
-                _mm256_storeu_si256(hits.as_mut_ptr().add(n).cast(), packed);
-                n + mask.count_ones() as usize
-            }
         })
     }
 
@@ -267,6 +196,63 @@ impl<'a> Scan<'a> {
     }
 }
 
+/// One [`Scan::fill`] over [`F32x8`] lanes: eight candidates at a time,
+/// each chunk's hits packed to the front of the buffer
+/// ([`F32x8::pack_le`]).
+struct Fill<'s, 'a, const N: usize> {
+    scan: &'s mut Scan<'a>,
+    hits: &'s mut [u32; N],
+    start: usize,
+}
+
+impl<const N: usize> LaneFn for Fill<'_, '_, N> {
+    type Out = usize;
+
+    /// [`Scan::drive`]'s loop written out: the lanes must not live in a
+    /// closure (see [`LaneFn`]).
+    #[inline(always)]
+    fn call<S: F32x8>(self) -> usize {
+        let Fill { scan, hits, start } = self;
+        // The scan's state in locals, written back on return: through the
+        // `&mut Scan` the compiler would reload it after every store of hits.
+        let (rows, [xs, ys, zs]) = (scan.rows, scan.coords);
+        let (mut row, mut slot) = (scan.row, scan.slot);
+        let c = scan.centre;
+        let cs = [S::splat(c.x), S::splat(c.y), S::splat(c.z)];
+        let lim = S::splat(scan.h2);
+        let mut n = start;
+        'rows: while row < rows.len() {
+            let end = rows[row].end as usize;
+            while slot < end {
+                if n > N - MAX_LANES {
+                    break 'rows;
+                }
+                // SAFETY: slot < end and the arrays extend PADDING = 7
+                // entries past every row's end (asserted in `new`), so
+                // xs/ys/zs[slot..slot + 8] are in bounds; lanes at or past
+                // `end` are left out of the hits.
+                let (x, y, z) = unsafe {
+                    (
+                        S::load_unchecked(xs.as_ptr().add(slot)),
+                        S::load_unchecked(ys.as_ptr().add(slot)),
+                        S::load_unchecked(zs.as_ptr().add(slot)),
+                    )
+                };
+                let (dx, dy, dz) = (cs[0] - x, cs[1] - y, cs[2] - z);
+                let r2 = dx * dx + dy * dy + dz * dz;
+                n += r2.pack_le(lim, end - slot, slot as u32, &mut hits[n..]);
+                slot += 8;
+            }
+            row += 1;
+            if let Some(next) = rows.get(row) {
+                slot = next.start as usize;
+            }
+        }
+        (scan.row, scan.slot) = (row, slot);
+        n
+    }
+}
+
 /// d = c − x and d.x² + d.y² + d.z² for 16 lanes: the expression, in the
 /// order, that every path tests against h² (no fused multiply-add).
 #[cfg(target_arch = "x86_64")]
@@ -285,47 +271,6 @@ fn offsets_avx512(
     let r2 = _mm512_add_ps(
         _mm512_add_ps(_mm512_mul_ps(d[0], d[0]), _mm512_mul_ps(d[1], d[1])),
         _mm512_mul_ps(d[2], d[2]),
-    );
-    (d, r2)
-}
-
-/// For each 8-lane hit mask, the lanes of its set bits in increasing order, one
-/// per byte from the lowest (the rest 0): the AVX2 path's packing permutation.
-#[cfg(target_arch = "x86_64")]
-static PACK: [u64; 256] = {
-    let mut table = [0u64; 256];
-    let mut mask = 0;
-    while mask < 256 {
-        let (mut lane, mut n) = (0, 0);
-        while lane < 8 {
-            if mask & (1 << lane) != 0 {
-                table[mask] |= (lane as u64) << (8 * n);
-                n += 1;
-            }
-            lane += 1;
-        }
-        mask += 1;
-    }
-    table
-};
-
-/// [`offsets_avx512`] for 8 lanes.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-#[inline]
-fn offsets_avx2(
-    c: [std::arch::x86_64::__m256; 3],
-    x: [std::arch::x86_64::__m256; 3],
-) -> ([std::arch::x86_64::__m256; 3], std::arch::x86_64::__m256) {
-    use std::arch::x86_64::*;
-    let d = [
-        _mm256_sub_ps(c[0], x[0]),
-        _mm256_sub_ps(c[1], x[1]),
-        _mm256_sub_ps(c[2], x[2]),
-    ];
-    let r2 = _mm256_add_ps(
-        _mm256_add_ps(_mm256_mul_ps(d[0], d[0]), _mm256_mul_ps(d[1], d[1])),
-        _mm256_mul_ps(d[2], d[2]),
     );
     (d, r2)
 }
@@ -413,22 +358,37 @@ mod tests {
                 scalar,
                 "scalar, a buffer of {QUERY_CAPACITY}, rows of {len}"
             );
+            for lanes in crate::simd::Lanes::every() {
+                let fill = |s: &mut Scan<'_>, h: &mut [u32; HIT_CAPACITY]| {
+                    lanes.run(Fill {
+                        scan: s,
+                        hits: h,
+                        start: 0,
+                    })
+                };
+                assert_eq!(
+                    all_hits(scan(), fill),
+                    scalar,
+                    "{}, rows of {len}",
+                    lanes.name()
+                );
+                let fill = |s: &mut Scan<'_>, h: &mut [u32; QUERY_CAPACITY]| {
+                    lanes.run(Fill {
+                        scan: s,
+                        hits: h,
+                        start: 0,
+                    })
+                };
+                let small = all_hits(scan(), fill);
+                assert_eq!(
+                    small,
+                    scalar,
+                    "{}, a small buffer, rows of {len}",
+                    lanes.name()
+                );
+            }
             #[cfg(target_arch = "x86_64")]
             {
-                // SAFETY: SSE2 is part of the x86-64 baseline.
-                let sse2 = all_hits::<HIT_CAPACITY>(scan(), |s, h| unsafe { s.fill_sse2(h, 0) });
-                assert_eq!(sse2, scalar, "SSE2, rows of {len}");
-                let sse2 = all_hits::<QUERY_CAPACITY>(scan(), |s, h| unsafe { s.fill_sse2(h, 0) });
-                assert_eq!(sse2, scalar, "SSE2, a small buffer, rows of {len}");
-                if Simd::detect() >= Simd::Avx2 {
-                    // SAFETY: AVX2 and POPCNT were detected.
-                    let avx = all_hits::<HIT_CAPACITY>(scan(), |s, h| unsafe { s.fill_avx2(h, 0) });
-                    assert_eq!(avx, scalar, "AVX2, rows of {len}");
-                    // SAFETY: as above.
-                    let avx =
-                        all_hits::<QUERY_CAPACITY>(scan(), |s, h| unsafe { s.fill_avx2(h, 0) });
-                    assert_eq!(avx, scalar, "AVX2, a small buffer, rows of {len}");
-                }
                 if Simd::detect() >= Simd::Avx512 {
                     // SAFETY: AVX-512F and POPCNT were detected.
                     let avx =

@@ -47,9 +47,37 @@ pub trait F32x8:
     fn where_positive(self, value: Self) -> Self;
     /// Per lane `self <= limit ? value : +0` (a NaN on either side gives +0).
     fn where_le(self, limit: Self, value: Self) -> Self;
+    /// Bit l set where lane l has `self <= limit` (a NaN on either side
+    /// gives 0).
+    fn le_bits(self, limit: Self) -> u32;
+
     /// How many of the first `lanes` lanes (at most 8) have
     /// `self <= limit` (a NaN on either side does not count).
-    fn count_le(self, limit: Self, lanes: usize) -> u32;
+    #[inline(always)]
+    fn count_le(self, limit: Self, lanes: usize) -> u32 {
+        (self.le_bits(limit) & first_bits(lanes)).count_ones()
+    }
+
+    /// Writes `base + l` for each of the first `lanes` lanes l (at most 8)
+    /// with `self <= limit`, in increasing order, to the front of `out`,
+    /// and returns how many: the hits of a distance test, packed. The
+    /// other entries of `out[..8]` may be overwritten.
+    ///
+    /// # Panics
+    /// If `out` holds fewer than 8 entries.
+    #[inline(always)]
+    fn pack_le(self, limit: Self, lanes: usize, base: u32, out: &mut [u32]) -> usize {
+        let bits = self.le_bits(limit) & first_bits(lanes);
+        let out = &mut out[..8];
+        let mut n = 0;
+        // Each lane writes its slot and advances the count by its bit: no
+        // branch per hit.
+        for (l, _) in (0..8u32).zip(0..) {
+            out[n] = base + l;
+            n += ((bits >> l) & 1) as usize;
+        }
+        n
+    }
     /// 1 in the first `count` lanes, 0 in the others.
     fn first(count: usize) -> Self;
     /// Four lane sets from eight rows of four floats, lane l of set k
@@ -93,6 +121,19 @@ pub trait F32x8:
     fn load(values: &[f32], at: usize) -> Self {
         let mut a = [0.0; 8];
         a.copy_from_slice(&values[at..at + 8]);
+        Self::from_array(a)
+    }
+
+    /// Lanes from the eight floats at `values`, without a bounds check:
+    /// for loops whose bounds are checked once outside them (the neighbour
+    /// scan's padded rows).
+    ///
+    /// # Safety
+    /// `values` must be valid for reading eight floats.
+    #[inline(always)]
+    unsafe fn load_unchecked(values: *const f32) -> Self {
+        // SAFETY: the caller's promise.
+        let a = unsafe { values.cast::<[f32; 8]>().read_unaligned() };
         Self::from_array(a)
     }
 
@@ -183,6 +224,12 @@ mod sealed {
     impl Sealed for super::Sse2 {}
 }
 
+/// Bits 0 to `lanes` − 1 set (all eight if `lanes` ≥ 8).
+#[inline(always)]
+fn first_bits(lanes: usize) -> u32 {
+    (1u32 << lanes.min(8)) - 1
+}
+
 /// The first four floats of `values`.
 ///
 /// # Panics
@@ -257,10 +304,12 @@ impl F32x8 for Scalar {
         }))
     }
     #[inline(always)]
-    fn count_le(self, limit: Self, lanes: usize) -> u32 {
-        (0..lanes.min(8))
-            .map(|l| u32::from(self.0[l] <= limit.0[l]))
-            .sum()
+    fn le_bits(self, limit: Self) -> u32 {
+        let mut bits = 0;
+        for l in 0..8 {
+            bits |= u32::from(self.0[l] <= limit.0[l]) << l;
+        }
+        bits
     }
     #[inline(always)]
     fn first(count: usize) -> Self {
@@ -304,6 +353,26 @@ mod avx2 {
     avx_op!(Sub, sub, _mm256_sub_ps);
     avx_op!(Mul, mul, _mm256_mul_ps);
     avx_op!(Div, div, _mm256_div_ps);
+
+    /// For each 8-lane mask, the lanes of its set bits in increasing order,
+    /// one per byte from the lowest (the rest 0): [`F32x8::pack_le`]'s
+    /// permutation.
+    const PACK: [u64; 256] = {
+        let mut table = [0u64; 256];
+        let mut mask = 0;
+        while mask < 256 {
+            let (mut lane, mut n) = (0, 0);
+            while lane < 8 {
+                if mask & (1 << lane) != 0 {
+                    table[mask] |= (lane as u64) << (8 * n);
+                    n += 1;
+                }
+                lane += 1;
+            }
+            mask += 1;
+        }
+        table
+    };
 
     // SAFETY (every `unsafe` block below): an `Avx2` is made only on a CPU
     // with AVX2. The type is private to the `simd` module, and the only
@@ -355,15 +424,31 @@ mod avx2 {
             }
         }
         #[inline(always)]
-        fn count_le(self, limit: Self, lanes: usize) -> u32 {
-            let le = unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, limit.0)) };
-            let first = (1u32 << lanes.min(8)) - 1;
-            (le as u32 & first).count_ones()
+        fn le_bits(self, limit: Self) -> u32 {
+            unsafe { _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(self.0, limit.0)) as u32 }
+        }
+        #[inline(always)]
+        fn pack_le(self, limit: Self, lanes: usize, base: u32, out: &mut [u32]) -> usize {
+            let bits = self.le_bits(limit) & super::first_bits(lanes);
+            let out = &mut out[..8];
+            // The hit lanes, packed to the front by a permutation looked up
+            // by the mask, plus `base`, stored whole.
+            unsafe {
+                let order = _mm256_cvtepu8_epi32(_mm_cvtsi64_si128(PACK[bits as usize] as i64));
+                let slots = _mm256_add_epi32(_mm256_set1_epi32(base as i32), order);
+                _mm256_storeu_si256(out.as_mut_ptr().cast(), slots);
+            }
+            bits.count_ones() as usize
         }
         #[inline(always)]
         fn load(values: &[f32], at: usize) -> Self {
             let v = &values[at..at + 8];
             Avx2(unsafe { _mm256_loadu_ps(v.as_ptr()) })
+        }
+        #[inline(always)]
+        unsafe fn load_unchecked(values: *const f32) -> Self {
+            // SAFETY: the caller's promise.
+            Avx2(unsafe { _mm256_loadu_ps(values) })
         }
         #[inline(always)]
         fn load_first(values: &[f32], at: usize, count: usize, fill: Self) -> Self {
@@ -563,19 +648,23 @@ mod sse2 {
             }
         }
         #[inline(always)]
-        fn count_le(self, limit: Self, lanes: usize) -> u32 {
+        fn le_bits(self, limit: Self) -> u32 {
             let [a, b] = self.0;
             let [c, d] = limit.0;
             let le = unsafe {
                 _mm_movemask_ps(_mm_cmple_ps(a, c)) | (_mm_movemask_ps(_mm_cmple_ps(b, d)) << 4)
             };
-            let first = (1u32 << lanes.min(8)) - 1;
-            (le as u32 & first).count_ones()
+            le as u32
         }
         #[inline(always)]
         fn load(values: &[f32], at: usize) -> Self {
             let v = &values[at..at + 8];
             unsafe { Sse2([_mm_loadu_ps(v.as_ptr()), _mm_loadu_ps(v.as_ptr().add(4))]) }
+        }
+        #[inline(always)]
+        unsafe fn load_unchecked(values: *const f32) -> Self {
+            // SAFETY: the caller's promise.
+            unsafe { Sse2([_mm_loadu_ps(values), _mm_loadu_ps(values.add(4))]) }
         }
         #[inline(always)]
         fn first(count: usize) -> Self {
@@ -653,6 +742,7 @@ impl Lanes {
     /// (compiled with AVX-512VL's registers where the CPU has them), else
     /// SSE2 on x86-64 (`SPH_SIMD=baseline` included), else plain arrays.
     /// Chosen once per process.
+    #[inline]
     pub fn best() -> Lanes {
         static BEST: OnceLock<Lanes> = OnceLock::new();
         *BEST.get_or_init(|| {
@@ -710,9 +800,9 @@ impl Lanes {
     #[inline]
     pub fn run<F: LaneFn>(self, f: F) -> F::Out {
         match self.0 {
-            Kind::Plain => f.call::<Scalar>(),
+            Kind::Plain => call_plain(f),
             #[cfg(target_arch = "x86_64")]
-            Kind::Sse2 => f.call::<Sse2>(),
+            Kind::Sse2 => call_sse2(f),
             // SAFETY: a `Lanes` names AVX2 only where the CPU has it
             // (`best` and `every` check, and nothing else makes one).
             #[cfg(target_arch = "x86_64")]
@@ -728,6 +818,23 @@ impl Lanes {
 #[inline]
 pub fn with_lanes<F: LaneFn>(f: F) -> F::Out {
     Lanes::best().run(f)
+}
+
+/// [`LaneFn::call`] with the plain lanes. Not inlined, as the AVX2 kinds'
+/// `#[target_feature]` functions cannot be: a dispatch inlined into its
+/// caller then costs a call whatever the kind, and does not copy every
+/// kind's loop into the caller (whose own loop then ran 9 % more
+/// instructions around the neighbour scan).
+#[inline(never)]
+fn call_plain<F: LaneFn>(f: F) -> F::Out {
+    f.call::<Scalar>()
+}
+
+/// [`LaneFn::call`] with the SSE2 lanes, not inlined (see [`call_plain`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(never)]
+fn call_sse2<F: LaneFn>(f: F) -> F::Out {
+    f.call::<Sse2>()
 }
 
 /// [`LaneFn::call`] with the AVX2 lanes, compiled with AVX2.
@@ -839,6 +946,25 @@ mod tests {
             out.push(S::load_first(self.values, 17, 3, fill).to_array());
             out.push(S::load_first(self.values, 12, 8, fill).to_array());
             out.push(S::load_first(self.values, 20, 0, fill).to_array());
+            let mut packed = [u32::MAX; 8];
+            let hits = b.pack_le(a, 8, 100, &mut packed);
+            out.push(std::array::from_fn(|l| {
+                if l < hits { packed[l] as f32 } else { -1.0 }
+            }));
+            let hits = b.pack_le(a, 5, 7, &mut packed);
+            out.push(std::array::from_fn(|l| {
+                if l < hits { packed[l] as f32 } else { -1.0 }
+            }));
+            out.push([
+                a.le_bits(b) as f32,
+                b.le_bits(a) as f32,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+            ]);
             out
         }
     }
@@ -929,6 +1055,14 @@ mod tests {
         );
         assert_eq!(plain[35], std::array::from_fn(|l| (12 + l) as f32 * 1.1));
         assert_eq!(plain[36], [-1.0; 8], "none loaded past the end");
+        // b <= a: 0.25 <= 1.5, 0 <= −0, −0 <= 0, 1 vs NaN no, NaN no,
+        // 7 <= −2 no, 2 <= inf, 3e-38 <= 1e-30.
+        assert_eq!(
+            plain[37],
+            [100.0, 101.0, 102.0, 106.0, 107.0, -1.0, -1.0, -1.0]
+        );
+        assert_eq!(plain[38], [7.0, 8.0, 9.0, -1.0, -1.0, -1.0, -1.0, -1.0]);
+        assert_eq!(plain[39][..2], [0b0010_0110 as f32, 0b1100_0111 as f32]);
         let plain = bits(plain);
         for kind in &kinds[1..] {
             assert_eq!(bits(kind.run(ops)), plain, "{}", kind.name());
