@@ -111,10 +111,12 @@ impl<'a> Scan<'a> {
         })
     }
 
-    /// The row loop shared by every path: `chunk(k, end, hits, n)` tests the slots
-    /// from `k` (at most `LANES` of them, none at or past `end`), appends the hits
-    /// at `hits[n..]` and returns the new count; the first chunk appends at
-    /// `hits[start..]`.
+    /// The row loop of the AVX-512 path and of the tests' scalar reference
+    /// (the lanes' [`Fill`] writes it out): `chunk(k, end, hits, n)` tests the
+    /// slots from `k` (at most `LANES` of them, none at or past `end`), appends
+    /// the hits at `hits[n..]` and returns the new count; the first chunk
+    /// appends at `hits[start..]`.
+    #[cfg_attr(not(any(test, target_arch = "x86_64")), allow(dead_code))]
     #[inline(always)]
     fn drive<const LANES: usize, const N: usize>(
         &mut self,

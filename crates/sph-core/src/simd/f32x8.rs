@@ -72,8 +72,10 @@ pub trait F32x8:
         let mut n = 0;
         // Each lane writes its slot and advances the count by its bit: no
         // branch per hit.
-        for (l, _) in (0..8u32).zip(0..) {
-            out[n] = base + l;
+        for l in 0..8u32 {
+            // Wrapping, as the AVX2 kind's integer add (a slot within 7 of
+            // u32::MAX is allowed; its lanes past the hits are ignored).
+            out[n] = base.wrapping_add(l);
             n += ((bits >> l) & 1) as usize;
         }
         n
@@ -357,7 +359,10 @@ mod avx2 {
     /// For each 8-lane mask, the lanes of its set bits in increasing order,
     /// one per byte from the lowest (the rest 0): [`F32x8::pack_le`]'s
     /// permutation.
-    const PACK: [u64; 256] = {
+    // A constant reference, not a `static`: a generic caller instantiated in
+    // another crate reached a `static` through the GOT on every chunk; the
+    // promoted table is local to each crate, and is not copied per use.
+    const PACK: &[u64; 256] = &{
         let mut table = [0u64; 256];
         let mut mask = 0;
         while mask < 256 {
@@ -380,9 +385,12 @@ mod avx2 {
     // that `Lanes::run` calls only for a `Lanes` made after checking the
     // CPU for AVX2, or for AVX-512VL with `wide_registers`), so the
     // functions that make one from nothing (`splat`, `from_array`, `first`,
-    // `transpose`, `transpose8`) run only on such a CPU, whether or not the
-    // code around them was compiled for it. The loads read whole
-    // `[f32; 4]`s, `[f32; 8]`s and arrays of eight.
+    // `transpose`, `transpose8`, `load`, `load_unchecked`, `load_first`)
+    // run only on such a CPU, whether or not the code around them was
+    // compiled for it. The loads read whole `[f32; 4]`s, `[f32; 8]`s and
+    // arrays of eight, slices checked to hold eight floats, or (masked) the
+    // first `count` of a slice checked to hold them; `load_unchecked` reads
+    // the eight floats its caller promises.
     impl F32x8 for Avx2 {
         #[inline(always)]
         fn splat(v: f32) -> Self {
@@ -803,8 +811,9 @@ impl Lanes {
             Kind::Plain => call_plain(f),
             #[cfg(target_arch = "x86_64")]
             Kind::Sse2 => call_sse2(f),
-            // SAFETY: a `Lanes` names AVX2 only where the CPU has it
-            // (`best` and `every` check, and nothing else makes one).
+            // SAFETY: a `Lanes` names AVX2 only where the CPU has it, and
+            // POPCNT with it (`best` and `every` check `Simd`'s levels,
+            // which require both, and nothing else makes one).
             #[cfg(target_arch = "x86_64")]
             Kind::Avx2 => unsafe { call_avx2(f) },
             // SAFETY: as above, checked by `wide_registers`.
@@ -851,8 +860,8 @@ unsafe fn call_avx2<F: LaneFn>(f: F) -> F::Out {
 /// (see [`wide_registers`]).
 ///
 /// # Safety
-/// The CPU must support AVX2, AVX-512F, AVX-512VL, FMA and F16C (which
-/// AVX-512F implies to the compiler).
+/// The CPU must support AVX2, AVX-512F, AVX-512VL, POPCNT, FMA and F16C
+/// (which AVX-512F implies to the compiler).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,avx512f,avx512vl,popcnt")]
 unsafe fn call_avx512vl<F: LaneFn>(f: F) -> F::Out {
@@ -942,6 +951,8 @@ mod tests {
                 counts[0], counts[1], counts[2], counts[3], counts[4], 0.0, 0.0, 0.0,
             ]);
             out.push(S::load(self.values, 3).to_array());
+            // SAFETY: values[5..13] exist (20 values).
+            out.push(unsafe { S::load_unchecked(self.values.as_ptr().add(5)) }.to_array());
             let fill = S::splat(-1.0);
             out.push(S::load_first(self.values, 17, 3, fill).to_array());
             out.push(S::load_first(self.values, 12, 8, fill).to_array());
@@ -1040,8 +1051,9 @@ mod tests {
         assert_eq!(plain[31][7], 1e-30, "3e-38 <= 1e-30");
         assert_eq!(plain[32][..5], [0.0, 0.0, 2.0, 3.0, 3.0]);
         assert_eq!(plain[33], std::array::from_fn(|l| (3 + l) as f32 * 1.1));
+        assert_eq!(plain[34], std::array::from_fn(|l| (5 + l) as f32 * 1.1));
         assert_eq!(
-            plain[34],
+            plain[35],
             [
                 17.0 * 1.1,
                 18.0 * 1.1,
@@ -1053,16 +1065,16 @@ mod tests {
                 -1.0
             ]
         );
-        assert_eq!(plain[35], std::array::from_fn(|l| (12 + l) as f32 * 1.1));
-        assert_eq!(plain[36], [-1.0; 8], "none loaded past the end");
+        assert_eq!(plain[36], std::array::from_fn(|l| (12 + l) as f32 * 1.1));
+        assert_eq!(plain[37], [-1.0; 8], "none loaded past the end");
         // b <= a: 0.25 <= 1.5, 0 <= −0, −0 <= 0, 1 vs NaN no, NaN no,
         // 7 <= −2 no, 2 <= inf, 3e-38 <= 1e-30.
         assert_eq!(
-            plain[37],
+            plain[38],
             [100.0, 101.0, 102.0, 106.0, 107.0, -1.0, -1.0, -1.0]
         );
-        assert_eq!(plain[38], [7.0, 8.0, 9.0, -1.0, -1.0, -1.0, -1.0, -1.0]);
-        assert_eq!(plain[39][..2], [0b0010_0110 as f32, 0b1100_0111 as f32]);
+        assert_eq!(plain[39], [7.0, 8.0, 9.0, -1.0, -1.0, -1.0, -1.0, -1.0]);
+        assert_eq!(plain[40][..2], [0b0010_0110 as f32, 0b1100_0111 as f32]);
         let plain = bits(plain);
         for kind in &kinds[1..] {
             assert_eq!(bits(kind.run(ops)), plain, "{}", kind.name());

@@ -13,13 +13,14 @@ use std::sync::OnceLock;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 #[non_exhaustive]
 pub enum Simd {
-    /// What every CPU of the target has: SSE2 on x86-64 (4-lane scan, scalar
-    /// sums), scalar code elsewhere.
+    /// What every CPU of the target has: SSE2 on x86-64 (the eight lanes in
+    /// two registers), plain arrays elsewhere.
     Baseline,
-    /// AVX2 (and POPCNT) on x86-64: 8-lane scan and sums (most desktop CPUs
-    /// since 2013).
+    /// AVX2 (and POPCNT) on x86-64: the eight lanes in one register (most
+    /// desktop CPUs since 2013).
     Avx2,
-    /// AVX-512F on x86-64: 16-lane scan and sums with masked loads.
+    /// AVX-512F on x86-64: the AVX2 lanes compiled with AVX-512VL's 32
+    /// registers, and the neighbour scan's own 16-lane path.
     Avx512,
 }
 
