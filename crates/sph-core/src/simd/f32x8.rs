@@ -160,9 +160,7 @@ pub trait F32x8:
     /// If `half` > 1.
     #[inline(always)]
     fn half(lanes: &[f32; 16], half: usize) -> Self {
-        let mut a = [0.0; 8];
-        a.copy_from_slice(&lanes[8 * half..8 * half + 8]);
-        Self::from_array(a)
+        Self::load(lanes, 8 * half)
     }
 
     /// Writes the lanes to `lanes[8 half .. 8 half + 8]`: [`F32x8::half`]
