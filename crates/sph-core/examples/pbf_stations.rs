@@ -30,6 +30,9 @@ impl<P: Processor> Processor for Timed<P> {
         *self.total.lock().unwrap_or_else(|e| e.into_inner()) += start.elapsed();
         result
     }
+    fn runs_in_region(&self) -> bool {
+        self.inner.runs_in_region()
+    }
 }
 
 fn main() -> Result<()> {

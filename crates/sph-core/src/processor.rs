@@ -143,6 +143,17 @@ pub trait Processor: Send {
     fn name(&self) -> &str;
     /// Processes the particles for the step described by `ctx`.
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()>;
+    /// Whether `process` does its parallel work only through sph-core's
+    /// parallel regions, so that the team of threads a
+    /// [`crate::World::advance`] keeps awake for the whole step may stay
+    /// awake across it. The default, `false`, sends the team back to rayon's
+    /// pool for this processor (one fork and join, as each `par_iter` pays
+    /// anyway), which a processor that uses rayon, or no threads at all,
+    /// needs: inside the team a `par_iter` finds the pool's threads busy and
+    /// runs on one. sph-core's own stations answer `true` where it holds.
+    fn runs_in_region(&self) -> bool {
+        false
+    }
 }
 
 /// A boxed processor is one: lists of `Box<dyn Processor>` can be wrapped
@@ -153,6 +164,9 @@ impl<P: Processor + ?Sized> Processor for Box<P> {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         (**self).process(particles, ctx)
+    }
+    fn runs_in_region(&self) -> bool {
+        (**self).runs_in_region()
     }
 }
 
@@ -227,9 +241,18 @@ impl Processor for Program {
 
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         for p in &mut self.processors {
-            p.process(particles, ctx)?;
+            if p.runs_in_region() {
+                p.process(particles, ctx)?;
+            } else {
+                crate::region::released(|| p.process(particles, ctx))?;
+            }
         }
         Ok(())
+    }
+
+    /// True: each of its processors is run as it declares.
+    fn runs_in_region(&self) -> bool {
+        true
     }
 }
 

@@ -2,9 +2,12 @@
 //! while the particles move a little (position-based solvers iterate on
 //! them within a step, Macklin & Müller 2013).
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::{NeighbourGrid, scan};
+use crate::region::{self, Blocks};
 
 /// Particles per parallel task when building lists: a fixed size, so the
 /// result does not depend on the number of threads.
@@ -75,10 +78,14 @@ impl NeighbourLists {
         // Room for as many neighbours per particle as last time and a few
         // more, so that a block's buffer rarely grows.
         let per_particle = self.pairs().div_ceil(self.len().max(1)) + 8;
-        let blocks = &mut self.blocks.0;
-        blocks.resize_with(n.div_ceil(CHUNK), Default::default);
-        (blocks.par_iter_mut().enumerate()).for_each(|(c, (counts, found))| {
-            let range = c * CHUNK..((c + 1) * CHUNK).min(n);
+        self.blocks
+            .0
+            .resize_with(n.div_ceil(CHUNK), Default::default);
+        let blocks = Blocks::new(&mut self.blocks.0);
+        let find = |range: Range<usize>, c: usize| {
+            // SAFETY: each block fills its own buffers; nothing reads them
+            // in this pass.
+            let (counts, found) = unsafe { &mut blocks.block(c..c + 1)[0] };
             counts.clear();
             found.clear();
             found.reserve(range.len() * per_particle);
@@ -113,7 +120,8 @@ impl NeighbourLists {
                 }
                 counts.push((found.len() - before) as u32);
             }
-        });
+        };
+        region::run_by(n, CHUNK, &[&find]);
         let blocks = &self.blocks.0;
         self.start.clear();
         self.start.reserve(n + 1);
@@ -128,17 +136,15 @@ impl NeighbourLists {
         let total = total as usize;
         let padding = if n > 0 { LANES } else { 0 };
         self.neighbours.resize(total + padding, 0);
-        let (mut rest, pad) = self.neighbours.split_at_mut(total);
-        pad.fill(0);
-        let mut pieces = Vec::with_capacity(blocks.len());
-        for (_, found) in blocks {
-            let (piece, tail) = std::mem::take(&mut rest).split_at_mut(found.len());
-            pieces.push((piece, found));
-            rest = tail;
-        }
-        pieces
-            .into_par_iter()
-            .for_each(|(piece, found)| piece.copy_from_slice(found));
+        self.neighbours[total..].fill(0);
+        let (start, out) = (&self.start, Blocks::new(&mut self.neighbours[..total]));
+        let copy = |range: Range<usize>, c: usize| {
+            let piece = start[range.start] as usize..start[range.end] as usize;
+            // SAFETY: block c's rows, disjoint from every other block's;
+            // nothing reads them in this pass.
+            unsafe { out.block(piece) }.copy_from_slice(&blocks[c].1);
+        };
+        region::run_by(n, CHUNK, &[&copy]);
     }
 
     /// Sets `out[i] = f(i, neighbours of i, row i of pairs)` for every

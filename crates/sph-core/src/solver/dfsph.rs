@@ -110,7 +110,6 @@ use rayon::prelude::*;
 use super::lane_map::{LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
 use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
 use super::params::FluidParams;
-use super::region::{self, Blocks};
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
@@ -121,6 +120,7 @@ use crate::grid::NeighbourLists;
 use crate::kernels::{CubicSpline, Kernel};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
+use crate::region::{self, Blocks};
 use crate::simd::F32x8;
 
 /// The parameters of DFSPH. Scene files give them under `[solver.dfsph]`; a

@@ -26,7 +26,6 @@ mod lane_map;
 mod lanes;
 pub mod params;
 pub mod pbf;
-mod region;
 pub mod stations;
 pub mod surface_tension;
 pub mod viscosity;

@@ -70,7 +70,6 @@
 use std::ops::Range;
 
 use glam::Vec3;
-use rayon::prelude::*;
 
 use super::params::FluidParams;
 use super::stations::{Boundaries, BuildGrid};
@@ -83,12 +82,12 @@ use crate::processor::{Context, Processor, Program};
 
 use super::lane_map::{LaneMap, fill_block};
 use super::lanes::{DensitySums, LaneKernels, Near};
-use super::region::{self, Blocks, OwnedPass, Pass};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::Walls;
+use crate::region::{self, Blocks, OwnedPass, Pass};
 use crate::simd::F32x8;
 
 /// The parameters of position-based fluids. Scene files give them under
@@ -458,15 +457,28 @@ impl Processor for Predict {
     fn name(&self) -> &str {
         "predict"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let dt = ctx.dt;
         let max_speed = self.max_displacement / dt;
         let b = &self.boundary;
+        let n = particles.len();
         let f = particles.fields_mut();
-        let clamped = (f.positions.par_iter_mut())
-            .zip(f.velocities.par_iter_mut())
-            .zip(f.accelerations.par_iter())
-            .map(|((x, v), &a)| {
+        let (xs, vs, accelerations) = (
+            Blocks::new(f.positions),
+            Blocks::new(f.velocities),
+            &*f.accelerations,
+        );
+        let mut counts = vec![0u64; region::blocks(n)];
+        let counted = Blocks::new(&mut counts);
+        let predict = |range: Range<usize>, blk: usize| {
+            // SAFETY: each block writes its own particles and count; nothing
+            // reads them in this pass.
+            let (x, v) = unsafe { (xs.block(range.clone()), vs.block(range.clone())) };
+            let mut clamped = 0;
+            for ((x, v), &a) in x.iter_mut().zip(v).zip(&accelerations[range]) {
                 *v += a * dt;
                 let speed = v.length();
                 let clamp = speed > max_speed;
@@ -480,9 +492,12 @@ impl Processor for Predict {
                 let free = *x;
                 b.project(x);
                 *v += (*x - free) / dt;
-                u64::from(clamp)
-            })
-            .sum::<u64>();
+                clamped += u64::from(clamp);
+            }
+            unsafe { counted.block(blk..blk + 1)[0] = clamped };
+        };
+        region::run(n, &[&predict]);
+        let clamped: u64 = counts.iter().sum();
         ctx.counters.clamped += clamped;
         ctx.invalidate_grid(); // positions moved
         Ok(())
@@ -780,6 +795,9 @@ impl Processor for SolveDensity {
     fn name(&self) -> &str {
         "density"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "density")?;
         let model = &self.model;
@@ -1011,6 +1029,9 @@ impl VorticityXsph {
 impl Processor for VorticityXsph {
     fn name(&self) -> &str {
         "viscosity"
+    }
+    fn runs_in_region(&self) -> bool {
+        true
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "viscosity")?;

@@ -2,6 +2,7 @@
 //! the neighbour grid, external accelerations, time integration, boundaries,
 //! and particle sources and sinks.
 
+use std::ops::Range;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -15,6 +16,7 @@ use crate::particles::Particles;
 #[cfg(doc)]
 use crate::processor::Program;
 use crate::processor::{Context, Processor};
+use crate::region::{self, Blocks};
 
 /// Builds the neighbour grid into [`Context::grid`] and stores the particles in
 /// the grid's cell order (every `sort_every` steps), so later gathers walk memory
@@ -36,7 +38,21 @@ impl Processor for BuildGrid {
     fn name(&self) -> &str {
         "grid"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        // A large scene's build splits with rayon (`crate::light`).
+        if particles.len() >= crate::light::SERIAL_BELOW {
+            crate::region::released(|| self.build(particles, ctx))
+        } else {
+            self.build(particles, ctx)
+        }
+    }
+}
+
+impl BuildGrid {
+    fn build(&self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         // Reuse last step's grid memory when there is one.
         let mut grid = match ctx.take_grid_memory() {
             Some(mut grid) if grid.h() == self.h => {
@@ -160,13 +176,21 @@ impl Processor for Boundaries {
     fn name(&self) -> &str {
         "boundaries"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
+        let n = particles.len();
         let f = particles.fields_mut();
         let b = &self.boundary;
-        f.positions
-            .par_iter_mut()
-            .zip(f.velocities.par_iter_mut())
-            .for_each(|(x, v)| b.resolve(x, v));
+        let (xs, vs) = (Blocks::new(f.positions), Blocks::new(f.velocities));
+        let resolve = |range: Range<usize>, _| {
+            // SAFETY: each block writes its own particles; nothing reads
+            // them in this pass.
+            let (x, v) = unsafe { (xs.block(range.clone()), vs.block(range)) };
+            x.iter_mut().zip(v).for_each(|(x, v)| b.resolve(x, v));
+        };
+        region::run(n, &[&resolve]);
         ctx.invalidate_grid();
         Ok(())
     }
@@ -351,12 +375,17 @@ impl Processor for BodyForces {
     fn name(&self) -> &str {
         "forces"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, _: &mut Context) -> Result<()> {
         let g = self.gravity;
-        particles
-            .accelerations_mut()
-            .par_iter_mut()
-            .for_each(|a| *a = g);
+        let n = particles.len();
+        let accelerations = Blocks::new(particles.accelerations_mut());
+        // SAFETY: each block writes its own particles; nothing reads them
+        // in this pass.
+        let set = |range: Range<usize>, _| unsafe { accelerations.block(range) }.fill(g);
+        region::run(n, &[&set]);
         Ok(())
     }
 }
@@ -379,6 +408,9 @@ impl FindNeighbours {
 impl Processor for FindNeighbours {
     fn name(&self) -> &str {
         "neighbours"
+    }
+    fn runs_in_region(&self) -> bool {
+        true
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let mut lists = ctx.take_lists_memory().unwrap_or_default();

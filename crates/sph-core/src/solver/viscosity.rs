@@ -42,7 +42,6 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use super::params::FluidParams;
-use super::region::{self, Blocks};
 use super::stations::lists;
 use crate::boundary::Boundary;
 use crate::error::{Error, Result};
@@ -50,6 +49,7 @@ use crate::grid::NeighbourLists;
 use crate::kernels::CubicSpline;
 use crate::particles::Particles;
 use crate::processor::{Context, Processor};
+use crate::region::{self, Blocks};
 
 /// The particle attribute (Vec3) holding each particle's last viscous
 /// velocity change (m/s), the solve's warm start.

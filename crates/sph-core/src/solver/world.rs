@@ -1,5 +1,7 @@
 //! [`World`]: particles, the solver's program and the clock.
 
+use std::ops::Range;
+
 use rayon::prelude::*;
 
 use super::params::{FluidParams, TimeStepping, check_viscous_dt};
@@ -8,6 +10,7 @@ use crate::boundary::Boundary;
 use crate::error::{Error, Result, positive};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program, StepCounters};
+use crate::region::{self, Blocks};
 
 /// A simulation: particles, the program that advances them, and the clock.
 pub struct World {
@@ -81,32 +84,60 @@ pub struct FrameReport {
     pub time: f64,
 }
 
-/// Particles per chunk of the density-error reduction: fixed, so the sum's
-/// order does not depend on the number of threads.
-const ERROR_CHUNK: usize = 4096;
+/// What a step left, per block of particles ([`survey`]).
+#[derive(Clone, Copy)]
+struct BlockSurvey {
+    /// The block's first particle that is not finite or faster than the
+    /// limit, if any.
+    bad: Option<usize>,
+    /// Σ max(ρ/ρ0 − 1, 0) over the block, in particle order.
+    error_sum: f64,
+    /// max ρ/ρ0 − 1 over the block.
+    error_max: f32,
+}
 
-/// One step's density error: (Σ max(ρ/ρ0 − 1, 0) / n, max ρ/ρ0 − 1), summed
-/// in fixed chunks in a fixed order.
-fn density_error(densities: &[f32], rest: f32) -> (f64, f32) {
-    if densities.is_empty() {
-        return (0.0, 0.0);
+/// One step's survey in one parallel pass: the first particle that is not
+/// finite or moves faster than `limit`, and the density error (Σ max(ρ/ρ0 −
+/// 1, 0) / n, max ρ/ρ0 − 1), summed per block in particle order, then over
+/// the blocks in block order: the same for any number of threads.
+fn survey(particles: &Particles, rest: f32, limit: f32) -> (Option<usize>, (f64, f32)) {
+    let n = particles.len();
+    if n == 0 {
+        return (None, (0.0, 0.0));
     }
-    let chunks: Vec<(f64, f32)> = densities
-        .par_chunks(ERROR_CHUNK)
-        .map(|c| {
-            c.iter()
-                .fold((0.0f64, f32::NEG_INFINITY), |(sum, max), &rho| {
-                    let e = rho / rest - 1.0;
-                    (sum + f64::from(e.max(0.0)), max.max(e))
-                })
-        })
-        .collect();
-    let (sum, max) = chunks
-        .iter()
-        .fold((0.0f64, f32::NEG_INFINITY), |(s, m), &(cs, cm)| {
-            (s + cs, m.max(cm))
-        });
-    (sum / densities.len() as f64, max)
+    let (x, v, rho) = (
+        particles.positions(),
+        particles.velocities(),
+        particles.densities(),
+    );
+    let empty = BlockSurvey {
+        bad: None,
+        error_sum: 0.0,
+        error_max: f32::NEG_INFINITY,
+    };
+    let mut blocks = vec![empty; region::blocks(n)];
+    let out = Blocks::new(&mut blocks);
+    let pass = |range: Range<usize>, b: usize| {
+        let mut s = empty;
+        for i in range {
+            if s.bad.is_none() && (!x[i].is_finite() || !v[i].is_finite() || v[i].length() > limit)
+            {
+                s.bad = Some(i);
+            }
+            let e = rho[i] / rest - 1.0;
+            s.error_sum += f64::from(e.max(0.0));
+            s.error_max = s.error_max.max(e);
+        }
+        // SAFETY: each block writes its own entry; nothing reads them in
+        // the region.
+        unsafe { out.block(b..b + 1)[0] = s };
+    };
+    region::run(n, &[&pass]);
+    let bad = blocks.iter().find_map(|s| s.bad);
+    let (sum, max) = (blocks.iter()).fold((0.0f64, f32::NEG_INFINITY), |(s, m), b| {
+        (s + b.error_sum, m.max(b.error_max))
+    });
+    (bad, (sum / n as f64, max))
 }
 
 impl World {
@@ -255,8 +286,8 @@ impl World {
     fn on_pool<R: Send>(&mut self, f: impl FnOnce(&mut Self) -> R + Send) -> R {
         let pool = self.take_pool();
         let result = match &pool {
-            Some(pool) => pool.install(|| f(self)),
-            None => rayon::scope(|_| f(self)),
+            Some(pool) => pool.install(|| crate::region::team(|| f(self))),
+            None => rayon::scope(|_| crate::region::team(|| f(self))),
         };
         if pool.is_some() {
             self.narrow_pool = pool;
@@ -355,7 +386,8 @@ impl World {
             }
         } else {
             while self.time < end {
-                let stable = self.checked_stable_dt()?;
+                // `stable_dt` is rayon's, not a region's.
+                let stable = region::released(|| self.checked_stable_dt())?;
                 let remaining = (end - self.time) as f32;
                 // Land on the frame time without a sliver step: the last two steps
                 // share what is left when it is under two stable steps.
@@ -385,24 +417,20 @@ impl World {
         self.recycled_lists = ctx.take_lists_memory();
         self.time += dt as f64;
         self.step += 1;
-        self.check()?;
-        let error = density_error(self.particles.densities(), self.params.rest_density);
-        Ok((ctx.counters, error))
-    }
-    /// NaN, infinities and speeds above 5 × the speed of sound end the run,
-    /// WCSPH only: there is no speed of sound in PBF or DFSPH, whose solves
-    /// check themselves.
-    fn check(&self) -> Result<()> {
+        // NaN, infinities and speeds above 5 × the speed of sound end the
+        // run, WCSPH only: there is no speed of sound in PBF or DFSPH, whose
+        // solves check themselves.
         let limit = match self.solver {
             Solver::Wcsph => 5.0 * self.params.sound_speed(),
             Solver::Pbf(_) | Solver::Dfsph(_) => f32::INFINITY,
         };
-        let bad = self
-            .particles
-            .positions()
-            .par_iter()
-            .zip(self.particles.velocities().par_iter())
-            .position_first(|(x, v)| !x.is_finite() || !v.is_finite() || v.length() > limit);
+        let (bad, error) = survey(&self.particles, self.params.rest_density, limit);
+        self.check(bad)?;
+        Ok((ctx.counters, error))
+    }
+
+    /// The error ending the run at particle `bad`, found by [`survey`].
+    fn check(&self, bad: Option<usize>) -> Result<()> {
         match bad {
             None => Ok(()),
             Some(i) => {

@@ -1,0 +1,616 @@
+//! Passes over the particles in parallel regions, and the team of threads
+//! that keeps one region open for a whole step.
+//!
+//! A PBF substep is a dozen passes of a few hundred microseconds each. Run
+//! as one `par_iter` per pass, every pass forks, splits, joins, and wakes
+//! the threads that went to sleep in the gap before it; on many cores that
+//! costs more than the pass gains (issue 45's 16-core table). [`run`]
+//! instead hands a whole sequence of passes to the threads at once. The
+//! particles are cut into fixed [`BLOCK`]s; each pass's blocks are claimed
+//! a few at a time from a counter shared by the whole sequence, and a claim
+//! of pass p starts only when every claim of the passes before it is done:
+//! the barrier between passes is a count of finished claims, not of
+//! arrived threads.
+//!
+//! [`team`] goes one step further: it starts the pool's threads once for
+//! everything its closure does (a [`crate::World::advance`]: every station
+//! of every substep), and they wait, spinning, for the [`run`]s the
+//! closure's thread posts. Between two stations nobody goes to sleep and
+//! nothing forks. Work that uses rayon itself (a station that declares no
+//! [`crate::Processor::runs_in_region`], the grid build of a large scene)
+//! runs inside [`released`], which sends the team's threads back to the
+//! pool for it and calls them again after.
+//!
+//! A thread that never arrives (busy elsewhere in the pool) holds nobody
+//! up: whoever is in the region does all the work, and the calling thread
+//! alone finishes it if it must. A thread waiting for the last blocks of a
+//! pass spins briefly, then yields, instead of going to sleep.
+//!
+//! Each block's values depend only on the block, never on which thread ran
+//! it or in what order: a pass gathers into its own block, and whatever
+//! must be reduced is written per block and reduced after the region in
+//! block order. So results are bitwise the same for any number of threads,
+//! with or without a team.
+
+use std::cell::{Cell, UnsafeCell};
+use std::marker::PhantomData;
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
+
+/// Particles per block: small enough that 10,000 particles make 157
+/// blocks, so that 16 threads share a pass evenly; large enough that a
+/// block's claim (one atomic add) is noise against its work.
+pub(crate) const BLOCK: usize = 64;
+
+/// The number of blocks `n` particles make.
+pub(crate) fn blocks(n: usize) -> usize {
+    n.div_ceil(BLOCK)
+}
+
+/// A pass: called once per block with the block's particles and its index.
+pub(crate) type Pass<'a> = &'a (dyn Fn(Range<usize>, usize) + Sync);
+
+/// A pass built at run time (one per iteration of a solve).
+pub(crate) type OwnedPass<'a> = Box<dyn Fn(Range<usize>, usize) + Sync + 'a>;
+
+/// Runs `passes` in order over `n` particles, each over every block, in one
+/// parallel region: on the team this thread leads ([`team`]), else on the
+/// threads of the current rayon pool, started for this call.
+///
+/// A pass must not use rayon itself: a thread waiting in a `join` inside it
+/// could pick up a helper of this region (or of another) and spin there
+/// for a pass that the suspended block below it on the same stack holds
+/// back.
+///
+/// # Panics
+/// Where a pass panics; the other threads finish the claims of that pass
+/// they hold or can still take, and stop before the next pass.
+pub(crate) fn run(n: usize, passes: &[Pass<'_>]) {
+    run_by(n, BLOCK, passes);
+}
+
+/// [`run`] with blocks of `block` particles instead of [`BLOCK`]: for
+/// passes whose per-block buffers are sized to their own blocks.
+pub(crate) fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
+    let leading = LEADING.with(Cell::get);
+    let threads = if leading.is_null() {
+        rayon::current_num_threads()
+    } else {
+        // SAFETY: `team` clears `LEADING` before its team goes.
+        unsafe { (*leading).threads }
+    };
+    let job = Job::new(n, block, passes, threads);
+    if job.threads <= 1 {
+        for pass in passes {
+            (0..job.per_pass).for_each(|b| pass(job.range(b), b));
+        }
+        return;
+    }
+    if !leading.is_null() {
+        // SAFETY: as above.
+        let team = unsafe { &*leading };
+        if !team.called.swap(true, Ordering::Relaxed) {
+            // SAFETY: `team` sets `call` before this thread leads the team,
+            // and the closure it points to outlives the leading.
+            unsafe { ((*team.call.load(Ordering::Relaxed)).0)() };
+        }
+        return team.run(job);
+    }
+    let claims = Claims::default();
+    rayon::scope(|s| {
+        for _ in 1..job.threads {
+            s.spawn(|_| claims.work(&job));
+        }
+        claims.work(&job);
+    });
+}
+
+/// Runs `f` with a team of the current rayon pool's threads kept in one
+/// region for all of it: every [`run`] that `f` makes on this thread goes
+/// to the team instead of forking. Inside a team already (or on a pool of
+/// one thread) it just runs `f`.
+///
+/// `f` must do its parallel work through [`run`]: a `par_iter` inside it
+/// finds the team's threads spinning and runs on this thread alone; put
+/// such work inside [`released`].
+pub(crate) fn team<R>(f: impl FnOnce() -> R) -> R {
+    let threads = rayon::current_num_threads();
+    if threads <= 1 || !LEADING.with(Cell::get).is_null() {
+        return f();
+    }
+    let team = Team::new(threads);
+    rayon::in_place_scope(|scope| {
+        let call = || {
+            let generation = team.generation.load(Ordering::Acquire);
+            for _ in 1..threads {
+                let team = &team;
+                scope.spawn(move |_| team.serve(generation));
+            }
+        };
+        // Sends the team home however `f` ends, before `scope` waits for
+        // it, and stops this thread leading it.
+        let _home = Home(&team);
+        let calls = Calls(&call);
+        LEADING.with(|l| l.set(&team));
+        team.call.store(
+            &calls as *const Calls<'_> as *mut Calls<'static>,
+            Ordering::Relaxed,
+        );
+        f()
+    })
+}
+
+/// Runs `f` with the team this thread leads (if any) sent back to the
+/// pool, so that rayon work inside `f` has the pool's threads; the next
+/// [`run`] after it calls the team again.
+pub(crate) fn released<R>(f: impl FnOnce() -> R) -> R {
+    let leading = LEADING.with(Cell::get);
+    if leading.is_null() {
+        return f();
+    }
+    // SAFETY: `team` clears `LEADING` before its team goes.
+    let team = unsafe { &*leading };
+    if team.called.swap(false, Ordering::Relaxed) {
+        team.generation.fetch_add(1, Ordering::AcqRel);
+    }
+    LEADING.with(|l| l.set(std::ptr::null()));
+    // Leads the team again however `f` ends.
+    struct Again(*const Team);
+    impl Drop for Again {
+        fn drop(&mut self) {
+            LEADING.with(|l| l.set(self.0));
+        }
+    }
+    let _again = Again(leading);
+    f()
+}
+
+thread_local! {
+    /// The team this thread leads: set by [`team`] for its closure, unset
+    /// inside [`released`].
+    static LEADING: Cell<*const Team> = const { Cell::new(std::ptr::null()) };
+}
+
+/// [`team`]'s closure that spawns the team's threads.
+struct Calls<'a>(&'a (dyn Fn() + 'a));
+
+/// Clears this thread's team and sends its threads home.
+struct Home<'a>(&'a Team);
+
+impl Drop for Home<'_> {
+    fn drop(&mut self) {
+        LEADING.with(|l| l.set(std::ptr::null()));
+        self.0.generation.fetch_add(1, Ordering::AcqRel);
+    }
+}
+
+/// A sequence of passes over `n` particles, cut into claims.
+struct Job<'a> {
+    passes: &'a [Pass<'a>],
+    n: usize,
+    /// Particles per block.
+    block: usize,
+    per_pass: usize,
+    /// Blocks per claim.
+    grain: usize,
+    /// Claims per pass.
+    claims: usize,
+    threads: usize,
+}
+
+impl<'a> Job<'a> {
+    fn new(n: usize, block: usize, passes: &'a [Pass<'a>], threads: usize) -> Self {
+        let per_pass = n.div_ceil(block);
+        let threads = threads.min(per_pass);
+        // A claim takes a few blocks at once: about four claims per thread
+        // and pass, so that the shared counters are touched a few hundred
+        // times a pass at most and the threads still even out.
+        let grain = per_pass.div_ceil(4 * threads.max(1)).max(1);
+        Self {
+            passes,
+            n,
+            block,
+            per_pass,
+            grain,
+            claims: per_pass.div_ceil(grain),
+            threads,
+        }
+    }
+
+    fn range(&self, b: usize) -> Range<usize> {
+        b * self.block..((b + 1) * self.block).min(self.n)
+    }
+}
+
+/// The counters a job's threads share.
+#[derive(Default)]
+struct Claims {
+    claimed: Padded,
+    done: Padded,
+    failed: AtomicBool,
+}
+
+impl Claims {
+    /// Takes claims of `job` until there are none left.
+    fn work(&self, job: &Job<'_>) {
+        let total = job.claims * job.passes.len();
+        let stop = Stop(&self.failed);
+        loop {
+            let c = self.claimed.fetch_add(1, Ordering::Relaxed);
+            if c >= total {
+                break;
+            }
+            let (p, first) = (c / job.claims, c % job.claims * job.grain);
+            if !wait_for(&self.done, p * job.claims, &self.failed) {
+                break;
+            }
+            (first..(first + job.grain).min(job.per_pass))
+                .for_each(|b| job.passes[p](job.range(b), b));
+            self.done.fetch_add(1, Ordering::Release);
+        }
+        std::mem::forget(stop);
+    }
+}
+
+/// Threads of a rayon pool kept in one region ([`team`]).
+struct Team {
+    /// The pool's threads, this one included.
+    threads: usize,
+    /// Odd while a job is posted; bumped to post and to retract it.
+    epoch: Padded,
+    /// Bumped to send the threads serving the team home.
+    generation: AtomicUsize,
+    /// Whether threads of the current generation were called (by the first
+    /// [`run`] since the team started or was [`released`]). Only the
+    /// leading thread touches it.
+    called: AtomicBool,
+    /// How the leading thread calls the team's threads ([`team`]'s spawns).
+    call: AtomicPtr<Calls<'static>>,
+    /// Threads inside the posted job.
+    active: Padded,
+    claims: Claims,
+    /// The posted job, its lifetime erased: valid while `epoch` is odd and
+    /// for the threads counted in `active`.
+    job: UnsafeCell<Option<Job<'static>>>,
+}
+
+// SAFETY: `job` is written by the leading thread only while no other
+// thread reads it (no job posted and `active` zero), and read only by
+// threads counted in `active` while it is posted.
+unsafe impl Sync for Team {}
+
+impl Team {
+    fn new(threads: usize) -> Self {
+        Self {
+            threads,
+            epoch: Padded::default(),
+            generation: AtomicUsize::new(0),
+            called: AtomicBool::new(false),
+            call: AtomicPtr::new(std::ptr::null_mut()),
+            active: Padded::default(),
+            claims: Claims::default(),
+            job: UnsafeCell::new(None),
+        }
+    }
+
+    /// Posts `job`, works on it with the team, and returns when it is done
+    /// and nobody holds it any more.
+    fn run(&self, job: Job<'_>) {
+        // SAFETY: no job is posted and `active` is zero (the last `run`
+        // waited for both), so nobody reads `job` or the counters.
+        unsafe {
+            *self.job.get() = Some(std::mem::transmute::<Job<'_>, Job<'static>>(job));
+        }
+        self.claims.claimed.store(0, Ordering::Relaxed);
+        self.claims.done.store(0, Ordering::Relaxed);
+        self.epoch.fetch_add(1, Ordering::SeqCst);
+        // Retracts the job however this ends (a pass of this thread may
+        // panic): the passes it borrows must outlive every thread in it.
+        let _retract = Retract(self);
+        // SAFETY: posted above; cleared only by `Retract`.
+        let job = unsafe { (*self.job.get()).as_ref().expect("posted") };
+        self.claims.work(job);
+        let total = job.claims * job.passes.len();
+        if !wait_for(&self.claims.done, total, &self.claims.failed) {
+            panic!("a pass of a parallel region panicked on another thread");
+        }
+    }
+
+    /// Serves the team's jobs until its generation moves on.
+    fn serve(&self, generation: usize) {
+        // The leading thread can pick up a call of its own team while it
+        // waits inside `released`: that call is for the threads it left.
+        if std::ptr::eq(LEADING.with(Cell::get), self) {
+            return;
+        }
+        let mut last = 0;
+        let mut spins = 0u32;
+        while self.generation.load(Ordering::Acquire) == generation {
+            let epoch = self.epoch.load(Ordering::Acquire);
+            if epoch % 2 == 1 && epoch != last {
+                last = epoch;
+                self.active.fetch_add(1, Ordering::SeqCst);
+                let _leave = Leave(&self.active);
+                if self.epoch.load(Ordering::SeqCst) == epoch {
+                    // SAFETY: posted (`epoch` is odd) and kept until this
+                    // thread leaves `active`.
+                    let job = unsafe { (*self.job.get()).as_ref().expect("posted") };
+                    self.claims.work(job);
+                }
+                spins = 0;
+            } else {
+                back_off(&mut spins);
+            }
+        }
+    }
+}
+
+/// Retracts a team's job and waits until no thread is inside it.
+struct Retract<'a>(&'a Team);
+
+impl Drop for Retract<'_> {
+    fn drop(&mut self) {
+        let team = self.0;
+        team.epoch.fetch_add(1, Ordering::SeqCst);
+        let mut spins = 0;
+        while team.active.load(Ordering::SeqCst) != 0 {
+            back_off(&mut spins);
+        }
+        // SAFETY: retracted, and nobody is inside it.
+        unsafe { *team.job.get() = None };
+        if team.claims.failed.swap(false, Ordering::AcqRel) && !std::thread::panicking() {
+            panic!("a pass of a parallel region panicked on another thread");
+        }
+    }
+}
+
+/// Leaves a job's count of threads, however the thread leaves it.
+struct Leave<'a>(&'a AtomicUsize);
+
+impl Drop for Leave<'_> {
+    fn drop(&mut self) {
+        self.0.fetch_sub(1, Ordering::SeqCst);
+    }
+}
+
+/// Spins a while, then yields.
+fn back_off(spins: &mut u32) {
+    if *spins < 1 << 12 {
+        std::hint::spin_loop();
+        *spins += 1;
+    } else {
+        std::thread::yield_now();
+    }
+}
+
+/// A counter on a cache line of its own: the threads bump one and spin
+/// on the other.
+#[derive(Default)]
+#[repr(align(128))]
+struct Padded(AtomicUsize);
+
+impl std::ops::Deref for Padded {
+    type Target = AtomicUsize;
+    fn deref(&self) -> &AtomicUsize {
+        &self.0
+    }
+}
+
+/// Marks the region failed if a pass unwinds, so that nobody waits for the
+/// block it never finishes.
+struct Stop<'a>(&'a AtomicBool);
+
+impl Drop for Stop<'_> {
+    fn drop(&mut self) {
+        self.0.store(true, Ordering::Release);
+    }
+}
+
+/// Waits until `done` reaches `target`: true, or false if the region failed.
+fn wait_for(done: &AtomicUsize, target: usize, failed: &AtomicBool) -> bool {
+    let mut spins = 0u32;
+    while done.load(Ordering::Acquire) < target {
+        if failed.load(Ordering::Acquire) {
+            return false;
+        }
+        back_off(&mut spins);
+    }
+    true
+}
+
+/// A slice that the passes of a region write block by block and read whole
+/// in later passes.
+pub(crate) struct Blocks<'a, T> {
+    ptr: *mut T,
+    len: usize,
+    _slice: PhantomData<&'a mut [T]>,
+}
+
+// SAFETY: `Blocks` hands out `&mut [T]` of disjoint ranges and `&[T]` when
+// nothing writes, on any thread: as `&mut [T]` would be, it needs `T: Send`
+// to be sent and `T: Send + Sync` to be shared.
+unsafe impl<T: Send> Send for Blocks<'_, T> {}
+unsafe impl<T: Send + Sync> Sync for Blocks<'_, T> {}
+
+impl<'a, T> Blocks<'a, T> {
+    /// Borrows `slice` for the region.
+    pub(crate) fn new(slice: &'a mut [T]) -> Self {
+        Self {
+            ptr: slice.as_mut_ptr(),
+            len: slice.len(),
+            _slice: PhantomData,
+        }
+    }
+
+    /// The elements in `range`, to write.
+    ///
+    /// # Safety
+    /// Only the pass that owns this slice's writes, for the block it was
+    /// given, while no pass reads the slice ([`run`] gives each block of a
+    /// pass to one call, and starts a pass after the last one finished).
+    #[allow(clippy::mut_from_ref)]
+    pub(crate) unsafe fn block(&self, range: Range<usize>) -> &mut [T] {
+        assert!(range.start <= range.end && range.end <= self.len);
+        // SAFETY: in bounds (asserted); exclusive by the caller's promise.
+        unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
+    }
+
+    /// The whole slice, to read.
+    ///
+    /// # Safety
+    /// Only in a pass that writes none of it.
+    pub(crate) unsafe fn all(&self) -> &[T] {
+        // SAFETY: no writer, by the caller's promise.
+        unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A chain of passes over `n` values, each reading its neighbours'
+    /// values from the last, twice through [`run`]; between the two, with
+    /// `team`, a `par_iter` sum inside [`released`] and a team of its own
+    /// inside that. Returns the values and the per-block and rayon sums.
+    fn chain(n: usize, pool: &rayon::ThreadPool, with_team: bool) -> (Vec<u64>, Vec<u64>, u64) {
+        use rayon::prelude::*;
+        let mut a: Vec<u64> = (0..n as u64).collect();
+        let mut b = vec![0u64; n];
+        let mut sums = vec![0u64; blocks(n)];
+        let (a_out, b_out, s_out) = (
+            Blocks::new(&mut a),
+            Blocks::new(&mut b),
+            Blocks::new(&mut sums),
+        );
+        let neighbours = |v: &[u64], i: usize| v[(i + n - 1) % n] + 3 * v[(i + 1) % n];
+        // SAFETY (every pass): each writes only its own block of the slice
+        // it owns and reads only slices no pass writes meanwhile.
+        let to_b = |r: Range<usize>, _| {
+            let (a, b) = unsafe { (a_out.all(), b_out.block(r.clone())) };
+            for (k, i) in r.enumerate() {
+                b[k] = neighbours(a, i) % 1_000_003;
+            }
+        };
+        let to_a = |r: Range<usize>, blk| {
+            let (b, a) = unsafe { (b_out.all(), a_out.block(r.clone())) };
+            for (k, i) in r.enumerate() {
+                a[k] = neighbours(b, i) % 1_000_003;
+            }
+            unsafe { s_out.block(blk..blk + 1)[0] = a.iter().sum() };
+        };
+        let passes: Vec<Pass<'_>> = vec![&to_b, &to_a, &to_b, &to_a];
+        let steps = || {
+            run(n, &passes);
+            let total = released(|| {
+                // SAFETY: no pass runs.
+                let a = unsafe { a_out.all() };
+                let inner = team(|| {
+                    let mut c = vec![0u64; n];
+                    let c_out = Blocks::new(&mut c);
+                    let double = |r: Range<usize>, _| {
+                        let c = unsafe { c_out.block(r.clone()) };
+                        c.iter_mut().zip(&a[r]).for_each(|(c, &a)| *c = 2 * a);
+                    };
+                    run(n, &[&double]);
+                    c.iter().sum::<u64>()
+                });
+                a.par_iter().sum::<u64>() + inner
+            });
+            run(n, &passes);
+            total
+        };
+        let total = pool.install(|| if with_team { team(steps) } else { steps() });
+        (a, sums, total)
+    }
+
+    fn pool(threads: usize) -> rayon::ThreadPool {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    }
+
+    /// Chains of passes give the same values on one thread and on two and
+    /// seven, with and without a team, and a team's `released` work gets
+    /// the pool.
+    #[test]
+    fn passes_see_the_whole_of_the_pass_before() {
+        // 17 blocks, the last one short: on 2 threads claims of 3 blocks,
+        // the last of 2.
+        let n = 1050;
+        let one = chain(n, &pool(1), false);
+        assert!(one.1.iter().all(|&s| s > 0));
+        assert!(one.2 > 0);
+        for threads in [1, 2, 3, 7] {
+            let pool = pool(threads);
+            assert_eq!(chain(n, &pool, false), one, "{threads} threads");
+            assert_eq!(chain(n, &pool, true), one, "{threads} threads, team");
+        }
+    }
+
+    /// Teams on one pool, led from as many threads at once, each with
+    /// rayon work released in between, all finish (none waits for a thread
+    /// another holds) with the values of one thread.
+    #[test]
+    fn teams_side_by_side_on_one_pool_finish() {
+        let one = chain(700, &pool(1), false);
+        let shared = pool(3);
+        let results: Vec<_> = std::thread::scope(|s| {
+            let runs: Vec<_> = (0..6)
+                .map(|_| {
+                    s.spawn(|| {
+                        (0..5)
+                            .map(|_| chain(700, &shared, true))
+                            .collect::<Vec<_>>()
+                    })
+                })
+                .collect();
+            runs.into_iter().flat_map(|r| r.join().unwrap()).collect()
+        });
+        assert_eq!(results.len(), 30);
+        assert!(results.iter().all(|r| *r == one));
+    }
+
+    /// A pass that panics stops the region with its panic instead of
+    /// leaving the others waiting.
+    #[test]
+    fn a_panicking_pass_stops_the_region() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(3)
+            .build()
+            .unwrap();
+        let boom = |r: Range<usize>, _| assert!(!r.contains(&500), "a pass failed");
+        let after = |_: Range<usize>, _| {};
+        for with_team in [false, true] {
+            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                pool.install(|| {
+                    if with_team {
+                        team(|| run(1000, &[&boom, &after]))
+                    } else {
+                        run(1000, &[&boom, &after])
+                    }
+                })
+            }));
+            assert!(result.is_err(), "team: {with_team}");
+        }
+        // A pass that panics on a thread the team called, not on the one
+        // leading it (whose blocks are slow, so that the others claim some).
+        let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            pool.install(|| {
+                let leader = rayon::current_thread_index();
+                let boom = |_: Range<usize>, _| {
+                    if rayon::current_thread_index() == leader {
+                        std::thread::sleep(std::time::Duration::from_millis(2));
+                    } else {
+                        panic!("a pass failed on another thread");
+                    }
+                };
+                team(|| run(1000, &[&boom, &after]))
+            })
+        }));
+        assert!(result.is_err());
+        // The pool is whole after it.
+        assert_eq!(pool.install(|| team(|| 7)), 7);
+    }
+}
