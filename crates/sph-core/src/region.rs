@@ -105,6 +105,35 @@ pub(crate) fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
     });
 }
 
+/// Sets each `out[i]` by `f(i, &mut out[i])`, in one parallel pass
+/// ([`run`]).
+pub(crate) fn for_each<T: Send + Sync>(out: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
+    let n = out.len();
+    let out = Blocks::new(out);
+    let pass = |range: Range<usize>, _| {
+        let first = range.start;
+        // SAFETY: each block writes its own elements; nothing reads them.
+        let block = unsafe { out.block(range) };
+        (block.iter_mut().enumerate()).for_each(|(k, value)| f(first + k, value));
+    };
+    run(n, &[&pass]);
+}
+
+/// `f` of each block of `n` particles, in block order, computed in one
+/// parallel pass ([`run`]): what a reduction adds or compares in block
+/// order after it, the same for any number of threads.
+pub(crate) fn map_blocks<T: Send + Sync + Copy + Default>(
+    n: usize,
+    f: impl Fn(Range<usize>) -> T + Sync,
+) -> Vec<T> {
+    let mut values = vec![T::default(); blocks(n)];
+    let out = Blocks::new(&mut values);
+    // SAFETY: each block writes its own value; nothing reads them.
+    let pass = |range: Range<usize>, b: usize| unsafe { out.block(b..b + 1)[0] = f(range) };
+    run(n, &[&pass]);
+    values
+}
+
 /// Runs `f` with a team of the current rayon pool's threads kept in one
 /// region for all of it: every [`run`] that `f` makes on this thread goes
 /// to the team instead of forking. Inside a team already (or on a pool of

@@ -163,6 +163,43 @@ impl NeighbourLists {
         pairs: &mut [P],
         f: impl Fn(usize, &[u32], &mut [P]) -> T + Sync,
     ) {
+        let blocks = self.row_blocks(out, pairs);
+        blocks
+            .into_par_iter()
+            .for_each(|(first, values, rows)| self.map_rows_of_block(first, values, rows, &f));
+    }
+
+    /// [`NeighbourLists::par_map_rows`] in a parallel region
+    /// ([`crate::region::run`]): `f` must not use rayon.
+    pub(crate) fn region_map_rows<T: Send + Sync, P: Send + Sync>(
+        &self,
+        out: &mut [T],
+        pairs: &mut [P],
+        f: impl Fn(usize, &[u32], &mut [P]) -> T + Sync,
+    ) {
+        let mut blocks = self.row_blocks(out, pairs);
+        let blocks = Blocks::new(&mut blocks);
+        let pass = |range: Range<usize>, c: usize| {
+            // SAFETY: each block takes its own entry; nothing reads them.
+            let (first, values, rows) = unsafe { &mut blocks.block(c..c + 1)[0] };
+            debug_assert_eq!(*first, range.start);
+            self.map_rows_of_block(*first, values, rows, &f);
+        };
+        region::run_by(self.len(), CHUNK, &[&pass]);
+    }
+
+    /// `out` and `pairs` cut into blocks of [`CHUNK`] particles and their
+    /// rows: (first particle, values, rows).
+    ///
+    /// # Panics
+    /// If `out` does not hold one value per particle or `pairs` one per
+    /// neighbour pair.
+    #[allow(clippy::type_complexity)]
+    fn row_blocks<'a, T, P>(
+        &self,
+        out: &'a mut [T],
+        pairs: &'a mut [P],
+    ) -> Vec<(usize, &'a mut [T], &'a mut [P])> {
         assert_eq!(out.len(), self.len(), "one value per particle");
         assert_eq!(pairs.len(), self.pairs(), "one value per neighbour pair");
         let start = &self.start;
@@ -171,18 +208,29 @@ impl NeighbourLists {
         for (b, values) in out.chunks_mut(CHUNK).enumerate() {
             let first = b * CHUNK;
             let len = (start[first + values.len()] - start[first]) as usize;
-            let (rows, tail) = rest.split_at_mut(len);
+            let (rows, tail) = std::mem::take(&mut rest).split_at_mut(len);
             rest = tail;
             blocks.push((first, values, rows));
         }
-        blocks.into_par_iter().for_each(|(first, values, rows)| {
-            let base = start[first];
-            for (k, value) in values.iter_mut().enumerate() {
-                let i = first + k;
-                let row = (start[i] - base) as usize..(start[i + 1] - base) as usize;
-                *value = f(i, self.of(i), &mut rows[row]);
-            }
-        });
+        blocks
+    }
+
+    /// `values[k] = f(i, neighbours of i, row i)` for the particles `i =
+    /// first + k` of one block, whose rows are `rows`.
+    fn map_rows_of_block<T, P>(
+        &self,
+        first: usize,
+        values: &mut [T],
+        rows: &mut [P],
+        f: &impl Fn(usize, &[u32], &mut [P]) -> T,
+    ) {
+        let start = &self.start;
+        let base = start[first];
+        for (k, value) in values.iter_mut().enumerate() {
+            let i = first + k;
+            let row = (start[i] - base) as usize..(start[i + 1] - base) as usize;
+            *value = f(i, self.of(i), &mut rows[row]);
+        }
     }
 
     /// Particle `i`'s part of per-pair data laid out as the rows are (see

@@ -105,7 +105,6 @@ use std::ops::Range;
 use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
-use rayon::prelude::*;
 
 use super::lane_map::{LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
 use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
@@ -512,10 +511,11 @@ pub fn relaxation(cubic: &CubicSpline, spacing: f32) -> f32 {
 /// The relaxation for the widest neighbourhood of `masses`: the smallest
 /// spacing V^⅓ = (m/ρ0)^⅓. Kept in `cache` while that spacing stays the same.
 fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Model) -> f32 {
-    let lightest = masses
-        .par_iter()
-        .copied()
-        .reduce(|| f32::INFINITY, f32::min);
+    let lightest = region::map_blocks(masses.len(), |r| {
+        masses[r].iter().copied().fold(f32::INFINITY, f32::min)
+    })
+    .into_iter()
+    .fold(f32::INFINITY, f32::min);
     let spacing = (lightest * model.inv_rho0).cbrt();
     match *cache {
         Some((s, omega)) if s == spacing => omega,
@@ -565,6 +565,9 @@ impl Processor for Factors {
     fn name(&self) -> &str {
         "factors"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "factors")?;
         let model = &*self.model;
@@ -586,9 +589,7 @@ impl Processor for Factors {
         par_map_rows(&pass, lists, factors, pairs);
         // Padding, so that a row's last chunk of G_ij reads as eight lanes.
         pairs.extend([Vec3::ZERO; PAIR_PADDING]);
-        (f.densities.par_iter_mut())
-            .zip(factors.par_iter())
-            .for_each(|(rho, c)| *rho = c.rho);
+        region::for_each(f.densities, |i, rho| *rho = factors[i].rho);
         let reach = 0.5 * model.params.h;
         Contact::find(model.walls.boundary(), f.positions, reach, contacts);
         Ok(())
@@ -728,9 +729,8 @@ impl Solve {
         let x = &*f.positions;
         if target == Target::Density {
             // v* = v + Δt a: the non-pressure forces.
-            (f.velocities.par_iter_mut())
-                .zip(f.accelerations.par_iter())
-                .for_each(|(v, &a)| *v += dt * a);
+            let a = &*f.accelerations;
+            region::for_each(f.velocities, |i, v| *v += dt * a[i]);
         }
         // Near a wall, the step ends no closer than the clearance: v* held
         // there, and later each iteration's accelerations.
@@ -748,9 +748,10 @@ impl Solve {
         // compresses, 0 elsewhere.
         let inv_rho0 = model.inv_rho0;
         let v = &*f.velocities;
-        (v.par_iter())
-            .map(|v| [v.x, v.y, v.z, 0.0])
-            .collect_into_vec(&mut self.vrows);
+        self.vrows.resize(n, [0.0; 4]);
+        region::for_each(&mut self.vrows, |i, row| {
+            *row = [v[i].x, v[i].y, v[i].z, 0.0]
+        });
         let products = PairProducts {
             lists,
             pairs,
@@ -759,32 +760,32 @@ impl Solve {
         par_map(&products, n, &mut self.products);
         let rates = &self.products;
         self.rows.resize(n, Row::default());
-        (self.rows.par_iter_mut())
-            .zip(self.kappa.par_iter_mut())
-            .enumerate()
-            .for_each(|(i, (row, k))| {
-                let c = factors[i];
-                let vi = v[i];
-                let rate = rates[i];
-                *row = match target {
-                    Target::Divergence => Row {
-                        wall: c.wall,
-                        alpha: c.alpha,
-                        source: -dt * (rate + vi.dot(c.wall)),
-                    },
-                    Target::Density => {
-                        let (rho_wall, wall) = model.walls.at_layers(x[i] + dt * vi, c.spacing);
-                        let walls = rho_wall * inv_rho0 - c.fraction;
-                        let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
-                        Row {
-                            wall,
-                            alpha: model.inverse(sum),
-                            source: 1.0 - (c.rho * inv_rho0 + walls + dt * rate),
-                        }
+        region::for_each(&mut self.rows, |i, row| {
+            let c = factors[i];
+            let vi = v[i];
+            let rate = rates[i];
+            *row = match target {
+                Target::Divergence => Row {
+                    wall: c.wall,
+                    alpha: c.alpha,
+                    source: -dt * (rate + vi.dot(c.wall)),
+                },
+                Target::Density => {
+                    let (rho_wall, wall) = model.walls.at_layers(x[i] + dt * vi, c.spacing);
+                    let walls = rho_wall * inv_rho0 - c.fraction;
+                    let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
+                    Row {
+                        wall,
+                        alpha: model.inverse(sum),
+                        source: 1.0 - (c.rho * inv_rho0 + walls + dt * rate),
                     }
-                };
-                *k = if row.source < 0.0 { 0.5 * *k } else { 0.0 };
-            });
+                }
+            };
+        });
+        let rows = &self.rows;
+        region::for_each(&mut self.kappa, |i, k| {
+            *k = if rows[i].source < 0.0 { 0.5 * *k } else { 0.0 };
+        });
         let dfsph = model.dfsph;
         let tolerance = match target {
             Target::Divergence => dfsph.divergence_tolerance,
@@ -870,9 +871,10 @@ impl Solve {
         };
         par_map(&pressure, n, &mut self.accelerations);
         hold_accelerations(contacts, f.velocities, dt, 0, &mut self.accelerations);
-        (f.velocities.par_iter_mut())
-            .zip(self.accelerations.par_iter())
-            .for_each(|(v, a)| *v += dt * Vec3::new(a[0], a[1], a[2]));
+        let a = &self.accelerations;
+        region::for_each(f.velocities, |i, v| {
+            *v += dt * Vec3::new(a[i][0], a[i][1], a[i][2])
+        });
         if error > tolerance {
             ctx.counters.unconverged += 1;
         }
@@ -881,10 +883,11 @@ impl Solve {
             Target::Density => {
                 ctx.counters.iterations += iterations;
                 let rest = model.params.rest_density;
-                (f.pressures.par_iter_mut())
-                    .zip(kappa.par_iter().zip(factors.par_iter()))
-                    .zip(self.applied.par_iter())
-                    .for_each(|((p, (&k, c)), &k0)| *p = (k0 + k) * c.rho * c.rho / rest);
+                let applied = &self.applied;
+                region::for_each(f.pressures, |i, p| {
+                    let rho = factors[i].rho;
+                    *p = (applied[i] + kappa[i]) * rho * rho / rest;
+                });
             }
         }
         drop(shared);
@@ -996,6 +999,9 @@ impl Processor for DivergenceSolve {
     fn name(&self) -> &str {
         "divergence"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         self.0.run(particles, ctx)
     }
@@ -1012,6 +1018,9 @@ impl Processor for DensitySolve {
     fn name(&self) -> &str {
         "density"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         self.0.run(particles, ctx)
     }
@@ -1026,12 +1035,14 @@ impl Processor for Advect {
     fn name(&self) -> &str {
         "advect"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let dt = ctx.dt;
         let f = particles.fields_mut();
-        (f.positions.par_iter_mut())
-            .zip(f.velocities.par_iter())
-            .for_each(|(x, &v)| *x += dt * v);
+        let v = &*f.velocities;
+        region::for_each(f.positions, |i, x| *x += dt * v[i]);
         ctx.invalidate_grid(); // positions moved
         Ok(())
     }

@@ -4,15 +4,16 @@
 //! them with the lanes [`with_lanes`] picks (every kind gives bitwise the
 //! same values).
 
-use rayon::prelude::*;
+use std::ops::Range;
 
 use crate::NeighbourLists;
+use crate::region::{self, Blocks};
 use crate::simd::{F32x8, LaneFn, Lanes, with_lanes};
 
 /// A per-particle computation written over lanes of any kind.
 pub(super) trait LaneMap: Sync {
     /// What it gives per particle.
-    type Out: Send + Copy + Default;
+    type Out: Send + Sync + Copy + Default;
     /// Particle `i`'s value, computed with lanes `S`. Implementations
     /// must be `#[inline(always)]` (see [`LaneFn`]).
     fn particle<S: F32x8>(&self, i: usize) -> Self::Out;
@@ -27,9 +28,11 @@ const BLOCK: usize = 256;
 pub(super) fn par_map<M: LaneMap>(map: &M, n: usize, out: &mut Vec<M::Out>) {
     // Every value is written below; the memory is only sized here.
     out.resize(n, M::Out::default());
-    out.par_chunks_mut(BLOCK)
-        .enumerate()
-        .for_each(|(b, block)| fill_block(map, b * BLOCK, block));
+    let blocks = Blocks::new(out);
+    // SAFETY: each block writes its own values; nothing reads them.
+    let fill =
+        |range: Range<usize>, _| fill_block(map, range.start, unsafe { blocks.block(range) });
+    region::run_by(n, BLOCK, &[&fill]);
 }
 
 /// Sets `block[k]` to `map`'s value for particle `first + k`, on this
@@ -61,9 +64,9 @@ impl<M: LaneMap> LaneFn for Fill<'_, M> {
 /// [`NeighbourLists::row`] lays them out).
 pub(super) trait LaneRowMap: Sync {
     /// What it gives per particle.
-    type Out: Send;
+    type Out: Send + Sync;
     /// What it writes per pair.
-    type Pair: Send;
+    type Pair: Send + Sync;
     /// Particle `i`'s value, computed with lanes `S`; `pairs` is its row.
     /// Implementations must be `#[inline(always)]` (see [`LaneFn`]).
     fn particle<S: F32x8>(&self, i: usize, pairs: &mut [Self::Pair]) -> Self::Out;
@@ -98,7 +101,7 @@ pub(super) fn par_map_rows<M: LaneRowMap>(
     pairs: &mut [M::Pair],
 ) {
     let lanes = Lanes::best();
-    lists.par_map_rows(out, pairs, |i, _, pairs| lanes.run(Row { map, i, pairs }));
+    lists.region_map_rows(out, pairs, |i, _, pairs| lanes.run(Row { map, i, pairs }));
 }
 
 /// `map`'s values for `n` particles with every kind of lanes this CPU

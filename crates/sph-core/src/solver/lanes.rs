@@ -151,11 +151,8 @@ impl<S: F32x8> DensitySums<S> {
 /// `rows[i]` = (x_i, y_i, z_i, m_i): what [`Near::gather`] reads, one load
 /// per neighbour.
 pub(super) fn rows_of(x: &[Vec3], m: &[f32], rows: &mut Vec<[f32; 4]>) {
-    use rayon::prelude::*;
-    x.par_iter()
-        .zip(m)
-        .map(|(x, &m)| [x.x, x.y, x.z, m])
-        .collect_into_vec(rows);
+    rows.resize(x.len(), [0.0; 4]);
+    crate::region::for_each(rows, |i, row| *row = [x[i].x, x[i].y, x[i].z, m[i]]);
 }
 
 /// The cubic spline's W and gradient factor s (∇W = s r) per lane, from

@@ -471,11 +471,9 @@ impl Processor for Predict {
             Blocks::new(f.velocities),
             &*f.accelerations,
         );
-        let mut counts = vec![0u64; region::blocks(n)];
-        let counted = Blocks::new(&mut counts);
-        let predict = |range: Range<usize>, blk: usize| {
-            // SAFETY: each block writes its own particles and count; nothing
-            // reads them in this pass.
+        let counts = region::map_blocks(n, |range| {
+            // SAFETY: each block writes its own particles; nothing reads
+            // them in this pass.
             let (x, v) = unsafe { (xs.block(range.clone()), vs.block(range.clone())) };
             let mut clamped = 0;
             for ((x, v), &a) in x.iter_mut().zip(v).zip(&accelerations[range]) {
@@ -494,9 +492,8 @@ impl Processor for Predict {
                 *v += (*x - free) / dt;
                 clamped += u64::from(clamp);
             }
-            unsafe { counted.block(blk..blk + 1)[0] = clamped };
-        };
-        region::run(n, &[&predict]);
+            clamped
+        });
         let clamped: u64 = counts.iter().sum();
         ctx.counters.clamped += clamped;
         ctx.invalidate_grid(); // positions moved

@@ -380,12 +380,7 @@ impl Processor for BodyForces {
     }
     fn process(&mut self, particles: &mut Particles, _: &mut Context) -> Result<()> {
         let g = self.gravity;
-        let n = particles.len();
-        let accelerations = Blocks::new(particles.accelerations_mut());
-        // SAFETY: each block writes its own particles; nothing reads them
-        // in this pass.
-        let set = |range: Range<usize>, _| unsafe { accelerations.block(range) }.fill(g);
-        region::run(n, &[&set]);
+        region::for_each(particles.accelerations_mut(), |_, a| *a = g);
         Ok(())
     }
 }

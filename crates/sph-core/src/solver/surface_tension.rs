@@ -53,8 +53,8 @@
 //! The damping is far above Lamb's. The GPU's PBF applies the same forces
 //! (sph-gpu's `shaders/pbf.wgsl`).
 
+use crate::region;
 use glam::Vec3;
-use rayon::prelude::*;
 
 use super::lane_map::{LaneMap, par_map};
 use super::lanes::Near;
@@ -298,6 +298,9 @@ impl Processor for SurfaceTension {
     fn name(&self) -> &str {
         "surface tension"
     }
+    fn runs_in_region(&self) -> bool {
+        true
+    }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "surface tension")?;
         let lanes = Lanes::new(&self.poly6);
@@ -307,9 +310,10 @@ impl Processor for SurfaceTension {
             particles.masses(),
             particles.densities(),
         );
-        (x.par_iter().zip(m).zip(rho))
-            .map(|((x, &m), &rho)| [x.x, x.y, x.z, m / rho])
-            .collect_into_vec(&mut self.volumes);
+        self.volumes.resize(n, [0.0; 4]);
+        region::for_each(&mut self.volumes, |i, v| {
+            *v = [x[i].x, x[i].y, x[i].z, m[i] / rho[i]];
+        });
         super::lanes::rows_of(x, m, &mut self.rows);
         let volumes = &self.volumes;
         par_map(
@@ -321,9 +325,12 @@ impl Processor for SurfaceTension {
             n,
             &mut self.normals,
         );
-        (self.normals.par_iter().zip(rho))
-            .map(|(n, &rho)| [n.x, n.y, n.z, rho])
-            .collect_into_vec(&mut self.normal_rows);
+        let normals = &self.normals;
+        self.normal_rows.resize(n, [0.0; 4]);
+        region::for_each(&mut self.normal_rows, |i, row| {
+            let n = normals[i];
+            *row = [n.x, n.y, n.z, rho[i]];
+        });
         let forces = Forces {
             lanes,
             gamma: self.gamma,
@@ -343,9 +350,8 @@ impl Processor for SurfaceTension {
             Update::Velocities => f.velocities,
             Update::Accelerations => f.accelerations,
         };
-        (target.par_iter_mut())
-            .zip(self.forces.par_iter())
-            .for_each(|(v, force)| *v += dt * force.a);
+        let forces = &self.forces;
+        region::for_each(target, |i, v| *v += dt * forces[i].a);
         Ok(())
     }
 }

@@ -39,7 +39,6 @@ use std::ops::Range;
 use std::sync::OnceLock;
 
 use glam::{Mat3, Vec3};
-use rayon::prelude::*;
 
 use super::params::FluidParams;
 use super::stations::lists;
@@ -85,11 +84,6 @@ pub fn laplacian_factor(kernel: &CubicSpline, spacing: f32) -> f32 {
     }
     if sum > 0.0 { (2.0 / sum) as f32 } else { 10.0 }
 }
-
-/// Particles per chunk of the dot products: fixed, so the sums' order does
-/// not depend on the number of threads; the regions' blocks, so that the
-/// CG iterations' sums add in the same order as [`dot`]'s.
-const DOT_CHUNK: usize = region::BLOCK;
 
 /// Distances (fractions of h) at which [`WallFriction`] tabulates.
 const TABLE: usize = 64;
@@ -286,12 +280,15 @@ fn apply(
     yi - c * sum
 }
 
-/// Σ_i a_i · b_i in fixed chunks, in f64.
+/// Σ_i a_i · b_i in f64, per region block ([`region::map_blocks`]) and
+/// then over the blocks in order: as the CG iterations' sums add.
 fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
-    let sums: Vec<f64> = (a.par_chunks(DOT_CHUNK))
-        .zip(b.par_chunks(DOT_CHUNK))
-        .map(|(a, b)| a.iter().zip(b).map(|(a, b)| f64::from(a.dot(*b))).sum())
-        .collect();
+    debug_assert_eq!(a.len(), b.len());
+    let sums = region::map_blocks(a.len(), |r| {
+        (a[r.clone()].iter().zip(&b[r]))
+            .map(|(a, b)| f64::from(a.dot(*b)))
+            .sum::<f64>()
+    });
     sums.iter().sum()
 }
 
@@ -303,6 +300,10 @@ impl Processor for ImplicitViscosity {
             Update::Accelerations => "viscosity",
             Update::Velocities => "implicit_viscosity",
         }
+    }
+
+    fn runs_in_region(&self) -> bool {
+        true
     }
 
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
@@ -318,7 +319,12 @@ impl Processor for ImplicitViscosity {
         self.x.clear();
         (self.x).extend_from_slice(particles.attribute::<Vec3>(VISCOUS_CHANGE)?);
         let (mu, eps) = (self.mu, 0.01 * self.h * self.h);
-        let lightest = (particles.masses().par_iter().copied()).reduce(|| f32::INFINITY, f32::min);
+        let masses = particles.masses();
+        let lightest = region::map_blocks(n, |r| {
+            masses[r].iter().copied().fold(f32::INFINITY, f32::min)
+        })
+        .into_iter()
+        .fold(f32::INFINITY, f32::min);
         let spacing = (lightest / self.rest_density).cbrt();
         let factor = match self.factor {
             Some((s, factor)) if s == spacing => factor,
@@ -341,7 +347,7 @@ impl Processor for ImplicitViscosity {
         // walls' tensor and the inverse diagonal block.
         self.pairs.resize(lists.pairs(), Vec3::ZERO);
         self.rows.resize(n, (0.0, Mat3::ZERO, Mat3::ZERO));
-        lists.par_map_rows(&mut self.rows, &mut self.pairs, |i, list, out| {
+        lists.region_map_rows(&mut self.rows, &mut self.pairs, |i, list, out| {
             let xi = pos[i];
             let c = dt * mu / rho[i] * factor;
             let t = walls.tensor(boundary, xi);
@@ -364,27 +370,27 @@ impl Processor for ImplicitViscosity {
         });
         // b = v* (v + Δt a, or v); the warm start x = b + the last change.
         match self.update {
-            Update::Accelerations => (f.velocities.par_iter())
-                .zip(f.accelerations.par_iter())
-                .map(|(&v, &a)| v + dt * a)
-                .collect_into_vec(&mut self.b),
+            Update::Accelerations => {
+                let (v, a) = (&*f.velocities, &*f.accelerations);
+                self.b.resize(n, Vec3::ZERO);
+                region::for_each(&mut self.b, |i, b| *b = v[i] + dt * a[i]);
+            }
             Update::Velocities => {
                 self.b.clear();
                 self.b.extend_from_slice(f.velocities);
             }
         }
-        (self.x.par_iter_mut())
-            .zip(self.b.par_iter())
-            .for_each(|(x, &b)| *x += b);
-        let (pairs, rows) = (&self.pairs, &self.rows);
+        let b = &self.b;
+        region::for_each(&mut self.x, |i, x| *x += b[i]);
+        let (pairs, rows, x) = (&self.pairs, &self.rows, &self.x);
         // r = b − A x, z = M⁻¹ r, p = z.
-        (0..n)
-            .into_par_iter()
-            .map(|i| self.b[i] - apply(i, &self.x, pos, lists, pairs, rows))
-            .collect_into_vec(&mut self.r);
-        (self.r.par_iter().zip(rows.par_iter()))
-            .map(|(&r, row)| row.2 * r)
-            .collect_into_vec(&mut self.z);
+        self.r.resize(n, Vec3::ZERO);
+        region::for_each(&mut self.r, |i, r| {
+            *r = b[i] - apply(i, x, pos, lists, pairs, rows);
+        });
+        let r = &self.r;
+        self.z.resize(n, Vec3::ZERO);
+        region::for_each(&mut self.z, |i, z| *z = rows[i].2 * r[i]);
         self.p.clone_from(&self.z);
         let norm_b = dot(&self.b, &self.b).sqrt();
         let stop = f64::from(self.tolerance) * norm_b.max(f64::MIN_POSITIVE);
@@ -486,20 +492,16 @@ impl Processor for ImplicitViscosity {
         match self.update {
             Update::Accelerations => {
                 let inv_dt = 1.0 / dt;
-                (f.accelerations.par_iter_mut())
-                    .zip(self.x.par_iter_mut().zip(self.b.par_iter()))
-                    .for_each(|(a, (x, &b))| {
-                        *x -= b;
-                        *a += *x * inv_dt;
-                    });
+                let b = &self.b;
+                region::for_each(&mut self.x, |i, x| *x -= b[i]);
+                let x = &self.x;
+                region::for_each(f.accelerations, |i, a| *a += x[i] * inv_dt);
             }
             Update::Velocities => {
-                (f.velocities.par_iter_mut())
-                    .zip(self.x.par_iter_mut().zip(self.b.par_iter()))
-                    .for_each(|(v, (x, &b))| {
-                        *v = *x;
-                        *x -= b;
-                    });
+                let x = &self.x;
+                region::for_each(f.velocities, |i, v| *v = x[i]);
+                let b = &self.b;
+                region::for_each(&mut self.x, |i, x| *x -= b[i]);
             }
         }
         particles

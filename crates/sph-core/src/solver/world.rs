@@ -1,8 +1,6 @@
 //! [`World`]: particles, the solver's program and the clock.
 
-use std::ops::Range;
-
-use rayon::prelude::*;
+use glam::Vec3;
 
 use super::params::{FluidParams, TimeStepping, check_viscous_dt};
 use super::{Solver, SolverKind};
@@ -10,7 +8,7 @@ use crate::boundary::Boundary;
 use crate::error::{Error, Result, positive};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program, StepCounters};
-use crate::region::{self, Blocks};
+use crate::region;
 
 /// A simulation: particles, the program that advances them, and the clock.
 pub struct World {
@@ -85,7 +83,7 @@ pub struct FrameReport {
 }
 
 /// What a step left, per block of particles ([`survey`]).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Default)]
 struct BlockSurvey {
     /// The block's first particle that is not finite or faster than the
     /// limit, if any.
@@ -110,15 +108,12 @@ fn survey(particles: &Particles, rest: f32, limit: f32) -> (Option<usize>, (f64,
         particles.velocities(),
         particles.densities(),
     );
-    let empty = BlockSurvey {
-        bad: None,
-        error_sum: 0.0,
-        error_max: f32::NEG_INFINITY,
-    };
-    let mut blocks = vec![empty; region::blocks(n)];
-    let out = Blocks::new(&mut blocks);
-    let pass = |range: Range<usize>, b: usize| {
-        let mut s = empty;
+    let blocks = region::map_blocks(n, |range| {
+        let mut s = BlockSurvey {
+            bad: None,
+            error_sum: 0.0,
+            error_max: f32::NEG_INFINITY,
+        };
         for i in range {
             if s.bad.is_none() && (!x[i].is_finite() || !v[i].is_finite() || v[i].length() > limit)
             {
@@ -128,11 +123,8 @@ fn survey(particles: &Particles, rest: f32, limit: f32) -> (Option<usize>, (f64,
             s.error_sum += f64::from(e.max(0.0));
             s.error_max = s.error_max.max(e);
         }
-        // SAFETY: each block writes its own entry; nothing reads them in
-        // the region.
-        unsafe { out.block(b..b + 1)[0] = s };
-    };
-    region::run(n, &[&pass]);
+        s
+    });
     let bad = blocks.iter().find_map(|s| s.bad);
     let (sum, max) = (blocks.iter()).fold((0.0f64, f32::NEG_INFINITY), |(s, m), b| {
         (s + b.error_sum, m.max(b.error_max))
@@ -231,21 +223,12 @@ impl World {
         match self.solver {
             Solver::Pbf(pbf) => return pbf.max_dt,
             Solver::Dfsph(dfsph) => {
-                let speed = (self.particles.velocities().par_iter())
-                    .zip(self.particles.accelerations().par_iter())
-                    .map(|(v, a)| v.length() + a.length() * dfsph.max_dt)
-                    .reduce(|| 0.0, f32::max);
-                return dfsph.step(self.params.h, speed);
+                let speed = self.largest(|v, a| (v.length() + a.length() * dfsph.max_dt, 0.0));
+                return dfsph.step(self.params.h, speed.0);
             }
             Solver::Wcsph => {}
         }
-        let (v_max, a_max) = self
-            .particles
-            .velocities()
-            .par_iter()
-            .zip(self.particles.accelerations().par_iter())
-            .map(|(v, a)| (v.length(), a.length()))
-            .reduce(|| (0.0, 0.0), |x, y| (x.0.max(y.0), x.1.max(y.1)));
+        let (v_max, a_max) = self.largest(|v, a| (v.length(), a.length()));
         let h = self.params.h;
         let s = &self.stepping;
         let mut dt = s
@@ -256,6 +239,16 @@ impl World {
             dt = dt.min(s.force_factor * (h / a_max).sqrt());
         }
         dt
+    }
+
+    /// The largest of each of the two values `f` gives per particle's
+    /// velocity and acceleration, in one parallel pass (0 for none).
+    fn largest(&self, f: impl Fn(Vec3, Vec3) -> (f32, f32) + Sync) -> (f32, f32) {
+        let (v, a) = (self.particles.velocities(), self.particles.accelerations());
+        let most = |x: (f32, f32), y: (f32, f32)| (x.0.max(y.0), x.1.max(y.1));
+        let blocks =
+            region::map_blocks(v.len(), |r| r.map(|i| f(v[i], a[i])).fold((0.0, 0.0), most));
+        blocks.into_iter().fold((0.0, 0.0), most)
     }
 
     /// Takes one step of the stable length; returns it.
@@ -386,8 +379,7 @@ impl World {
             }
         } else {
             while self.time < end {
-                // `stable_dt` is rayon's, not a region's.
-                let stable = region::released(|| self.checked_stable_dt())?;
+                let stable = self.checked_stable_dt()?;
                 let remaining = (end - self.time) as f32;
                 // Land on the frame time without a sliver step: the last two steps
                 // share what is left when it is under two stable steps.
