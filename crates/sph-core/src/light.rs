@@ -14,10 +14,14 @@
 //! passes split as rayon sees fit. (Interpolated, one and two threads
 //! break even near 29k.) The results are the same either way.
 //!
-//! The solvers' own light passes (integration, a density copy, a maximum)
-//! keep splitting: run on one thread inside a PBF substep they left the
-//! other asleep through them, and the heavy passes after them paid its
-//! wake-up (10k particles, 2 threads: 3.28 → 3.50–3.67 ms a substep).
+//! Inside a step's team (`crate::region::team`) the other threads no
+//! longer sleep between passes, yet the build still runs on one thread
+//! below [`SERIAL_BELOW`]: split through rayon with the team released (a
+//! throwaway build with `SERIAL_BELOW` = 0), the grid station of `dam-break-fine` (10k particles, 2 threads) took
+//! 0.83–0.85 ms a substep against 0.68–0.81 on one (three alternated runs
+//! of `pbf_stations`, 2026-11-27, in a slow spell of the VM). The solvers'
+//! own light passes (integration, a density copy, a maximum) run as
+//! region passes in the team.
 
 /// The particle count from which a light pass splits.
 pub(crate) const SERIAL_BELOW: usize = 1 << 15;

@@ -269,13 +269,11 @@ impl World {
     }
 
     /// Runs `f` on a thread of the pool to step in ([`Self::take_pool`]),
-    /// or of rayon's current pool (this one, when it is one), and keeps the
-    /// narrow pool for the next step. The processors' parallel passes then
-    /// split their work with `join` from inside the pool, instead of
-    /// handing each pass to the pool and putting the calling thread to
-    /// sleep until it is done: PBF's 10k substep took 10 % less time on two
-    /// cores (`docs/benchmark-notes.md`, "PBF's pair sums in AVX2 lanes").
-    /// The work and its order are the same either way.
+    /// or of rayon's current pool (this one, when it is one), in one
+    /// parallel region for all of it (`region::team`): the pool's threads
+    /// start once and wait, spinning, for each station's passes, instead of
+    /// a fork, a join and a wake-up per pass. Keeps the narrow pool for the
+    /// next step. The work and its order are the same either way.
     fn on_pool<R: Send>(&mut self, f: impl FnOnce(&mut Self) -> R + Send) -> R {
         let pool = self.take_pool();
         let result = match &pool {
