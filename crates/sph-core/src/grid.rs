@@ -119,7 +119,9 @@ impl NeighbourGrid {
     /// position is beyond 2³⁰·h from the origin, or there are more than
     /// [`MAX_PARTICLES`] (2³² − 2) particles.
     pub fn build(positions: &[Vec3], h: f32) -> Result<Self> {
-        Self::build_reusing(positions, h, layout::Layout::default(), Vec::new())
+        crate::light::released_if_heavy(positions.len(), || {
+            Self::build_reusing(positions, h, layout::Layout::default(), Vec::new())
+        })
     }
 
     /// Rebuilds the grid for new `positions` with the same h, reusing its memory:
@@ -130,7 +132,10 @@ impl NeighbourGrid {
         let h = self.h;
         let reuse = std::mem::take(&mut self.layout);
         let slots = std::mem::take(&mut self.table).into_slots();
-        match Self::build_reusing(positions, h, reuse, slots) {
+        let built = crate::light::released_if_heavy(positions.len(), || {
+            Self::build_reusing(positions, h, reuse, slots)
+        });
+        match built {
             Ok(grid) => {
                 *self = grid;
                 Ok(())
@@ -330,6 +335,9 @@ impl NeighbourGrid {
 
     /// [`NeighbourGrid::par_map`] into `out`, replacing its contents and reusing
     /// its memory: what a loop over frames does to avoid allocating per frame.
+    ///
+    /// On a thread that leads a [`crate::region::team`] it runs as one
+    /// region pass on the team, so `f` must not use rayon there.
     pub fn par_map_into<T, F>(&self, f: F, out: &mut Vec<T>)
     where
         T: Copy + Send + Sync,
@@ -339,13 +347,21 @@ impl NeighbourGrid {
         out.clear();
         out.reserve(n);
         let dst = layout::Scatter(out.as_mut_ptr());
-        (0..n).into_par_iter().for_each(|s| {
+        let one = |s: usize| {
             let i = self.layout.order[s] as usize;
             let value = f(i, self.neighbourhood_of_slot(s));
             // SAFETY: `order` is a permutation of 0..n, so every index below the
             // capacity n is written exactly once, by one thread.
             unsafe { dst.write(i, value) };
-        });
+        };
+        if crate::region::leading() {
+            crate::region::run(
+                n,
+                &[&|slots: std::ops::Range<usize>, _| slots.for_each(one)],
+            );
+        } else {
+            (0..n).into_par_iter().for_each(one);
+        }
         // SAFETY: all n elements were initialised above (a panic in `f` propagates
         // before this line, leaving `out` empty).
         unsafe { out.set_len(n) };

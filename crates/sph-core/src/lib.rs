@@ -22,7 +22,7 @@ pub mod kernels;
 mod light;
 pub mod particles;
 pub mod processor;
-mod region;
+pub mod region;
 pub mod scene;
 pub mod simd;
 pub mod solver;

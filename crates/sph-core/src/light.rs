@@ -33,3 +33,14 @@ pub(crate) const SERIAL_BELOW: usize = 1 << 15;
 pub(crate) fn min_piece(n: usize) -> usize {
     if n < SERIAL_BELOW { usize::MAX } else { 1 }
 }
+
+/// Runs `f`, a light pass over `n` particles that uses rayon, with the
+/// calling thread's team released (`crate::region::released`) where it
+/// splits (from [`SERIAL_BELOW`]); below, on this thread as it is.
+pub(crate) fn released_if_heavy<R>(n: usize, f: impl FnOnce() -> R) -> R {
+    if n >= SERIAL_BELOW {
+        crate::region::released(f)
+    } else {
+        f()
+    }
+}

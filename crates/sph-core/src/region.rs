@@ -14,8 +14,8 @@
 //!
 //! [`team`] goes one step further: it starts the pool's threads once for
 //! everything its closure does (a [`crate::World::advance`]: every station
-//! of every substep), and they wait, spinning, for the [`run`]s the
-//! closure's thread posts. Between two stations nobody goes to sleep and
+//! of every substep; surfel-extract's extraction: every stage of a frame),
+//! and they wait, spinning, for the [`run`]s the closure's thread posts. Between two stations nobody goes to sleep and
 //! nothing forks. Work that uses rayon itself (a station that declares no
 //! [`crate::Processor::runs_in_region`], the grid build of a large scene)
 //! runs inside [`released`], which sends the team's threads back to the
@@ -40,21 +40,21 @@ use std::sync::atomic::{AtomicBool, AtomicPtr, AtomicUsize, Ordering};
 /// Particles per block: small enough that 10,000 particles make 157
 /// blocks, so that 16 threads share a pass evenly; large enough that a
 /// block's claim (one atomic add) is noise against its work.
-pub(crate) const BLOCK: usize = 64;
+pub const BLOCK: usize = 64;
 
 /// Claims per thread and pass that [`run`] aims at.
 const CLAIMS_PER_THREAD: usize = 16;
 
 /// The number of blocks `n` particles make.
-pub(crate) fn blocks(n: usize) -> usize {
+pub fn blocks(n: usize) -> usize {
     n.div_ceil(BLOCK)
 }
 
 /// A pass: called once per block with the block's particles and its index.
-pub(crate) type Pass<'a> = &'a (dyn Fn(Range<usize>, usize) + Sync);
+pub type Pass<'a> = &'a (dyn Fn(Range<usize>, usize) + Sync);
 
 /// A pass built at run time (one per iteration of a solve).
-pub(crate) type OwnedPass<'a> = Box<dyn Fn(Range<usize>, usize) + Sync + 'a>;
+pub type OwnedPass<'a> = Box<dyn Fn(Range<usize>, usize) + Sync + 'a>;
 
 /// Runs `passes` in order over `n` particles, each over every block, in one
 /// parallel region: on the team this thread leads ([`team`]), else on the
@@ -68,13 +68,13 @@ pub(crate) type OwnedPass<'a> = Box<dyn Fn(Range<usize>, usize) + Sync + 'a>;
 /// # Panics
 /// Where a pass panics; the other threads finish the claims of that pass
 /// they hold or can still take, and stop before the next pass.
-pub(crate) fn run(n: usize, passes: &[Pass<'_>]) {
+pub fn run(n: usize, passes: &[Pass<'_>]) {
     run_by(n, BLOCK, passes);
 }
 
 /// [`run`] with blocks of `block` particles instead of [`BLOCK`]: for
 /// passes whose per-block buffers are sized to their own blocks.
-pub(crate) fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
+pub fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
     let leading = LEADING.with(Cell::get);
     let threads = if leading.is_null() {
         rayon::current_num_threads()
@@ -110,7 +110,7 @@ pub(crate) fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
 
 /// Sets each `out[i]` by `f(i, &mut out[i])`, in one parallel pass
 /// ([`run`]).
-pub(crate) fn for_each<T: Send + Sync>(out: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
+pub fn for_each<T: Send + Sync>(out: &mut [T], f: impl Fn(usize, &mut T) + Sync) {
     let n = out.len();
     let out = Blocks::new(out);
     let pass = |range: Range<usize>, _| {
@@ -125,7 +125,7 @@ pub(crate) fn for_each<T: Send + Sync>(out: &mut [T], f: impl Fn(usize, &mut T) 
 /// `f` of each block of `n` particles, in block order, computed in one
 /// parallel pass ([`run`]): what a reduction adds or compares in block
 /// order after it, the same for any number of threads.
-pub(crate) fn map_blocks<T: Send + Sync + Copy + Default>(
+pub fn map_blocks<T: Send + Sync + Copy + Default>(
     n: usize,
     f: impl Fn(Range<usize>) -> T + Sync,
 ) -> Vec<T> {
@@ -145,7 +145,7 @@ pub(crate) fn map_blocks<T: Send + Sync + Copy + Default>(
 /// `f` must do its parallel work through [`run`]: a `par_iter` inside it
 /// finds the team's threads spinning and runs on this thread alone; put
 /// such work inside [`released`].
-pub(crate) fn team<R>(f: impl FnOnce() -> R) -> R {
+pub fn team<R>(f: impl FnOnce() -> R) -> R {
     let threads = rayon::current_num_threads();
     if threads <= 1 || !LEADING.with(Cell::get).is_null() {
         return f();
@@ -172,10 +172,17 @@ pub(crate) fn team<R>(f: impl FnOnce() -> R) -> R {
     })
 }
 
+/// Whether this thread leads a team ([`team`], outside [`released`]): where
+/// a parallel helper runs its work as a region pass instead of through
+/// rayon.
+pub fn leading() -> bool {
+    !LEADING.with(Cell::get).is_null()
+}
+
 /// Runs `f` with the team this thread leads (if any) sent back to the
 /// pool, so that rayon work inside `f` has the pool's threads; the next
 /// [`run`] after it calls the team again.
-pub(crate) fn released<R>(f: impl FnOnce() -> R) -> R {
+pub fn released<R>(f: impl FnOnce() -> R) -> R {
     let leading = LEADING.with(Cell::get);
     if leading.is_null() {
         return f();
@@ -456,7 +463,7 @@ fn wait_for(done: &AtomicUsize, target: usize, failed: &AtomicBool) -> bool {
 
 /// A slice that the passes of a region write block by block and read whole
 /// in later passes.
-pub(crate) struct Blocks<'a, T> {
+pub struct Blocks<'a, T> {
     ptr: *mut T,
     len: usize,
     _slice: PhantomData<&'a mut [T]>,
@@ -470,7 +477,7 @@ unsafe impl<T: Send + Sync> Sync for Blocks<'_, T> {}
 
 impl<'a, T> Blocks<'a, T> {
     /// Borrows `slice` for the region.
-    pub(crate) fn new(slice: &'a mut [T]) -> Self {
+    pub fn new(slice: &'a mut [T]) -> Self {
         Self {
             ptr: slice.as_mut_ptr(),
             len: slice.len(),
@@ -485,7 +492,7 @@ impl<'a, T> Blocks<'a, T> {
     /// given, while no pass reads the slice ([`run`] gives each block of a
     /// pass to one call, and starts a pass after the last one finished).
     #[allow(clippy::mut_from_ref)]
-    pub(crate) unsafe fn block(&self, range: Range<usize>) -> &mut [T] {
+    pub unsafe fn block(&self, range: Range<usize>) -> &mut [T] {
         assert!(range.start <= range.end && range.end <= self.len);
         // SAFETY: in bounds (asserted); exclusive by the caller's promise.
         unsafe { std::slice::from_raw_parts_mut(self.ptr.add(range.start), range.len()) }
@@ -495,7 +502,7 @@ impl<'a, T> Blocks<'a, T> {
     ///
     /// # Safety
     /// Only in a pass that writes none of it.
-    pub(crate) unsafe fn all(&self) -> &[T] {
+    pub unsafe fn all(&self) -> &[T] {
         // SAFETY: no writer, by the caller's promise.
         unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
     }

@@ -11,7 +11,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use glam::Vec3;
-use rayon::prelude::*;
+use sph_core::region;
 use sph_core::{Error, NeighbourGrid, Neighbourhood, Particles, Poly6, Poly6Sums, Result};
 
 use crate::anisotropy::{self, Anisotropy, Ellipsoid};
@@ -325,22 +325,21 @@ impl ColourField {
         }
         let order = self.grid.order();
         let volumes = &self.volumes;
-        order
-            .par_iter()
-            .map(|&i| volumes[i as usize])
-            .collect_into_vec(&mut self.slot_volumes);
+        self.slot_volumes.resize(order.len(), 0.0);
+        region::for_each(&mut self.slot_volumes, |s, v| {
+            *v = volumes[order[s] as usize]
+        });
         self.slot_kernels.clear();
         if !self.shapes.is_empty() {
             // W_poly6 = k (h² − r²)³.
             let k = poly6.value_r2(0.0) / (h * h).powi(3);
             let shapes = &self.shapes;
-            order
-                .par_iter()
-                .map(|&i| {
-                    let e = &shapes[i as usize];
-                    slot_kernel(e, volumes[i as usize] * e.det * k)
-                })
-                .collect_into_vec(&mut self.slot_kernels);
+            self.slot_kernels.resize(order.len(), [0.0; 8]);
+            region::for_each(&mut self.slot_kernels, |s, out| {
+                let i = order[s] as usize;
+                let e = &shapes[i];
+                *out = slot_kernel(e, volumes[i] * e.det * k);
+            });
         }
         Ok(())
     }

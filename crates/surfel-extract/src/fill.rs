@@ -15,7 +15,9 @@
 use std::collections::HashMap;
 
 use glam::Vec3;
-use rayon::prelude::*;
+use std::cell::RefCell;
+
+use sph_core::region;
 use sph_core::{Error, NeighbourGrid, Result};
 
 use crate::field::{ColourField, Surface};
@@ -286,20 +288,24 @@ pub fn close_holes(
             old: (&old_index, old),
             new: (SurfelIndex::build(new, thickness)?, new),
         };
-        let candidates: Vec<Surfel> = probing
-            .par_iter()
-            .map_init(Discs::new, |near, &k| {
-                let s = &all[k as usize];
+        thread_local! {
+            /// A probing surfel's neighbours, gathered once for its probes.
+            static NEAR: RefCell<Discs> = RefCell::new(Discs::new());
+        }
+        let mut found = vec![[None; PROBES]; probing.len()];
+        region::for_each(&mut found, |k, found| {
+            let s = &all[probing[k] as usize];
+            NEAR.with_borrow_mut(|near| {
                 parts.gather(s.position, near);
                 let (t1, t2) = tangent_basis(s.normal);
-                let mut found = [None; PROBES];
                 for (slot, (cos, sin)) in found.iter_mut().zip(RIM) {
                     let q = s.position + PROBE * s.radius * (cos * t1 + sin * t2);
                     *slot = probe(field, p, &parts, near, s, q);
                 }
-                found
-            })
-            .flat_map_iter(|found| found.into_iter().flatten())
+            });
+        });
+        let candidates: Vec<Surfel> = (found.into_iter())
+            .flat_map(|found| found.into_iter().flatten())
             .collect();
         // Keep a candidate only if none accepted before it covers it (sequential,
         // so the result does not depend on the thread count).

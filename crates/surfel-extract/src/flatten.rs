@@ -6,8 +6,9 @@
 //! time), and each chunk of input writes straight to its place in the output.
 
 use std::mem::MaybeUninit;
+use std::ops::Range;
 
-use rayon::prelude::*;
+use sph_core::region::{self, Blocks};
 
 /// Inputs per parallel chunk.
 const CHUNK: usize = 1024;
@@ -22,14 +23,17 @@ pub(crate) fn par_extend_flat<T, I>(
     counts: &mut Vec<usize>,
     expand: impl Fn(usize) -> I + Sync,
 ) where
-    T: Copy + Send,
+    T: Copy + Send + Sync,
     I: Iterator<Item = T>,
 {
-    let chunk = |c: usize| c * CHUNK..((c + 1) * CHUNK).min(n);
-    (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .map(|c| chunk(c).map(|i| expand(i).count()).sum())
-        .collect_into_vec(counts);
+    counts.clear();
+    counts.resize(n.div_ceil(CHUNK), 0);
+    let per_chunk = Blocks::new(counts);
+    let count = |chunk: Range<usize>, c: usize| {
+        // SAFETY: each chunk writes its own count; nothing reads them.
+        unsafe { per_chunk.block(c..c + 1)[0] = chunk.map(|i| expand(i).count()).sum() };
+    };
+    region::run_by(n, CHUNK, &[&count]);
     let total: usize = counts.iter().sum();
     out.reserve(total);
     let old_len = out.len();
@@ -41,8 +45,11 @@ pub(crate) fn par_extend_flat<T, I>(
         slices.push(head);
         rest = tail;
     }
-    slices.into_par_iter().enumerate().for_each(|(c, dst)| {
-        let mut items = chunk(c).flat_map(&expand);
+    let slices = Blocks::new(&mut slices);
+    let write = |chunk: Range<usize>, c: usize| {
+        // SAFETY: each chunk takes its own slice; nothing reads them.
+        let dst = unsafe { &mut slices.block(c..c + 1)[0] };
+        let mut items = chunk.flat_map(&expand);
         for slot in dst.iter_mut() {
             slot.write(
                 items
@@ -54,7 +61,8 @@ pub(crate) fn par_extend_flat<T, I>(
             items.next().is_none(),
             "`expand` gave more items than counted"
         );
-    });
+    };
+    region::run_by(n, CHUNK, &[&write]);
     // SAFETY: every one of the `total` slots after `old_len` was written above
     // (a chunk that could not fill its slice panicked before this line).
     unsafe { out.set_len(old_len + total) };

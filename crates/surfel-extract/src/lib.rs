@@ -349,7 +349,7 @@ pub fn extract_field(field: &ColourField, params: &ExtractParams) -> Result<Surf
 /// outside the pool, every parallel pass would otherwise be handed over and
 /// waited for separately, and the extraction makes a few dozen of them.
 fn on_pool<T: Send>(op: impl FnOnce() -> T + Send) -> T {
-    rayon::scope(|_| op())
+    rayon::scope(|_| sph_core::region::team(op))
 }
 
 /// Two unit vectors spanning the plane normal to the unit vector `n`.

@@ -5,8 +5,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
-use rayon::prelude::*;
 use sph_core::Result;
+use sph_core::region;
 
 use crate::field::{ColourField, ParticleSample, Surface};
 use crate::flatten::par_extend_flat;
@@ -505,9 +505,8 @@ pub(crate) fn run(
         } else {
             Split::TwoByTwo
         };
-        work.par_iter()
-            .map(|s| step(s, grid))
-            .collect_into_vec(steps);
+        steps.resize(work.len(), None);
+        region::for_each(steps, |k, out| *out = step(&work[k], grid));
         let kept = |k: usize| steps[k].map(|(s, _)| s).into_iter();
         let children = |k: usize| steps[k].into_iter().flat_map(|(s, grid)| split(&s, grid));
         next.clear();

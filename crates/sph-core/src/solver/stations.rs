@@ -42,12 +42,8 @@ impl Processor for BuildGrid {
         true
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        // A large scene's build splits with rayon (`crate::light`).
-        if particles.len() >= crate::light::SERIAL_BELOW {
-            crate::region::released(|| self.build(particles, ctx))
-        } else {
-            self.build(particles, ctx)
-        }
+        // A large scene's build and reordering split with rayon.
+        crate::light::released_if_heavy(particles.len(), || self.build(particles, ctx))
     }
 }
 
