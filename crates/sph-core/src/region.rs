@@ -83,7 +83,10 @@ pub fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
         unsafe { (*leading).threads }
     };
     let job = Job::new(n, block, passes, threads);
-    if job.threads <= 1 {
+    // A region inside a pass (a pass that maps over a grid, say) runs on
+    // the pass's thread: posting it would overwrite the job in flight, and
+    // forking could leave this thread waiting on a claim below it.
+    if job.threads <= 1 || IN_PASS.with(Cell::get) {
         for pass in passes {
             (0..job.per_pass).for_each(|b| pass(job.range(b), b));
         }
@@ -159,10 +162,11 @@ pub fn team<R>(f: impl FnOnce() -> R) -> R {
                 scope.spawn(move |_| team.serve(generation));
             }
         };
+        let calls = Calls(&call);
         // Sends the team home however `f` ends, before `scope` waits for
         // it, and stops this thread leading it.
         let _home = Home(&team);
-        let calls = Calls(&call);
+        LEADS.with(|l| l.set(l.get() + 1));
         LEADING.with(|l| l.set(&team));
         team.call.store(
             &calls as *const Calls<'_> as *mut Calls<'static>,
@@ -208,6 +212,10 @@ thread_local! {
     /// The team this thread leads: set by [`team`] for its closure, unset
     /// inside [`released`].
     static LEADING: Cell<*const Team> = const { Cell::new(std::ptr::null()) };
+    /// How many teams this thread leads, [`released`] or not.
+    static LEADS: Cell<usize> = const { Cell::new(0) };
+    /// Whether this thread is running a pass of a region.
+    static IN_PASS: Cell<bool> = const { Cell::new(false) };
 }
 
 /// [`team`]'s closure that spawns the team's threads.
@@ -219,6 +227,7 @@ struct Home<'a>(&'a Team);
 impl Drop for Home<'_> {
     fn drop(&mut self) {
         LEADING.with(|l| l.set(std::ptr::null()));
+        LEADS.with(|l| l.set(l.get() - 1));
         self.0.generation.fetch_add(1, Ordering::AcqRel);
     }
 }
@@ -287,6 +296,7 @@ impl Claims {
             if !wait_for(&self.done, p * job.claims, &self.failed) {
                 break;
             }
+            let _in_pass = InPass::enter();
             (first..(first + job.grain).min(job.per_pass))
                 .for_each(|b| job.passes[p](job.range(b), b));
             self.done.fetch_add(1, Ordering::Release);
@@ -339,8 +349,11 @@ impl Team {
     /// Posts `job`, works on it with the team, and returns when it is done
     /// and nobody holds it any more.
     fn run(&self, job: Job<'_>) {
-        // SAFETY: no job is posted and `active` is zero (the last `run`
-        // waited for both), so nobody reads `job` or the counters.
+        // SAFETY: no job is posted and no thread is inside one (the last
+        // `run` retracted its job and waited for `active` to reach zero; a
+        // thread that counts itself in `active` after that finds the epoch
+        // moved on and leaves without reading `job` or the counters), and
+        // this is not inside a pass (`run_by` runs those on their thread).
         unsafe {
             *self.job.get() = Some(std::mem::transmute::<Job<'_>, Job<'static>>(job));
         }
@@ -361,9 +374,11 @@ impl Team {
 
     /// Serves the team's jobs until its generation moves on.
     fn serve(&self, generation: usize) {
-        // The leading thread can pick up a call of its own team while it
-        // waits inside `released`: that call is for the threads it left.
-        if std::ptr::eq(LEADING.with(Cell::get), self) {
+        // A thread that leads a team (inside its `released` too) and waits
+        // in rayon can pick up a call of its own team or of another: it
+        // must not spin there, for its own team or another that waits for
+        // it, so it leaves the call to the pool's other threads.
+        if LEADS.with(Cell::get) > 0 {
             return;
         }
         let mut last = 0;
@@ -385,6 +400,22 @@ impl Team {
                 back_off(&mut spins);
             }
         }
+    }
+}
+
+/// Marks this thread as running a pass until dropped (however the pass
+/// ends).
+struct InPass(bool);
+
+impl InPass {
+    fn enter() -> Self {
+        Self(IN_PASS.with(|f| f.replace(true)))
+    }
+}
+
+impl Drop for InPass {
+    fn drop(&mut self) {
+        IN_PASS.with(|f| f.set(self.0));
     }
 }
 
@@ -613,6 +644,32 @@ mod tests {
         });
         assert_eq!(results.len(), 30);
         assert!(results.iter().all(|r| *r == one));
+    }
+
+    /// A region inside a pass (on any thread, in a team or not) runs on
+    /// the pass's thread and gives what it gives alone.
+    #[test]
+    fn a_region_inside_a_pass_runs_on_its_thread() {
+        let n = 2000;
+        let nested = |pool: &rayon::ThreadPool, with_team: bool| {
+            let mut out = vec![0u64; n];
+            let mut go = || {
+                for_each(&mut out, |i, v| {
+                    // Sums of blocks of a small inner range, per particle.
+                    let inner = map_blocks(200 + i % 7, |r| r.map(|k| (k * i) as u64).sum::<u64>());
+                    *v = inner.iter().sum();
+                })
+            };
+            pool.install(|| if with_team { team(go) } else { go() });
+            out
+        };
+        let one = nested(&pool(1), false);
+        assert_eq!(one[3], (0..203u64).map(|k| k * 3).sum::<u64>());
+        for threads in [2, 3] {
+            let pool = pool(threads);
+            assert_eq!(nested(&pool, false), one);
+            assert_eq!(nested(&pool, true), one);
+        }
     }
 
     /// A pass that panics stops the region with its panic instead of
