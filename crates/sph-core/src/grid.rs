@@ -243,7 +243,9 @@ impl NeighbourGrid {
             return Cow::Borrowed(values);
         }
         let order = &self.layout.order;
-        Cow::Owned(order.par_iter().map(|&i| values[i as usize]).collect())
+        let mut slots = vec![0.0; order.len()];
+        crate::region::for_each(&mut slots, |s, v| *v = values[order[s] as usize]);
+        Cow::Owned(slots)
     }
 
     /// Renumbers the grid's particles by slot, for use after the particle storage

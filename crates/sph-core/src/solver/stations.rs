@@ -137,17 +137,28 @@ impl Processor for Integrate {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let dt = ctx.dt;
+        let n = particles.len();
         let f = particles.fields_mut();
-        f.positions
-            .par_iter_mut()
-            .zip(f.velocities.par_iter_mut())
-            .zip(f.accelerations.par_iter())
-            .for_each(|((x, v), &a)| {
+        let (xs, vs, accelerations) = (
+            Blocks::new(f.positions),
+            Blocks::new(f.velocities),
+            &*f.accelerations,
+        );
+        let integrate = |range: Range<usize>, _| {
+            // SAFETY: each block writes its own particles; nothing reads
+            // them in this pass.
+            let (x, v) = unsafe { (xs.block(range.clone()), vs.block(range.clone())) };
+            for ((x, v), &a) in x.iter_mut().zip(v).zip(&accelerations[range]) {
                 *v += a * dt;
                 *x += *v * dt;
-            });
+            }
+        };
+        region::run(n, &[&integrate]);
         ctx.invalidate_grid(); // positions moved
         Ok(())
+    }
+    fn runs_in_region(&self) -> bool {
+        true
     }
 }
 

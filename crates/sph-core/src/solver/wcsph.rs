@@ -13,7 +13,7 @@
 //! [`SurfaceTension`]), as PBF and DFSPH apply it: the thesis's colour
 //! field stays the reference, and the two can be compared on one solver.
 
-use rayon::prelude::*;
+use crate::region;
 
 use super::force_sums::{Centre, ForceKernels, ForceSums, SlotFluid, force_sums};
 use super::params::{FluidParams, PressureKernel, SurfaceTensionModel};
@@ -88,14 +88,14 @@ impl Processor for DensityPressure {
         let (k, suction) = (params.stiffness, params.negative_pressure_scale);
         let f = particles.fields_mut();
         f.densities.copy_from_slice(&rho);
-        f.pressures
-            .par_iter_mut()
-            .zip(rho.par_iter())
-            .for_each(|(p, &r)| {
-                let eos = k * (r - rho0);
-                *p = if eos < 0.0 { suction * eos } else { eos };
-            });
+        region::for_each(f.pressures, |i, p| {
+            let eos = k * (rho[i] - rho0);
+            *p = if eos < 0.0 { suction * eos } else { eos };
+        });
         Ok(())
+    }
+    fn runs_in_region(&self) -> bool {
+        true
     }
 }
 
@@ -141,14 +141,17 @@ impl Processor for Forces {
         let (prm, wall, b) = (self.0.params, self.0.wall, &self.0.boundary);
         // Per-particle factors, so the pair loop has no division but the spiky
         // kernel's 1/r: volume m/ρ and pressure term p/ρ² (eq. 15).
-        let (vol, pr): (Vec<f32>, Vec<f32>) = (m.par_iter().zip(rho).zip(p))
-            .map(|((&m, &rho), &p)| (m / rho, p / (rho * rho)))
-            .unzip();
+        let n = m.len();
+        let (mut vol, mut pr) = (vec![0.0; n], vec![0.0; n]);
+        region::for_each(&mut vol, |i, vol| *vol = m[i] / rho[i]);
+        region::for_each(&mut pr, |i, pr| *pr = p[i] / (rho[i] * rho[i]));
         // The pair sums read their neighbours' data in slot order (cell by
         // cell), like the grid's coordinates.
         let velocity: [Vec<f32>; 3] = std::array::from_fn(|a| {
-            let order = grid.order().par_iter();
-            order.map(|&i| v[i as usize][a]).collect()
+            let order = grid.order();
+            let mut slots = vec![0.0; n];
+            region::for_each(&mut slots, |s, u| *u = v[order[s] as usize][a]);
+            slots
         });
         let (volume, mass, pressure) = (
             grid.to_slot_order(&vol),
@@ -194,12 +197,13 @@ impl Processor for Forces {
             (a, n, lap_c)
         });
         let f = particles.fields_mut();
-        (f.accelerations.par_iter_mut())
-            .zip(f.colour_gradients.par_iter_mut())
-            .zip(f.colour_laplacians.par_iter_mut())
-            .zip(out.par_iter())
-            .for_each(|(((a, n), l), &(a_i, n_i, l_i))| (*a, *n, *l) = (a_i, n_i, l_i));
+        region::for_each(f.accelerations, |i, a| *a = out[i].0);
+        region::for_each(f.colour_gradients, |i, n| *n = out[i].1);
+        region::for_each(f.colour_laplacians, |i, l| *l = out[i].2);
         Ok(())
+    }
+    fn runs_in_region(&self) -> bool {
+        true
     }
 }
 
