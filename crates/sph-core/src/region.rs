@@ -15,11 +15,13 @@
 //! [`team`] goes one step further: it starts the pool's threads once for
 //! everything its closure does (a [`crate::World::advance`]: every station
 //! of every substep; surfel-extract's extraction: every stage of a frame),
-//! and they wait, spinning, for the [`run`]s the closure's thread posts. Between two stations nobody goes to sleep and
-//! nothing forks. Work that uses rayon itself (a station that declares no
+//! and they wait, spinning, for the [`run`]s the closure's thread posts.
+//! Between two stations nobody goes to sleep and nothing forks. Work that
+//! uses rayon itself (a station that declares no
 //! [`crate::Processor::runs_in_region`], the grid build of a large scene)
 //! runs inside [`released`], which sends the team's threads back to the
-//! pool for it and calls them again after.
+//! pool for it and calls them again after. A region started inside a pass
+//! runs on that pass's thread.
 //!
 //! A thread that never arrives (busy elsewhere in the pool) holds nobody
 //! up: whoever is in the region does all the work, and the calling thread
