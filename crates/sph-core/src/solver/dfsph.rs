@@ -511,12 +511,7 @@ pub fn relaxation(cubic: &CubicSpline, spacing: f32) -> f32 {
 /// The relaxation for the widest neighbourhood of `masses`: the smallest
 /// spacing V^⅓ = (m/ρ0)^⅓. Kept in `cache` while that spacing stays the same.
 fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Model) -> f32 {
-    let lightest = region::map_blocks(masses.len(), |r| {
-        masses[r].iter().copied().fold(f32::INFINITY, f32::min)
-    })
-    .into_iter()
-    .fold(f32::INFINITY, f32::min);
-    let spacing = (lightest * model.inv_rho0).cbrt();
+    let spacing = (super::lanes::lightest(masses) * model.inv_rho0).cbrt();
     match *cache {
         Some((s, omega)) if s == spacing => omega,
         _ => {

@@ -155,6 +155,16 @@ pub(super) fn rows_of(x: &[Vec3], m: &[f32], rows: &mut Vec<[f32; 4]>) {
     crate::region::for_each(rows, |i, row| *row = [x[i].x, x[i].y, x[i].z, m[i]]);
 }
 
+/// The smallest of `masses` (∞ for none), in one parallel pass: what the
+/// widest neighbourhood's spacing is taken from.
+pub(super) fn lightest(masses: &[f32]) -> f32 {
+    let min = |m: &[f32]| m.iter().copied().fold(f32::INFINITY, f32::min);
+    min(&crate::region::map_blocks(
+        masses.len(),
+        |r| min(&masses[r]),
+    ))
+}
+
 /// The cubic spline's W and gradient factor s (∇W = s r) per lane, from
 /// |r|²: the formulas of [`CubicSpline`], without branches (DFSPH's pair
 /// sums).

@@ -319,12 +319,7 @@ impl Processor for ImplicitViscosity {
         self.x.clear();
         (self.x).extend_from_slice(particles.attribute::<Vec3>(VISCOUS_CHANGE)?);
         let (mu, eps) = (self.mu, 0.01 * self.h * self.h);
-        let masses = particles.masses();
-        let lightest = region::map_blocks(n, |r| {
-            masses[r].iter().copied().fold(f32::INFINITY, f32::min)
-        })
-        .into_iter()
-        .fold(f32::INFINITY, f32::min);
+        let lightest = super::lanes::lightest(particles.masses());
         let spacing = (lightest / self.rest_density).cbrt();
         let factor = match self.factor {
             Some((s, factor)) if s == spacing => factor,
