@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# Issue 45's many-core figures in one call on a lent machine, from the kit of
+# scripts/gpu-kit.sh: the `scaling` table (PBF 10k and 100k, DFSPH 10k, the
+# anisotropic extraction at 10k and 100k, for 1, 2, 4, 8 and 16 threads) and
+# its `--sweep`, for this build and, where the kit holds one, a build from
+# before the team (`scaling-base`), alternated; then `dam-break-fine` end to
+# end through the demo at each thread count. Logs go to $OUT (default
+# gpu-bench-out/); each run has its own time limit, so a slow one leaves the
+# others' logs.
+#
+#   scripts/gpu-kit.sh                                  # here
+#   BASE=3cabb4b scripts/device/cpu-scaling.sh --kit    # here: add scaling-base
+#   OUT=$OUT scripts/device/cpu-scaling.sh              # there
+#
+# FRAMES (default 10) sets the frames each row times; THREADS (default
+# "1 2 4 8 16") the demo's thread counts.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+kit=.gpu-kit
+
+if [ "${1:-}" = "--kit" ]; then
+    # Builds `scaling` at $BASE in a worktree and strips it into the kit.
+    base=${BASE:?set BASE to the commit to compare with}
+    dir=$(mktemp -d)
+    git worktree add -f "$dir" "$base" >/dev/null
+    (cd "$dir" && CARGO_TARGET_DIR="$dir/target" cargo build --release --example scaling)
+    strip -o "$kit/scaling-base" "$dir/target/release/examples/scaling"
+    git worktree remove --force "$dir"
+    echo "packed $kit/scaling-base from $base"
+    exit 0
+fi
+
+export OUT=${OUT:-gpu-bench-out}
+mkdir -p "$OUT"
+frames=${FRAMES:-10}
+lscpu >"$OUT/lscpu.txt" 2>&1 || true
+nproc >>"$OUT/lscpu.txt"
+
+# run LIMIT LOG COMMAND...: the command's output in $OUT/LOG, cut off after
+# LIMIT seconds.
+run() {
+    local limit=$1 log=$2
+    shift 2
+    echo "== $* ($(date -u +%H:%M:%S))" >"$OUT/$log"
+    timeout "$limit" "$@" >>"$OUT/$log" 2>&1 || echo "exit $? (timeout gives 124)" >>"$OUT/$log"
+}
+
+builds=(scaling)
+[ -x "$kit/scaling-base" ] && builds+=(scaling-base)
+for round in 1 2; do
+    for build in "${builds[@]}"; do
+        run 120 "$build-table-$round.log" "$kit/$build" --frames "$frames"
+    done
+done
+for build in "${builds[@]}"; do
+    run 150 "$build-sweep.log" "$kit/$build" --sweep --frames "$frames"
+done
+
+# The demo end to end: step and extraction milliseconds per simulated
+# second from frames.csv (the renderer's own time left out, as the issue's
+# table has it).
+for threads in ${THREADS:-1 2 4 8 16}; do
+    dir="$OUT/demo-$threads"
+    run 60 "demo-$threads.log" "$kit/sph-app" --headless --scene dam-break-fine --threads "$threads" \
+        --seconds 1 --fps 60 --width 64 --height 48 --out "$dir"
+    if [ -f "$dir/frames.csv" ]; then
+        awk -F, -v t="$threads" 'NR > 1 { s += $6; e += $7; n++; last = $2 }
+            END { if (last > 0) printf "threads %s: step %.3f, extraction %.3f, both %.3f wall s per simulated s (%d frames)\n",
+                t, s / 1000 / last, e / 1000 / last, (s + e) / 1000 / last, n }' \
+            "$dir/frames.csv" >>"$OUT/demo-summary.txt"
+        rm -f "$dir"/*.png
+    fi
+done
+
+tail -n 30 "$OUT"/*-table-*.log "$OUT"/*-sweep.log
+cat "$OUT/demo-summary.txt" 2>/dev/null || true
