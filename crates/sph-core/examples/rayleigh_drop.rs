@@ -33,7 +33,10 @@
 //! the undamped period, 2π/√(ω² + β²); the solver tests read periods so),
 //! the swing's decay rate from turn to turn against Lamb's, and
 //! the mean pressure of the particles within R/2 of the
-//! centre over the last second against Laplace's 2σ/R.
+//! centre over the last second against Laplace's 2σ/R: the stored
+//! pressure, that plus the surface tension forces' virial, and under PBF
+//! and DFSPH the virial of both the pressure forces and those forces (the
+//! consistent reading on a lattice; see the surface tension module).
 //!
 //! ```text
 //! cargo run --release -p sph-core --example rayleigh_drop [-- SOLVER [SECONDS] \
@@ -256,6 +259,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // pressure within R/2 of the centre.
     let (rho0, h) = (params.rest_density, params.h);
     let cubic = sph_core::CubicSpline::new(h)?;
+    let spiky = sph_core::Spiky::new(h)?;
     let measure = |p: &Particles| {
         let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
         let var = (p.positions().iter())
@@ -274,13 +278,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let count = inner.len().max(1) as f64;
         let pressure = inner.iter().map(|q| q.0).sum::<f64>() / count;
         let mechanical = inner.iter().map(|q| q.0 + q.1).sum::<f64>() / count;
-        // Under DFSPH, the pressure forces' own virial in place of the
-        // stored pressure: (ρ_i/6) Σ_j (x_i − x_j)·a_ij with
-        // a_ij = −V_j (κ_i + κ_j) ∇W_ij, κ = ρ0 p/ρ² (the cubic spline's
-        // lattice sum makes it 1.020 p for a uniform p).
-        let pair_virial = (kind == SolverKind::Dfsph).then(|| {
+        // Under DFSPH and PBF, the pressure forces' own virial in place of
+        // the stored pressure: (ρ_i/6) Σ_j (x_i − x_j)·a_ij with
+        // a_ij = −V_j (κ_i + κ_j) ∇W_ij: under DFSPH κ = ρ0 p/ρ² and W the
+        // cubic spline (whose lattice sum makes the virial 1.020 p for a
+        // uniform p), under PBF κ = p/ρ0 and ∇W spiky's (the pressure
+        // whose acceleration is PBF's correction; 0.947 p for a uniform p).
+        let pair_virial = (kind != SolverKind::Wcsph).then(|| {
             let (x, m, rho, pr) = (p.positions(), p.masses(), p.densities(), p.pressures());
-            let kappa = |i: usize| rho0 * pr[i] / (rho[i] * rho[i]);
+            let kappa = |i: usize| match kind {
+                SolverKind::Pbf => pr[i] / rho0,
+                _ => rho0 * pr[i] / (rho[i] * rho[i]),
+            };
+            let gradient = |d: Vec3| match kind {
+                SolverKind::Pbf => spiky.gradient(d),
+                _ => cubic.gradient(d),
+            };
             let grid = sph_core::NeighbourGrid::build(x, h).expect("finite positions");
             let inside: Vec<usize> = (0..x.len())
                 .filter(|&i| f64::from((x[i] - c).length()) < 0.5 * radius)
@@ -290,7 +303,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     let mut w = 0.0f64;
                     grid.for_each_neighbour(i, |j, _, _| {
                         let d = x[i] - x[j];
-                        let a = -(m[j] / rho0) * (kappa(i) + kappa(j)) * cubic.gradient(d);
+                        let a = -(m[j] / rho0) * (kappa(i) + kappa(j)) * gradient(d);
                         w += f64::from(d.dot(a));
                     });
                     f64::from(rho[i]) / 6.0 * w + virial.get(i).map_or(0.0, |&v| f64::from(v))
@@ -430,7 +443,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "with the Akinci forces' virial {mechanical:.3} Pa; ratio to Laplace {:.3}",
             mechanical / laplace
         );
-        if kind == SolverKind::Dfsph {
+        if kind != SolverKind::Wcsph {
             let pairs = mean(|p| p.2);
             println!(
                 "the pressure forces' and Akinci forces' virial {pairs:.3} Pa; ratio to Laplace {:.3}",

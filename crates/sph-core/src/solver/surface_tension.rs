@@ -35,7 +35,23 @@
 //!
 //! Under WCSPH at 5 mm: 0.918–1.045 of the period, 0.90–0.95 of Laplace's.
 //! The l = 4 mode, from a cube, is about 1.56 of Rayleigh's period under
-//! every solver: the scale that fits l = 2 gives l = 4 about 0.4 of σ.
+//! every solver at h = 1 cm (R = 5h); at R = 10h it is within 10 % of
+//! his once the solvers' damping is taken out (`tests/pbf.rs`,
+//! `tests/dfsph.rs`).
+//!
+//! **The pressures above overstate Laplace's jump.** They add these
+//! forces' virial to the solver's stored pressure, which stands for the
+//! virial of a uniform pressure in the continuum. On the lattice PBF's
+//! spiky gradients carry 0.947 of that virial and DFSPH's cubic spline
+//! 1.020, a few per cent of a bulk pressure of 15–25 Pa, as large as the
+//! jump of 3–4 Pa. Read through the pressure forces' own pair virial
+//! (`rayleigh_drop -- SOLVER 3 --shape ellipsoid --eps 0 [--spacing
+//! 0.0035]`, a drop at rest), the inner pressure is 0.61 (h = 1 cm) and
+//! 0.60 (7 mm) of Laplace's under PBF, 0.57 and 0.52 with 20 iterations;
+//! 0.65 and 0.36 under DFSPH, 0.40 and 0.41 at a hundredth of its
+//! tolerances. So at the scale that fits the l = 2 period, Akinci's
+//! forces hold about half of Laplace's jump at rest: their statics and
+//! dynamics disagree by about 2 under both solvers.
 //!
 //! One drop's period moves by several per cent with rounding-level
 //! changes (moving these sums into lanes moved the PBF test's three drops
@@ -69,8 +85,9 @@ use crate::processor::{Context, Processor};
 use crate::simd::F32x8;
 
 /// σ = `AKINCI_SCALE` ρ0 h² γ: the measured ratio of water's σ to the
-/// paper's γ, scaled by ρ0 h², set between what the period and the
-/// pressure say (see the module docs).
+/// paper's γ, scaled by ρ0 h², that gives a drop Rayleigh's l = 2 period
+/// (at rest the same forces hold about half of Laplace's pressure jump:
+/// see the module docs).
 pub const AKINCI_SCALE: f32 = 13.0;
 
 /// The paper's coefficient γ for `params`' σ, h and ρ0:
