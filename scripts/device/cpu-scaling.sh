@@ -19,12 +19,16 @@ cd "$(dirname "$0")/../.."
 kit=.gpu-kit
 
 if [ "${1:-}" = "--kit" ]; then
-    # Builds `scaling` at $BASE in a worktree and strips it into the kit.
+    # Builds `scaling` at $BASE in a worktree, in this checkout's target
+    # directory (its dependencies are built already; the example binary
+    # there is then the base's until the next build), and strips it into
+    # the kit.
     base=${BASE:?set BASE to the commit to compare with}
+    target=${CARGO_TARGET_DIR:-$PWD/target}
     dir=$(mktemp -d)
     git worktree add -f "$dir" "$base" >/dev/null
-    (cd "$dir" && CARGO_TARGET_DIR="$dir/target" cargo build --release --example scaling)
-    strip -o "$kit/scaling-base" "$dir/target/release/examples/scaling"
+    (cd "$dir" && CARGO_TARGET_DIR="$target" cargo build --release --example scaling)
+    strip -o "$kit/scaling-base" "$target/release/examples/scaling"
     git worktree remove --force "$dir"
     echo "packed $kit/scaling-base from $base"
     exit 0
