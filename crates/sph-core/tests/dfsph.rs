@@ -447,8 +447,7 @@ fn a_failed_solve_stops_the_run() {
 /// mode at his period 2π/ω, ω² = 8σ/(ρR³), within 10 %, as the median of
 /// three stretches (10, 12 and 15 %; one drop's period moves by several
 /// per cent with rounding-level changes). Measured over 4 s (sorted):
-/// 0.923, 0.963 and 0.977 of Rayleigh's. (At 5 mm over 6 s the swing is damped out
-/// before three turns at 8 and 15 %; 0.930 and 0.903 at 10 and 12 %.)
+/// 0.887, 0.927 and 0.937 of Rayleigh's.
 #[test]
 fn a_drop_oscillates_at_rayleighs_period() {
     let dfsph = sph_core::Solver::Dfsph(DfsphParams::default());
@@ -460,14 +459,33 @@ fn a_drop_oscillates_at_rayleighs_period() {
     assert!((ratios[1] - 1.0).abs() <= 0.1, "{ratios:?}");
 }
 
+/// Laplace's law under DFSPH with Akinci et al.'s forces: a weightless
+/// water drop of 4,032 particles at 5 mm (R = 49.4 mm), at rest on the
+/// lattice from the start, holds a mechanical pressure within R/2 of its
+/// centre of 2σ/R = 2.95 Pa within issue 42's 10 %, read as every pair
+/// force's virial over the last of 8 s (`common::dfsph_drop_laplace`).
+/// Measured: 0.909 of 2σ/R (the stored pressure plus the Akinci forces'
+/// virial reads 1.041). With the paper's equal weights of cohesion and
+/// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) it was
+/// 0.649 at 3 s. At 3.5 mm it is 0.736 (`cargo run --release -p sph-core
+/// --example rayleigh_drop -- dfsph 6 --shape ellipsoid --eps 0 --spacing
+/// 0.0035`), outside the band.
+#[test]
+fn a_drop_at_rest_holds_laplaces_pressure() {
+    let ratio = common::dfsph_drop_laplace(0.005, 8.0);
+    println!("inner pressure / Laplace's 2σ/R: {ratio:.3}");
+    assert!((ratio - 1.0).abs() <= 0.1, "{ratio:.3}");
+}
+
 /// Rayleigh's l = 4 mode under DFSPH, at small amplitude, as PBF's test
 /// (`common::drop_l4_period`, a damped-sinusoid fit, the median of `eps` =
 /// 0.08, 0.10 and 0.12, damped and undamped). Measured, damped / undamped
-/// medians: 1.453 / 1.359 of Rayleigh's period at 5 mm (R = 5 h), 1.126 /
-/// 0.993 at 3.5 mm (7 h), 1.058 / 0.886 at 2.5 mm (10 h; 40 s a run, too
-/// long to hold here). Held: at 3.5 mm the undamped period within issue
-/// 42's 10 % and the damped one within 20 %, and from 5 mm to 3.5 mm the
-/// period falls by at least 0.2 of Rayleigh's.
+/// medians: 1.217 / 1.193 of Rayleigh's period at 5 mm (R = 5 h), 1.090 /
+/// 1.051 at 3.5 mm (7 h); with the paper's equal weights of cohesion and
+/// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) they were
+/// 1.453 / 1.359 and 1.126 / 0.993. Held: at 3.5 mm the undamped period
+/// within issue 42's 10 % and the damped one within 20 %; at 5 mm the
+/// damped one within 30 %, and longer than at 3.5 mm.
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let dfsph = sph_core::Solver::Dfsph(DfsphParams::default());
@@ -475,5 +493,6 @@ fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let (coarse, fine) = (median(0.005, 16), median(0.0035, 23));
     assert!((0.8..=1.2).contains(&fine.0), "3.5 mm: {fine:?}");
     assert!((0.9..=1.1).contains(&fine.1), "3.5 mm: {fine:?}");
-    assert!(coarse.0 - fine.0 >= 0.2, "5 mm {coarse:?}, 3.5 mm {fine:?}");
+    assert!((0.7..=1.3).contains(&coarse.0), "5 mm: {coarse:?}");
+    assert!(coarse.0 > fine.0, "5 mm {coarse:?}, 3.5 mm {fine:?}");
 }

@@ -847,7 +847,7 @@ fn processors_see_only_this_steps_neighbour_lists() {
 /// ω² = 8σ/(ρR³), within 10 %. One drop's period moves by several per cent
 /// with rounding-level changes (its swing is damped within two periods and
 /// the particles jitter), so the median of three stretches (8, 10 and 12 %)
-/// is held to it. Measured (sorted): 0.945, 0.957 and 1.010 of Rayleigh's.
+/// is held to it. Measured (sorted): 0.969, 1.019 and 1.047 of Rayleigh's.
 #[test]
 fn a_drop_oscillates_at_rayleighs_period() {
     let pbf = Solver::Pbf(PbfParams::default());
@@ -865,11 +865,13 @@ fn a_drop_oscillates_at_rayleighs_period() {
 /// the median of `eps` = 0.08, 0.10 and 0.12, as swung (damped) and as the
 /// restoring force alone would swing it (undamped: 2π/√(ω² + β²); the
 /// swing decays at 1–3 1/s, 10–30 × Lamb's). Measured, damped / undamped
-/// medians: 1.482 / 1.431 of Rayleigh's period at 5 mm (R = 5 h), 1.263 /
-/// 1.179 at 3.5 mm (7 h), 1.101 / 1.026 at 2.5 mm (10 h), 1.158 / 1.076
-/// at 2 mm (12 h). Held: at 2.5 mm the undamped period within issue 42's
-/// 10 % and the damped one within 20 %, and from 5 mm to 2.5 mm the period
-/// falls by at least 0.2 of Rayleigh's.
+/// medians: 1.248 / 1.227 of Rayleigh's period at 5 mm (R = 5 h), 1.085 /
+/// 1.041 at 2.5 mm (10 h); with the paper's equal weights of cohesion and
+/// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) they were
+/// 1.482 / 1.431 and 1.101 / 1.026 (and 1.263 / 1.179 at 3.5 mm, 1.158 /
+/// 1.076 at 2 mm). Held: at 2.5 mm the undamped period within issue 42's
+/// 10 % and the damped one within 20 %; at 5 mm the damped one within
+/// 30 %, and longer than at 2.5 mm.
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let pbf = Solver::Pbf(PbfParams::default());
@@ -877,5 +879,6 @@ fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let (coarse, fine) = (median(0.005, 16), median(0.0025, 32));
     assert!((0.8..=1.2).contains(&fine.0), "2.5 mm: {fine:?}");
     assert!((0.9..=1.1).contains(&fine.1), "2.5 mm: {fine:?}");
-    assert!(coarse.0 - fine.0 >= 0.2, "5 mm {coarse:?}, 2.5 mm {fine:?}");
+    assert!((0.7..=1.3).contains(&coarse.0), "5 mm: {coarse:?}");
+    assert!(coarse.0 > fine.0, "5 mm {coarse:?}, 2.5 mm {fine:?}");
 }

@@ -85,7 +85,7 @@ struct Uniform {
     table: u32,
     /// Akinci et al.'s γ (0: no surface tension).
     gamma: f32,
-    /// Their cohesion spline's 32/(πh⁹).
+    /// Their cohesion spline's 32/(πh⁹) times `surface_tension::COHESION_WEIGHT`.
     cohesion: f32,
     pad0: u32,
 }

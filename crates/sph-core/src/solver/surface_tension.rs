@@ -1,9 +1,10 @@
 //! Surface tension for PBF and DFSPH (and WCSPH where a scene asks for it,
 //! [`super::SurfaceTensionModel::Akinci`]): the cohesion and curvature forces of Akinci,
 //! Ihmsen, Akinci, Solenthaler and Teschner 2013 ("Versatile surface tension
-//! and adhesion for SPH fluids"), as SPlisHSPlasH writes them:
+//! and adhesion for SPH fluids"), as SPlisHSPlasH writes them, with the
+//! cohesion term weighted by w:
 //!
-//! a_i = −γ Σ_j K_ij (m_j C(r_ij) r̂_ij + n_i − n_j),
+//! a_i = −γ Σ_j K_ij (w m_j C(r_ij) r̂_ij + n_i − n_j),
 //! K_ij = 2ρ0 / (ρ_i + ρ_j), n_i = h Σ_j (m_j/ρ_j) ∇W_poly6(x_i − x_j),
 //!
 //! with C Akinci's cohesion spline (attracting beyond h/2, repelling
@@ -16,42 +17,43 @@
 //! Both terms are pairwise, so momentum is conserved (for the equal masses
 //! a lattice-sampled fluid has: the curvature term goes with m_i).
 //!
-//! The paper's γ is a free coefficient; the fluid's σ (N/m) sets it as
-//! γ = σ / ([`AKINCI_SCALE`] ρ0 h²). The scale was measured on a free drop
-//! of water (`cargo run --release -p sph-core --example rayleigh_drop --
-//! pbf 6 --shape ellipsoid --eps E [--spacing S]`; `docs/benchmark-notes.md`,
-//! "Akinci et al. 2013, measured"). At 13.0, over stretches E of 8–15 %:
-//! - h = 1 cm: Rayleigh's l = 2 period 0.945–1.101 of his, and an inner
-//!   mechanical pressure (the solver's plus these forces' virial) 1.02–1.18
-//!   of Laplace's 2σ/R;
-//! - h = 7 mm: 0.877–0.922 of the period, and 0.977–0.993 of Laplace's.
+//! **Coefficients.** The paper's γ is free and its w is 1. Here the
+//! fluid's σ (N/m) sets γ = σ / ([`AKINCI_SCALE`] ρ0 h²), and
+//! w = [`COHESION_WEIGHT`] = ½, both measured on free drops of water. With
+//! w = 1 no γ gives a drop both Rayleigh's period and Laplace's pressure:
+//! the γ that fits the l = 2 period holds about half of Laplace's jump at
+//! rest, under PBF and DFSPH alike. The cohesion term sets the bulk's
+//! tension and the curvature term most of the jump (each alone holds
+//! almost none of it), and halving the first against the second brings
+//! both figures within about 10 % (`docs/benchmark-notes.md`, "Akinci's
+//! statics and dynamics").
 //!
-//! The same forces at the same scale under DFSPH (`rayleigh_drop -- dfsph
-//! 6 --shape ellipsoid --eps E [--spacing 0.0035]`):
-//! - h = 7 mm: 0.91–0.99 of the period over stretches of 10–15 %, and a
-//!   mechanical pressure 0.47–0.50 of Laplace's;
-//! - h = 1 cm: 0.90–0.93 at 10 and 12 %, while at 8 and 15 % the swing is
-//!   damped out before a period ends; 0.77–0.80 of Laplace's.
+//! Measured (`cargo run --release -p sph-core --example rayleigh_drop --
+//! SOLVER 6 --shape ellipsoid --eps E [--spacing 0.0035]`; 4,032 particles,
+//! R = 16 spacings; E = 0.1 for the period, 0 for the pressure):
 //!
-//! Under WCSPH at 5 mm: 0.918–1.045 of the period, 0.90–0.95 of Laplace's.
-//! The l = 4 mode, from a cube, is about 1.56 of Rayleigh's period under
-//! every solver at h = 1 cm (R = 5h); at R = 10h it is within 10 % of
-//! his once the solvers' damping is taken out (`tests/pbf.rs`,
-//! `tests/dfsph.rs`).
+//! | solver | h | l = 2 period / Rayleigh's: turns, fit | inner pressure / 2σ/R |
+//! |---|---:|---:|---:|
+//! | PBF | 1 cm | 1.019, 1.077 | 0.949 |
+//! | PBF | 7 mm | 0.913, 1.004 | 0.896 |
+//! | DFSPH | 1 cm | 0.949, 1.074 | 0.901 (0.909 over 8 s, `tests/dfsph.rs`) |
+//! | DFSPH | 7 mm | 0.887, 1.109 | 0.736 |
+//! | WCSPH (`--model akinci`) | 1 cm | 0.953, 0.984 | 1.174 (stored) |
 //!
-//! **The pressures above overstate Laplace's jump.** They add these
-//! forces' virial to the solver's stored pressure, which stands for the
-//! virial of a uniform pressure in the continuum. On the lattice PBF's
-//! spiky gradients carry 0.947 of that virial and DFSPH's cubic spline
-//! 1.020, a few per cent of a bulk pressure of 15–25 Pa, as large as the
-//! jump of 3–4 Pa. Read through the pressure forces' own pair virial
-//! (`rayleigh_drop -- SOLVER 3 --shape ellipsoid --eps 0 [--spacing
-//! 0.0035]`, a drop at rest), the inner pressure is 0.61 (h = 1 cm) and
-//! 0.60 (7 mm) of Laplace's under PBF, 0.57 and 0.52 with 20 iterations;
-//! 0.65 and 0.36 under DFSPH, 0.40 and 0.41 at a hundredth of its
-//! tolerances. So at the scale that fits the l = 2 period, Akinci's
-//! forces hold about half of Laplace's jump at rest: their statics and
-//! dynamics disagree by about 2 under both solvers.
+//! The inner pressure is the mechanical pressure within R/2 of the centre
+//! over the last second: the virial of every pair force on those particles,
+//! the solver's pressure forces' and these. A stored pressure plus these
+//! forces' virial overstates it: the stored pressure stands for a uniform
+//! pressure's virial in the continuum, of which PBF's spiky gradients carry
+//! 0.947 on the lattice and DFSPH's cubic spline 1.020, a few per cent of a
+//! 15–25 Pa bulk pressure, as large as the 3–4 Pa jump (WCSPH's is only
+//! read that way here).
+//!
+//! The l = 4 mode at small amplitude (`tests/pbf.rs`, `tests/dfsph.rs`):
+//! 1.25 (PBF) and 1.22 (DFSPH) of Rayleigh's period at h = 1 cm
+//! (R = 5h), 1.04–1.05 at R = 7–10 h once the solvers' damping is taken
+//! out. The swings are damped 10–80 times faster than Lamb's viscous
+//! rate: the solvers' own dissipation, not the fluid's μ.
 //!
 //! One drop's period moves by several per cent with rounding-level
 //! changes (moving these sums into lanes moved the PBF test's three drops
@@ -66,8 +68,8 @@
 //! scalar loops): `cargo run --release --example realtime -- --solvers pbf
 //! --max-particles 11000 --sigma 0.0728`, against `--sigma 0`.
 //!
-//! The damping is far above Lamb's. The GPU's PBF applies the same forces
-//! (sph-gpu's `shaders/pbf.wgsl`).
+//! The GPU's PBF applies the same forces, with the same γ and weighted
+//! cohesion coefficient (sph-gpu's `shaders/pbf.wgsl`).
 
 use crate::region;
 use glam::Vec3;
@@ -85,21 +87,30 @@ use crate::processor::{Context, Processor};
 use crate::simd::F32x8;
 
 /// σ = `AKINCI_SCALE` ρ0 h² γ: the measured ratio of water's σ to the
-/// paper's γ, scaled by ρ0 h², that gives a drop Rayleigh's l = 2 period
-/// (at rest the same forces hold about half of Laplace's pressure jump:
-/// see the module docs).
-pub const AKINCI_SCALE: f32 = 13.0;
+/// paper's γ, scaled by ρ0 h², that with [`COHESION_WEIGHT`] gives a drop
+/// both Rayleigh's l = 2 period and Laplace's pressure jump (see the module
+/// docs).
+pub const AKINCI_SCALE: f32 = 8.125;
 
-/// The paper's coefficient γ for `params`' σ, h and ρ0:
+/// The cohesion term's weight against the curvature term's, w in
+/// a_i = −γ Σ_j K_ij (w m_j C(r_ij) r̂_ij + n_i − n_j). The paper's is 1;
+/// at 1 no single γ gives a drop both Rayleigh's period and Laplace's
+/// jump (the scale that fits the period holds half the jump at rest), and
+/// at ½ one does (the module docs).
+pub const COHESION_WEIGHT: f32 = 0.5;
+
+/// The curvature term's coefficient γ for `params`' σ, h and ρ0:
 /// σ / ([`AKINCI_SCALE`] ρ0 h²) (the GPU's PBF takes the same).
 pub fn gamma(params: &FluidParams) -> f32 {
     let h = params.h;
     params.surface_tension / (AKINCI_SCALE * params.rest_density * h * h)
 }
 
-/// Akinci's cohesion spline's coefficient 32/(πh⁹) for support `h`.
+/// The cohesion spline's coefficient with the term's weight,
+/// [`COHESION_WEIGHT`] × 32/(πh⁹), for support `h` (the GPU's PBF takes
+/// the same).
 pub fn cohesion_coefficient(h: f32) -> f32 {
-    (32.0 / (std::f64::consts::PI * f64::from(h).powi(9))) as f32
+    (f64::from(COHESION_WEIGHT) * 32.0 / (std::f64::consts::PI * f64::from(h).powi(9))) as f32
 }
 
 /// The station: Akinci et al.'s forces for the fluid's σ.
@@ -160,10 +171,11 @@ impl SurfaceTension {
 }
 
 /// Akinci's cohesion spline C(r) of support h: 32/(πh⁹) times (h − r)³r³
-/// beyond h/2, 2(h − r)³r³ − h⁶/64 within (repelling near 0), 0 beyond h.
+/// beyond h/2, 2(h − r)³r³ − h⁶/64 within (repelling near 0), 0 beyond h;
+/// times [`COHESION_WEIGHT`].
 #[cfg(test)]
 fn cohesion(r: f32, h: f32) -> f32 {
-    let k = 32.0 / (std::f32::consts::PI * h.powi(9));
+    let k = COHESION_WEIGHT * 32.0 / (std::f32::consts::PI * h.powi(9));
     let outer = (h - r).powi(3) * r.powi(3);
     if r > h || r <= 0.0 {
         0.0

@@ -49,7 +49,7 @@ struct Pbf {
     push_accel: vec4<f32>,  // the acceleration on the ray (m/s²)
     table: u32,             // the grid's hash buckets (hash.wgsl)
     gamma: f32,             // Akinci et al.'s γ (0: no surface tension)
-    cohesion: f32,          // their cohesion spline's 32 / (π h⁹)
+    cohesion: f32,          // their cohesion spline's 32 / (π h⁹) × COHESION_WEIGHT
     pad0: u32,
 };
 
