@@ -70,7 +70,6 @@ use std::sync::{Arc, Mutex};
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use sph_core::Kernel;
 use sph_core::glam::Vec3;
 use sph_core::processor::{Context, Processor};
 use sph_core::solver::surface_tension::{SurfaceTension, Update};
@@ -257,9 +256,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // over √(1/5), the ratio of a sphere's, so a sphere reads 2R; the
     // particles more than 3R from the centre (escaped spray); the mean
     // pressure within R/2 of the centre.
-    let (rho0, h) = (params.rest_density, params.h);
-    let cubic = sph_core::CubicSpline::new(h)?;
-    let spiky = sph_core::Spiky::new(h)?;
     let measure = |p: &Particles| {
         let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
         let var = (p.positions().iter())
@@ -279,38 +275,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let pressure = inner.iter().map(|q| q.0).sum::<f64>() / count;
         let mechanical = inner.iter().map(|q| q.0 + q.1).sum::<f64>() / count;
         // Under DFSPH and PBF, the pressure forces' own virial in place of
-        // the stored pressure: (ρ_i/6) Σ_j (x_i − x_j)·a_ij with
-        // a_ij = −V_j (κ_i + κ_j) ∇W_ij: under DFSPH κ = ρ0 p/ρ² and W the
-        // cubic spline (whose lattice sum makes the virial 1.020 p for a
-        // uniform p), under PBF κ = p/ρ0 and ∇W spiky's (the pressure
-        // whose acceleration is PBF's correction; 0.947 p for a uniform p).
-        let pair_virial = (kind != SolverKind::Wcsph).then(|| {
-            let (x, m, rho, pr) = (p.positions(), p.masses(), p.densities(), p.pressures());
-            let kappa = |i: usize| match kind {
-                SolverKind::Pbf => pr[i] / rho0,
-                _ => rho0 * pr[i] / (rho[i] * rho[i]),
-            };
-            let gradient = |d: Vec3| match kind {
-                SolverKind::Pbf => spiky.gradient(d),
-                _ => cubic.gradient(d),
-            };
-            let grid = sph_core::NeighbourGrid::build(x, h).expect("finite positions");
-            let inside: Vec<usize> = (0..x.len())
-                .filter(|&i| f64::from((x[i] - c).length()) < 0.5 * radius)
-                .collect();
-            let sum = (inside.iter())
-                .map(|&i| {
-                    let mut w = 0.0f64;
-                    grid.for_each_neighbour(i, |j, _, _| {
-                        let d = x[i] - x[j];
-                        let a = -(m[j] / rho0) * (kappa(i) + kappa(j)) * gradient(d);
-                        w += f64::from(d.dot(a));
-                    });
-                    f64::from(rho[i]) / 6.0 * w + virial.get(i).map_or(0.0, |&v| f64::from(v))
-                })
-                .sum::<f64>();
-            sum / inside.len().max(1) as f64
-        });
+        // the stored pressure (`common::inner_pair_virial`).
+        let pair_virial = (kind != SolverKind::Wcsph)
+            .then(|| common::inner_pair_virial(p, kind, &params, &virial, c, 0.5 * radius));
         let signal = if l4 {
             common::l4_amplitude(p.positions(), c, radius)
         } else if cube {

@@ -181,6 +181,52 @@ fn drop_world(
     (world, r)
 }
 
+/// The mechanical pressure (Pa) of the particles of `p` within `within` of
+/// `c` under PBF or DFSPH: the mean of (ρ_i/6) Σ_j (x_i − x_j)·a_ij over
+/// the solver's pressure forces a_ij = −V_j (κ_i + κ_j) ∇W_ij, plus
+/// `akinci[i]`, the surface tension forces' own virial. Under DFSPH κ is
+/// ρ0 p/ρ² and W the cubic spline (a uniform pressure p reads 1.020 p on
+/// the filled lattice), under PBF κ = p/ρ0 and ∇W spiky's, the pressure
+/// whose acceleration over Δt² is PBF's correction (0.947 p).
+#[allow(dead_code)]
+pub fn inner_pair_virial(
+    p: &sph_core::Particles,
+    kind: sph_core::SolverKind,
+    params: &sph_core::FluidParams,
+    akinci: &[f32],
+    c: sph_core::glam::Vec3,
+    within: f64,
+) -> f64 {
+    use sph_core::{CubicSpline, Kernel, NeighbourGrid, SolverKind, Spiky};
+    let (rho0, h) = (params.rest_density, params.h);
+    let (cubic, spiky) = (CubicSpline::new(h).unwrap(), Spiky::new(h).unwrap());
+    let (x, m, rho, pr) = (p.positions(), p.masses(), p.densities(), p.pressures());
+    let kappa = |i: usize| match kind {
+        SolverKind::Pbf => pr[i] / rho0,
+        _ => rho0 * pr[i] / (rho[i] * rho[i]),
+    };
+    let gradient = |d| match kind {
+        SolverKind::Pbf => spiky.gradient(d),
+        _ => cubic.gradient(d),
+    };
+    let grid = NeighbourGrid::build(x, h).unwrap();
+    let inside: Vec<usize> = (0..x.len())
+        .filter(|&i| f64::from((x[i] - c).length()) < within)
+        .collect();
+    let sum = (inside.iter())
+        .map(|&i| {
+            let mut w = 0.0f64;
+            grid.for_each_neighbour(i, |j, _, _| {
+                let d = x[i] - x[j];
+                let a = -(m[j] / rho0) * (kappa(i) + kappa(j)) * gradient(d);
+                w += f64::from(d.dot(a));
+            });
+            f64::from(rho[i]) / 6.0 * w + akinci.get(i).map_or(0.0, |&v| f64::from(v))
+        })
+        .sum::<f64>();
+    sum / inside.len().max(1) as f64
+}
+
 /// A DFSPH drop of 4,032 particles at `spacing`, at rest on the lattice
 /// from the start, run for `seconds`: its mechanical pressure within R/2
 /// of the centre over Laplace's 2σ/R, the mean over the last second's
@@ -193,10 +239,10 @@ fn drop_world(
 /// (`solver::surface_tension`'s module docs).
 #[allow(dead_code)]
 pub fn dfsph_drop_laplace(spacing: f32, seconds: f64) -> f64 {
+    use sph_core::Particles;
     use sph_core::glam::Vec3;
     use sph_core::processor::{Context, Processor};
     use sph_core::solver::surface_tension::{SurfaceTension, Update};
-    use sph_core::{CubicSpline, Kernel, NeighbourGrid, Particles};
     use std::sync::{Arc, Mutex};
 
     /// The surface tension station, its virial per particle copied out
@@ -223,29 +269,11 @@ pub fn dfsph_drop_laplace(spacing: f32, seconds: f64) -> f64 {
     let program = world.program_mut();
     assert!(program.remove("surface tension"));
     assert!(program.insert_after("forces", Measured(station, virial.clone())));
-    let (rho0, h) = (params.rest_density, params.h);
-    let cubic = CubicSpline::new(h).unwrap();
     let inner_pressure = |p: &Particles| {
-        let (x, m, rho, pr) = (p.positions(), p.masses(), p.densities(), p.pressures());
+        let x = p.positions();
         let c = x.iter().sum::<Vec3>() / x.len() as f32;
-        let kappa = |i: usize| rho0 * pr[i] / (rho[i] * rho[i]);
-        let grid = NeighbourGrid::build(x, h).unwrap();
         let virial = virial.lock().unwrap();
-        let inside: Vec<usize> = (0..x.len())
-            .filter(|&i| f64::from((x[i] - c).length()) < 0.5 * r)
-            .collect();
-        let sum = (inside.iter())
-            .map(|&i| {
-                let mut w = 0.0f64;
-                grid.for_each_neighbour(i, |j, _, _| {
-                    let d = x[i] - x[j];
-                    let a = -(m[j] / rho0) * (kappa(i) + kappa(j)) * cubic.gradient(d);
-                    w += f64::from(d.dot(a));
-                });
-                f64::from(rho[i]) / 6.0 * w + f64::from(virial[i])
-            })
-            .sum::<f64>();
-        sum / inside.len() as f64
+        inner_pair_virial(p, sph_core::SolverKind::Dfsph, &params, &virial, c, 0.5 * r)
     };
     let mut last_second = Vec::new();
     while world.time() < seconds - 1e-9 {
