@@ -56,7 +56,8 @@
 //! forces (`sph_core::solver::surface_tension`).
 //!
 //! `--akinci GAMMA` adds a prototype of Akinci et al. 2013's cohesion and
-//! curvature forces with coefficient γ in place of the solver's own σ
+//! curvature forces with coefficient γ (the cohesion term weighted by
+//! `surface_tension::COHESION_WEIGHT`) in place of the solver's own σ
 //! (after PBF's `viscosity` station, or DFSPH's `forces`), and prints the inner
 //! pressure with those forces' virial added (the mechanical pressure), for
 //! the measurements of

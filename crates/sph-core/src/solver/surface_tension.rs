@@ -140,8 +140,8 @@ impl SurfaceTension {
         Self::with_gamma(params, gamma(params), update)
     }
 
-    /// With the paper's coefficient γ itself (for measuring it), for
-    /// `params`' h and ρ0.
+    /// With the coefficient γ itself (for measuring it), for `params`' h
+    /// and ρ0; the cohesion term keeps its [`COHESION_WEIGHT`].
     ///
     /// # Errors
     /// Parameters that do not validate, or a γ that is not finite and
