@@ -442,7 +442,7 @@ fn a_failed_solve_stops_the_run() {
 }
 
 /// Surface tension under DFSPH (Akinci et al.'s forces for water's σ, the
-/// scale PBF's were measured at): a weightless drop of 4,032 particles at
+/// scale and cohesion weight measured on PBF's and DFSPH's drops): a weightless drop of 4,032 particles at
 /// 3.5 mm (R = 34.6 mm) stretched along x oscillates in Rayleigh's l = 2
 /// mode at his period 2π/ω, ω² = 8σ/(ρR³), within 10 %, as the median of
 /// three stretches (10, 12 and 15 %; one drop's period moves by several
@@ -464,8 +464,8 @@ fn a_drop_oscillates_at_rayleighs_period() {
 /// lattice from the start, holds a mechanical pressure within R/2 of its
 /// centre of 2σ/R = 2.95 Pa within issue 42's 10 %, read as every pair
 /// force's virial over the last of 8 s (`common::dfsph_drop_laplace`).
-/// Measured: 0.909 of 2σ/R (the stored pressure plus the Akinci forces'
-/// virial reads 1.041). With the paper's equal weights of cohesion and
+/// Measured: 0.909 of 2σ/R, 1 % inside the band (the stored pressure plus
+/// the Akinci forces' virial reads 1.041). With the paper's equal weights of cohesion and
 /// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) it was
 /// 0.649 at 3 s. At 3.5 mm it is 0.736 (`cargo run --release -p sph-core
 /// --example rayleigh_drop -- dfsph 6 --shape ellipsoid --eps 0 --spacing
@@ -485,7 +485,7 @@ fn a_drop_at_rest_holds_laplaces_pressure() {
 /// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) they were
 /// 1.453 / 1.359 and 1.126 / 0.993. Held: at 3.5 mm the undamped period
 /// within issue 42's 10 % and the damped one within 20 %; at 5 mm the
-/// damped one within 30 %, and longer than at 3.5 mm.
+/// damped one within 30 %, and at least 0.1 longer than at 3.5 mm.
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let dfsph = sph_core::Solver::Dfsph(DfsphParams::default());
@@ -494,5 +494,5 @@ fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     assert!((0.8..=1.2).contains(&fine.0), "3.5 mm: {fine:?}");
     assert!((0.9..=1.1).contains(&fine.1), "3.5 mm: {fine:?}");
     assert!((0.7..=1.3).contains(&coarse.0), "5 mm: {coarse:?}");
-    assert!(coarse.0 > fine.0, "5 mm {coarse:?}, 3.5 mm {fine:?}");
+    assert!(coarse.0 - fine.0 >= 0.1, "5 mm {coarse:?}, 3.5 mm {fine:?}");
 }

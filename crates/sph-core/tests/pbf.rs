@@ -871,7 +871,7 @@ fn a_drop_oscillates_at_rayleighs_period() {
 /// 1.482 / 1.431 and 1.101 / 1.026 (and 1.263 / 1.179 at 3.5 mm, 1.158 /
 /// 1.076 at 2 mm). Held: at 2.5 mm the undamped period within issue 42's
 /// 10 % and the damped one within 20 %; at 5 mm the damped one within
-/// 30 %, and longer than at 2.5 mm.
+/// 30 %, and at least 0.1 longer than at 2.5 mm.
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let pbf = Solver::Pbf(PbfParams::default());
@@ -880,5 +880,5 @@ fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     assert!((0.8..=1.2).contains(&fine.0), "2.5 mm: {fine:?}");
     assert!((0.9..=1.1).contains(&fine.1), "2.5 mm: {fine:?}");
     assert!((0.7..=1.3).contains(&coarse.0), "5 mm: {coarse:?}");
-    assert!(coarse.0 > fine.0, "5 mm {coarse:?}, 2.5 mm {fine:?}");
+    assert!(coarse.0 - fine.0 >= 0.1, "5 mm {coarse:?}, 2.5 mm {fine:?}");
 }

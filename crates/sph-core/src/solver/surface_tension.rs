@@ -30,7 +30,8 @@
 //!
 //! Measured (`cargo run --release -p sph-core --example rayleigh_drop --
 //! SOLVER 6 --shape ellipsoid --eps E [--spacing 0.0035]`; 4,032 particles,
-//! R = 16 spacings; E = 0.1 for the period, 0 for the pressure):
+//! R = 9.9 spacings, 16³ cells' volume; E = 0.1 for the period, 0 for the
+//! pressure):
 //!
 //! | solver | h | l = 2 period / Rayleigh's: turns, fit | inner pressure / 2σ/R |
 //! |---|---:|---:|---:|
@@ -43,17 +44,19 @@
 //! The inner pressure is the mechanical pressure within R/2 of the centre
 //! over the last second: the virial of every pair force on those particles,
 //! the solver's pressure forces' and these. A stored pressure plus these
-//! forces' virial overstates it: the stored pressure stands for a uniform
+//! forces' virial is not it: the stored pressure stands for a uniform
 //! pressure's virial in the continuum, of which PBF's spiky gradients carry
-//! 0.947 on the lattice and DFSPH's cubic spline 1.020, a few per cent of a
-//! 15–25 Pa bulk pressure, as large as the 3–4 Pa jump (WCSPH's is only
-//! read that way here).
+//! 0.947 on the lattice and DFSPH's cubic spline 1.020, and the pressure
+//! is not uniform within R/2. The two readings differ by 0.4–1.4 Pa, a
+//! tenth to a half of the 3–4 Pa jump, the stored one higher under both
+//! solvers (WCSPH's is only read that way here).
 //!
 //! The l = 4 mode at small amplitude (`tests/pbf.rs`, `tests/dfsph.rs`):
 //! 1.25 (PBF) and 1.22 (DFSPH) of Rayleigh's period at h = 1 cm
 //! (R = 5h), 1.04–1.05 at R = 7–10 h once the solvers' damping is taken
-//! out. The swings are damped 10–80 times faster than Lamb's viscous
-//! rate: the solvers' own dissipation, not the fluid's μ.
+//! out. The swings are damped 10–80 times (l = 2) and 10–30 times (l = 4)
+//! faster than Lamb's viscous rate: the solvers' own dissipation, not the
+//! fluid's μ.
 //!
 //! One drop's period moves by several per cent with rounding-level
 //! changes (moving these sums into lanes moved the PBF test's three drops
@@ -202,7 +205,7 @@ struct Lanes {
     /// −h times poly6's gradient coefficient b:
     /// n_i = Σ_j V_j (−h b)(h² − r²)² (x_i − x_j).
     normal: f32,
-    /// 32/(πh⁹).
+    /// [`COHESION_WEIGHT`] × 32/(πh⁹).
     cohesion: f32,
     /// (h − h/2)³ (h/2)³ as the lanes compute it.
     middle: f32,
@@ -281,8 +284,8 @@ impl LaneMap for Normals<'_> {
     }
 }
 
-/// The second pass: a_i = −γ Σ_j K_ij (m_j C(r) r̂ + n_i − n_j) and the
-/// virial sum.
+/// The second pass: a_i = −γ Σ_j K_ij (w m_j C(r) r̂ + n_i − n_j) and the
+/// virial sum (w = [`COHESION_WEIGHT`], inside the lanes' coefficient).
 struct Forces<'a> {
     lanes: Lanes,
     gamma: f32,
