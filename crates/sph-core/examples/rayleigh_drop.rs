@@ -40,7 +40,7 @@
 //!
 //! ```text
 //! cargo run --release -p sph-core --example rayleigh_drop [-- SOLVER [SECONDS] \
-//!     [--shape box|ellipsoid|cube|l4] [--eps E] [--spacing S] [--across N] [--sigma N_PER_M] \
+//!     [--shape box|ellipsoid|cube|l4] [--eps E] [--profile] [--spacing S] [--across N] [--sigma N_PER_M] \
 //!     [--model colour-field|akinci] [--mu PA_S] [--akinci GAMMA] \
 //!     [--solver-toml 'viscosity = "implicit"']]
 //! ```
@@ -104,7 +104,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kind = SolverKind::Wcsph;
     let (mut seconds, mut shape, mut eps) = (4.0f64, "box".to_string(), 0.1f32);
     let (mut spacing, mut sigma, mut table) = (0.005f32, 0.0728f32, String::new());
-    let mut across = 16u32;
+    let (mut across, mut profile) = (16u32, false);
     let (mut mu, mut akinci, mut model) = (0.01f32, None, None);
     let mut args = std::env::args().skip(1);
     let mut positional = 0;
@@ -118,6 +118,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 }
             }
             "--eps" => eps = value("--eps")?.parse()?,
+            "--profile" => profile = true,
             "--spacing" => spacing = value("--spacing")?.parse()?,
             "--across" => across = value("--across")?.parse()?,
             "--sigma" => sigma = value("--sigma")?.parse()?,
@@ -279,6 +280,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // the stored pressure (`common::inner_pair_virial`).
         let pair_virial = (kind != SolverKind::Wcsph)
             .then(|| common::inner_pair_virial(p, kind, &params, &virial, c, 0.5 * radius));
+        let kinetic = common::inner_kinetic_pressure(p, c, 0.5 * radius);
         let signal = if l4 {
             common::l4_amplitude(p.positions(), c, radius)
         } else if cube {
@@ -303,7 +305,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         (
             signal,
             far,
-            (pressure, mechanical, pair_virial.unwrap_or(f64::NAN)),
+            (
+                pressure,
+                mechanical,
+                pair_virial.unwrap_or(f64::NAN),
+                kinetic,
+            ),
         )
     };
     let frame = 1.0 / 60.0;
@@ -397,7 +404,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "swing decay rates β (1/s) from turn to turn: {rates:.2?} about {rest:.3}; \
          from the first extremum to the last {overall:.2}; Lamb {lamb:.3} 1/s"
     );
-    let mean = |f: fn(&(f64, f64, f64)) -> f64| {
+    let mean = |f: fn(&(f64, f64, f64, f64)) -> f64| {
         pressures.iter().map(f).sum::<f64>() / pressures.len().max(1) as f64
     };
     let pressure = mean(|p| p.0);
@@ -416,6 +423,41 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             println!(
                 "the pressure forces' and Akinci forces' virial {pairs:.3} Pa; ratio to Laplace {:.3}",
                 pairs / laplace
+            );
+            let kinetic = mean(|p| p.3);
+            println!(
+                "the particles' motion about the drop's ρ|v − v̄|²/3 {kinetic:.3} Pa; \
+                 with the pair virial {:.3} Pa, ratio to Laplace {:.3}",
+                pairs + kinetic,
+                (pairs + kinetic) / laplace
+            );
+        }
+    }
+    if profile && kind != SolverKind::Wcsph {
+        // The last frame's pressure against the distance from the centre,
+        // in shells R/8 thick: the pair virial's mechanical pressure, the
+        // stored pressure and the density.
+        let p = &world.particles;
+        let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
+        let virial = virial.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        let mechanical = common::pair_virial_pressures(p, kind, &params, &virial);
+        println!("shell (r/R)   particles   pair virial (Pa)   stored (Pa)   ρ (kg/m³)");
+        for shell in 0..10 {
+            let (lo, hi) = (shell as f64 / 8.0, (shell + 1) as f64 / 8.0);
+            let inside: Vec<usize> = (0..p.len())
+                .filter(|&i| {
+                    let r = f64::from((p.positions()[i] - c).length()) / radius;
+                    (lo..hi).contains(&r)
+                })
+                .collect();
+            let n = inside.len().max(1) as f64;
+            let mean = |f: &dyn Fn(usize) -> f64| inside.iter().map(|&i| f(i)).sum::<f64>() / n;
+            println!(
+                "{lo:.3}–{hi:.3}   {:9}   {:16.3}   {:11.3}   {:9.2}",
+                inside.len(),
+                mean(&|i| mechanical[i]),
+                mean(&|i| f64::from(p.pressures()[i])),
+                mean(&|i| f64::from(p.densities()[i])),
             );
         }
     }

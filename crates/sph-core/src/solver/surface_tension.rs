@@ -51,10 +51,32 @@
 //! tenth to a half of the 3–4 Pa jump, the stored one higher under both
 //! solvers (WCSPH's is only read that way here).
 //!
+//! **Laplace's jump does not converge with resolution.** At the same
+//! radius (R ≈ 49.5 mm) with finer spacings (`-- SOLVER 8 --shape
+//! ellipsoid --eps 0 --spacing S --across N`, N = 23 at 3.5 mm and 32 at
+//! 2.5 mm), the inner pressure reads 0.874 and 0.599 of 2σ/R under PBF
+//! (0.863 at 2.5 mm with 10 iterations, where 3 leave the interior 1 %
+//! dense) and 0.632 and 0.415 under DFSPH (0.370 at ten times tighter
+//! tolerances, the density uniform within 0.02 %). The cohesion term
+//! holds the bulk in a tension of order σ/h, which the solver's pressure
+//! balances (the stored pressure is 25–30 Pa against a 2.9 Pa jump), and
+//! the jump is the difference of those two virials: a few per cent of
+//! disagreement between them, which the particles' arrangement moves,
+//! is a share of the jump that grows as R/h. `--profile` shows the
+//! pressure rising from the centre outwards (DFSPH at 2.5 mm: 1.0 Pa in
+//! the inner eighth of the radius, 1.8–2.2 Pa at 0.75–0.875 R). A force
+//! that acts at the surface alone (a continuum surface force) would not
+//! carry that bulk tension; none is built.
+//!
 //! The l = 4 mode at small amplitude (`tests/pbf.rs`, `tests/dfsph.rs`):
 //! 1.25 (PBF) and 1.22 (DFSPH) of Rayleigh's period at h = 1 cm
 //! (R = 5h), 1.04–1.05 at R = 7–10 h once the solvers' damping is taken
-//! out. The swings are damped 10–80 times (l = 2) and 10–30 times (l = 4)
+//! out; PBF 1.082 (1.033 undamped) at R = 12.5 h, DFSPH 1.009 (0.950) at
+//! R = 10 h. The l = 2 mode at R = 7 h (`-- SOLVER 12 --shape ellipsoid
+//! --spacing 0.0035 --across 23`): the damped fit 1.045 (PBF) and 1.098
+//! (DFSPH), 0.990 and 0.983 undamped, but from turn to turn 0.838 and
+//! 0.783: swings damped within two periods do not pin a period down to
+//! 10 %. The swings are damped 10–80 times (l = 2) and 10–30 times (l = 4)
 //! faster than Lamb's viscous rate: the solvers' own dissipation, not the
 //! fluid's μ.
 //!

@@ -181,22 +181,21 @@ fn drop_world(
     (world, r)
 }
 
-/// The mechanical pressure (Pa) of the particles of `p` within `within` of
-/// `c` under PBF or DFSPH: the mean of (ρ_i/6) Σ_j (x_i − x_j)·a_ij over
-/// the solver's pressure forces a_ij = −V_j (κ_i + κ_j) ∇W_ij, plus
-/// `akinci[i]`, the surface tension forces' own virial. Under DFSPH κ is
-/// ρ0 p/ρ² and W the cubic spline (a uniform pressure p reads 1.020 p on
-/// the filled lattice), under PBF κ = p/ρ0 and ∇W spiky's, the pressure
-/// whose acceleration over Δt² is PBF's correction (0.947 p).
+/// The mechanical pressure (Pa) of each particle of `p` under PBF or
+/// DFSPH: (ρ_i/6) Σ_j (x_i − x_j)·a_ij over the solver's pressure forces
+/// a_ij = −V_j (κ_i + κ_j) ∇W_ij, plus `akinci[i]`, the surface tension
+/// forces' own virial. Under DFSPH κ is ρ0 p/ρ² and W the cubic spline (a
+/// uniform pressure p reads 1.020 p on the filled lattice), under PBF
+/// κ = p/ρ0 and ∇W spiky's, the pressure whose acceleration over Δt² is
+/// PBF's correction (0.947 p). Meaningful in the bulk, where the pairs of
+/// a particle sample the stress about it.
 #[allow(dead_code)]
-pub fn inner_pair_virial(
+pub fn pair_virial_pressures(
     p: &sph_core::Particles,
     kind: sph_core::SolverKind,
     params: &sph_core::FluidParams,
     akinci: &[f32],
-    c: sph_core::glam::Vec3,
-    within: f64,
-) -> f64 {
+) -> Vec<f64> {
     use sph_core::{CubicSpline, Kernel, NeighbourGrid, SolverKind, Spiky};
     let (rho0, h) = (params.rest_density, params.h);
     let (cubic, spiky) = (CubicSpline::new(h).unwrap(), Spiky::new(h).unwrap());
@@ -210,11 +209,8 @@ pub fn inner_pair_virial(
         _ => cubic.gradient(d),
     };
     let grid = NeighbourGrid::build(x, h).unwrap();
-    let inside: Vec<usize> = (0..x.len())
-        .filter(|&i| f64::from((x[i] - c).length()) < within)
-        .collect();
-    let sum = (inside.iter())
-        .map(|&i| {
+    (0..x.len())
+        .map(|i| {
             let mut w = 0.0f64;
             grid.for_each_neighbour(i, |j, _, _| {
                 let d = x[i] - x[j];
@@ -223,8 +219,48 @@ pub fn inner_pair_virial(
             });
             f64::from(rho[i]) / 6.0 * w + akinci.get(i).map_or(0.0, |&v| f64::from(v))
         })
-        .sum::<f64>();
-    sum / inside.len().max(1) as f64
+        .collect()
+}
+
+/// The mean of [`pair_virial_pressures`] over the particles of `p` within
+/// `within` of `c`: the drop's inner mechanical pressure.
+#[allow(dead_code)]
+pub fn inner_pair_virial(
+    p: &sph_core::Particles,
+    kind: sph_core::SolverKind,
+    params: &sph_core::FluidParams,
+    akinci: &[f32],
+    c: sph_core::glam::Vec3,
+    within: f64,
+) -> f64 {
+    let pressures = pair_virial_pressures(p, kind, params, akinci);
+    let x = p.positions();
+    let inside: Vec<f64> = (0..x.len())
+        .filter(|&i| f64::from((x[i] - c).length()) < within)
+        .map(|i| pressures[i])
+        .collect();
+    inside.iter().sum::<f64>() / inside.len().max(1) as f64
+}
+
+/// The kinetic part of the mechanical pressure (Pa) of the particles of
+/// `p` within `within` of `c`: the mean of ρ_i |v_i − v̄|²/3, with v̄ the
+/// mean velocity of all particles (the drop's centre of mass, for equal
+/// masses). The virial theorem's other half: a fluid whose particles move
+/// about their mean carries part of its pressure as that motion's momentum
+/// flux, as a gas does, and its pair forces' virial reads that much less.
+#[allow(dead_code)]
+pub fn inner_kinetic_pressure(
+    p: &sph_core::Particles,
+    c: sph_core::glam::Vec3,
+    within: f64,
+) -> f64 {
+    let (x, v, rho) = (p.positions(), p.velocities(), p.densities());
+    let mean = v.iter().sum::<sph_core::glam::Vec3>() / v.len().max(1) as f32;
+    let inside: Vec<f64> = (0..x.len())
+        .filter(|&i| f64::from((x[i] - c).length()) < within)
+        .map(|i| f64::from(rho[i]) * f64::from((v[i] - mean).length_squared()) / 3.0)
+        .collect();
+    inside.iter().sum::<f64>() / inside.len().max(1) as f64
 }
 
 /// A DFSPH drop of 4,032 particles at `spacing`, at rest on the lattice
