@@ -476,9 +476,7 @@ fn a_drop_oscillates_at_rayleighs_period() {
 /// spacings (`-- dfsph 8 --shape ellipsoid --eps 0 --spacing S --across
 /// N`) reads 0.632 at 3.5 mm (R = 14 spacings) and 0.415 at 2.5 mm (20),
 /// with the density uniform and the pressure rising from the centre
-/// outwards (`--profile`); ten times tighter tolerances read 0.370. The
-/// bulk carries Akinci's cohesion as a tension of order σ/h and the solve
-/// a pressure that balances it, and the jump 2σ/R is their difference
+/// outwards (`--profile`); ten times tighter tolerances read 0.370
 /// (`solver::surface_tension`'s module docs).
 #[test]
 fn a_drop_at_rest_holds_laplaces_pressure() {

@@ -51,22 +51,24 @@
 //! tenth to a half of the 3–4 Pa jump, the stored one higher under both
 //! solvers (WCSPH's is only read that way here).
 //!
-//! **Laplace's jump does not converge with resolution.** At the same
-//! radius (R ≈ 49.5 mm) with finer spacings (`-- SOLVER 8 --shape
-//! ellipsoid --eps 0 --spacing S --across N`, N = 23 at 3.5 mm and 32 at
-//! 2.5 mm), the inner pressure reads 0.874 and 0.599 of 2σ/R under PBF
-//! (0.863 at 2.5 mm with 10 iterations, where 3 leave the interior 1 %
-//! dense) and 0.632 and 0.415 under DFSPH (0.370 at ten times tighter
-//! tolerances, the density uniform within 0.02 %). The cohesion term
-//! holds the bulk in a tension of order σ/h, which the solver's pressure
-//! balances (the stored pressure is 25–30 Pa against a 2.9 Pa jump), and
-//! the jump is the difference of those two virials: a few per cent of
-//! disagreement between them, which the particles' arrangement moves,
-//! is a share of the jump that grows as R/h. `--profile` shows the
-//! pressure rising from the centre outwards (DFSPH at 2.5 mm: 1.0 Pa in
-//! the inner eighth of the radius, 1.8–2.2 Pa at 0.75–0.875 R). A force
-//! that acts at the surface alone (a continuum surface force) would not
-//! carry that bulk tension; none is built.
+//! **Laplace's jump at finer resolutions.** At the same radius
+//! (R ≈ 49.5 mm) with finer spacings (`-- SOLVER 8 --shape ellipsoid --eps
+//! 0 --spacing S --across N`, N = 23 at 3.5 mm and 32 at 2.5 mm), the inner
+//! pressure reads:
+//! - PBF: 0.874 and 0.599 of 2σ/R. Its three iterations do not carry the
+//!   pressure across 20 spacings: the interior is 1 % dense and the
+//!   pressure falls from the centre outwards (`--profile`). With 10
+//!   iterations it is flat, at 0.863.
+//! - DFSPH: 0.632 and 0.415; 0.370 at ten times tighter tolerances, with
+//!   the density uniform within 0.02 % and the pressure rising from the
+//!   centre outwards (1.0 Pa in the inner eighth of the radius, 1.8 Pa at
+//!   0.8 R). Not understood: a drop started off the lattice (points moved
+//!   by up to 0.15 spacings) rises more steeply, so it is not a lattice
+//!   core.
+//!
+//! The bulk carries the cohesion term as a tension of order σ/h, balanced
+//! by the solver's pressure (25–30 Pa stored against a 2.9 Pa jump), so
+//! the jump is a small difference of two large virials.
 //!
 //! The l = 4 mode at small amplitude (`tests/pbf.rs`, `tests/dfsph.rs`):
 //! 1.25 (PBF) and 1.22 (DFSPH) of Rayleigh's period at h = 1 cm
