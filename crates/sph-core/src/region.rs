@@ -16,7 +16,9 @@
 //! everything its closure does (a [`crate::World::advance`]: every station
 //! of every substep; surfel-extract's extraction: every stage of a frame),
 //! and they wait, spinning, for the [`run`]s the closure's thread posts.
-//! Between two stations nobody goes to sleep and nothing forks. Work that
+//! Between two stations nobody goes to sleep and nothing forks; a thread
+//! that has had no job for 2 ms goes back to the pool, and the next
+//! [`run`] calls it again. Work that
 //! uses rayon itself (a station that declares no
 //! [`crate::Processor::runs_in_region`], the grid build of a large scene)
 //! runs inside [`released`], which sends the team's threads back to the
@@ -46,6 +48,13 @@ pub const BLOCK: usize = 64;
 
 /// Claims per thread and pass that [`run`] aims at.
 const CLAIMS_PER_THREAD: usize = 16;
+
+/// How long a team's thread waits for a job before it leaves the team and
+/// goes back to its pool, where it sleeps; the next [`run`] calls it
+/// again. Longer than the serial stretches between a step's passes (the
+/// grid build, about 1 ms at 10k particles on a slow 2-core VM), so that
+/// within a step nobody leaves.
+const IDLE: std::time::Duration = std::time::Duration::from_millis(2);
 
 /// The number of blocks `n` particles make.
 pub fn blocks(n: usize) -> usize {
@@ -97,7 +106,9 @@ pub fn run_by(n: usize, block: usize, passes: &[Pass<'_>]) {
     if !leading.is_null() {
         // SAFETY: as above.
         let team = unsafe { &*leading };
-        if !team.called.swap(true, Ordering::Relaxed) {
+        // Called once per generation, and again if everyone called has
+        // left (idle for `IDLE`).
+        if !team.called.swap(true, Ordering::Relaxed) || team.pending.load(Ordering::SeqCst) == 0 {
             // SAFETY: `team` sets `call` before this thread leads the team,
             // and the closure it points to outlives the leading.
             unsafe { ((*team.call.load(Ordering::Relaxed)).0)() };
@@ -159,6 +170,7 @@ pub fn team<R>(f: impl FnOnce() -> R) -> R {
     rayon::in_place_scope(|scope| {
         let call = || {
             let generation = team.generation.load(Ordering::Acquire);
+            team.pending.fetch_add(threads - 1, Ordering::SeqCst);
             for _ in 1..threads {
                 let team = &team;
                 scope.spawn(move |_| team.serve(generation));
@@ -319,6 +331,10 @@ struct Team {
     /// [`run`] since the team started or was [`released`]). Only the
     /// leading thread touches it.
     called: AtomicBool,
+    /// Threads called and not yet gone home (queued, serving, or leaving):
+    /// when it is zero, every thread called has left after [`IDLE`], and
+    /// the next [`run`] calls them again.
+    pending: AtomicUsize,
     /// How the leading thread calls the team's threads ([`team`]'s spawns).
     call: AtomicPtr<Calls<'static>>,
     /// Threads inside the posted job.
@@ -341,6 +357,7 @@ impl Team {
             epoch: Padded::default(),
             generation: AtomicUsize::new(0),
             called: AtomicBool::new(false),
+            pending: AtomicUsize::new(0),
             call: AtomicPtr::new(std::ptr::null_mut()),
             active: Padded::default(),
             claims: Claims::default(),
@@ -374,8 +391,18 @@ impl Team {
         }
     }
 
-    /// Serves the team's jobs until its generation moves on.
+    /// Serves the team's jobs until its generation moves on, or until it
+    /// has waited [`IDLE`] for one.
+    ///
+    /// The idle limit also keeps a thread from spinning here for good
+    /// where the work below it on its stack is what the leading thread
+    /// waits for: a thread waiting in a `join` can pick up this call, and
+    /// a leading thread in a rayon pass that is not [`released`] (a grid
+    /// build below `light::SERIAL_BELOW` with a scattered layout) waits
+    /// for the other half of its `join`. That hung a test once
+    /// (`docs/benchmark-notes.md`, "A team's thread that never left").
     fn serve(&self, generation: usize) {
+        let _gone = Leave(&self.pending);
         // A thread that leads a team (inside its `released` too) and waits
         // in rayon can pick up a call of its own team or of another: it
         // must not spin there, for its own team or another that waits for
@@ -385,6 +412,7 @@ impl Team {
         }
         let mut last = 0;
         let mut spins = 0u32;
+        let mut idle_since: Option<std::time::Instant> = None;
         while self.generation.load(Ordering::Acquire) == generation {
             let epoch = self.epoch.load(Ordering::Acquire);
             if epoch % 2 == 1 && epoch != last {
@@ -398,8 +426,15 @@ impl Team {
                     self.claims.work(job);
                 }
                 spins = 0;
+                idle_since = None;
             } else {
                 back_off(&mut spins);
+                if spins >= SPINS {
+                    let since = *idle_since.get_or_insert_with(std::time::Instant::now);
+                    if since.elapsed() >= IDLE {
+                        return;
+                    }
+                }
             }
         }
     }
@@ -449,9 +484,12 @@ impl Drop for Leave<'_> {
     }
 }
 
+/// Spins [`back_off`] makes before it yields.
+const SPINS: u32 = 1 << 12;
+
 /// Spins a while, then yields.
 fn back_off(spins: &mut u32) {
-    if *spins < 1 << 12 {
+    if *spins < SPINS {
         std::hint::spin_loop();
         *spins += 1;
     } else {
@@ -650,6 +688,54 @@ mod tests {
 
     /// A region inside a pass (on any thread, in a team or not) runs on
     /// the pass's thread and gives what it gives alone.
+    /// A leading thread that forks with rayon without releasing its team
+    /// (as a grid build below `light::SERIAL_BELOW` does) and, while it
+    /// waits in a `join`, runs a region in work it picked up: that calls
+    /// the team, and the pool's other thread, itself waiting inside a
+    /// `join` above work the leader waits for, can pick up the call and
+    /// serve it. Without [`IDLE`] it served for good (a hang seen once in
+    /// surfel-extract's `extractor_reused_across_frames_matches_one_shot`).
+    /// A watchdog fails the test instead of hanging it.
+    #[test]
+    fn a_team_thread_holding_the_leaders_join_leaves() {
+        fn busy(micros: u64) {
+            let start = std::time::Instant::now();
+            while start.elapsed() < std::time::Duration::from_micros(micros) {
+                std::hint::spin_loop();
+            }
+        }
+        fn fork(depth: u32, seed: u64) {
+            if depth == 0 {
+                if seed % 3 == 0 {
+                    run(512, &[&|_, _| busy(1)]);
+                }
+                busy(10 + seed % 17);
+            } else {
+                let seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                rayon::join(
+                    || fork(depth - 1, seed >> 7),
+                    || fork(depth - 1, seed >> 13),
+                );
+            }
+        }
+        let (done, finished) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            pool(2).install(|| {
+                for round in 0..200 {
+                    team(|| fork(6, round));
+                }
+            });
+            done.send(()).unwrap();
+        });
+        let waited = finished.recv_timeout(std::time::Duration::from_secs(20));
+        assert!(
+            waited.is_ok(),
+            "a team's rounds of joins did not finish in 20 s"
+        );
+    }
+
     #[test]
     fn a_region_inside_a_pass_runs_on_its_thread() {
         let n = 2000;
