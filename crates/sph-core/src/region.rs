@@ -706,7 +706,7 @@ mod tests {
         }
         fn fork(depth: u32, seed: u64) {
             if depth == 0 {
-                if seed % 3 == 0 {
+                if seed.is_multiple_of(3) {
                     run(512, &[&|_, _| busy(1)]);
                 }
                 busy(10 + seed % 17);
