@@ -426,7 +426,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
             let kinetic = mean(|p| p.3);
             println!(
-                "the particles' motion about the drop's ρ|v − v̄|²/3 {kinetic:.3} Pa; \
+                "the particles' motion about the drop's ρ|v − v̄|²/3 {kinetic:.3} Pa \
+                 (a pressure only at rest, --eps 0; else the swing's motion); \
                  with the pair virial {:.3} Pa, ratio to Laplace {:.3}",
                 pairs + kinetic,
                 (pairs + kinetic) / laplace
@@ -435,7 +436,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if profile && kind != SolverKind::Wcsph {
         // The last frame's pressure against the distance from the centre,
-        // in shells R/8 thick: the pair virial's mechanical pressure, the
+        // in ten shells R/8 thick (to 1.25 R): the pair virial's mechanical pressure, the
         // stored pressure and the density.
         let p = &world.particles;
         let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;

@@ -686,8 +686,6 @@ mod tests {
         assert!(results.iter().all(|r| *r == one));
     }
 
-    /// A region inside a pass (on any thread, in a team or not) runs on
-    /// the pass's thread and gives what it gives alone.
     /// A leading thread that forks with rayon without releasing its team
     /// (as a grid build below `light::SERIAL_BELOW` does) and, while it
     /// waits in a `join`, runs a region in work it picked up: that calls
@@ -736,6 +734,8 @@ mod tests {
         );
     }
 
+    /// A region inside a pass (on any thread, in a team or not) runs on
+    /// the pass's thread and gives what it gives alone.
     #[test]
     fn a_region_inside_a_pass_runs_on_its_thread() {
         let n = 2000;

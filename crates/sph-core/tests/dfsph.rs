@@ -467,14 +467,15 @@ fn a_drop_oscillates_at_rayleighs_period() {
 /// Measured: 0.909 of 2σ/R, 1 % inside the band (the stored pressure plus
 /// the Akinci forces' virial reads 1.041). With the paper's equal weights of cohesion and
 /// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) it was
-/// 0.649 at 3 s. At 3.5 mm it is 0.736 (`cargo run --release -p sph-core
-/// --example rayleigh_drop -- dfsph 6 --shape ellipsoid --eps 0 --spacing
-/// 0.0035`), outside the band.
+/// 0.649 at 3 s. At 3.5 mm with the same 4,032 particles (a smaller drop,
+/// R = 34.6 mm) it is 0.736 (`cargo run --release -p sph-core --example
+/// rayleigh_drop -- dfsph 6 --shape ellipsoid --eps 0 --spacing 0.0035`),
+/// outside the band.
 ///
 /// The reading does not converge with resolution, so this test holds
 /// Laplace's law at one resolution only: the same drop's radius at finer
 /// spacings (`-- dfsph 8 --shape ellipsoid --eps 0 --spacing S --across
-/// N`) reads 0.632 at 3.5 mm (R = 14 spacings) and 0.415 at 2.5 mm (20),
+/// N`, R = 49.5 mm) reads 0.632 at 3.5 mm (R = 14 spacings) and 0.415 at 2.5 mm (20),
 /// with the density uniform and the pressure rising from the centre
 /// outwards (`--profile`); ten times tighter tolerances read 0.370
 /// (`solver::surface_tension`'s module docs).

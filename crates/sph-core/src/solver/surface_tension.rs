@@ -35,7 +35,7 @@
 //!
 //! | solver | h | l = 2 period / Rayleigh's: turns, fit | inner pressure / 2σ/R |
 //! |---|---:|---:|---:|
-//! | PBF | 1 cm | 1.019, 1.077 | 0.949 |
+//! | PBF | 1 cm | 1.019, 1.077 | 0.949 (0.941 over 4 s) |
 //! | PBF | 7 mm | 0.913, 1.004 | 0.896 |
 //! | DFSPH | 1 cm | 0.949, 1.074 | 0.901 (0.909 over 8 s, `tests/dfsph.rs`) |
 //! | DFSPH | 7 mm | 0.887, 1.109 | 0.736 |
@@ -62,19 +62,19 @@
 //! - DFSPH: 0.632 and 0.415; 0.370 at ten times tighter tolerances, with
 //!   the density uniform within 0.02 % and the pressure rising from the
 //!   centre outwards (1.0 Pa in the inner eighth of the radius, 1.8 Pa at
-//!   0.8 R). Not understood: a drop started off the lattice (points moved
-//!   by up to 0.15 spacings) rises more steeply, so it is not a lattice
-//!   core.
+//!   0.8 R). Its cause is open (`docs/benchmark-notes.md`, "Rayleigh and
+//!   Laplace at finer resolutions").
 //!
-//! The bulk carries the cohesion term as a tension of order σ/h, balanced
-//! by the solver's pressure (25–30 Pa stored against a 2.9 Pa jump), so
-//! the jump is a small difference of two large virials.
+//! The bulk carries the cohesion term as a tension of order σ/h (15 Pa
+//! at h = 5 mm), balanced by the solver's pressure (25–30 Pa stored
+//! against a 2.9 Pa jump), so the jump is a small difference of two large
+//! virials.
 //!
 //! The l = 4 mode at small amplitude (`tests/pbf.rs`, `tests/dfsph.rs`):
 //! 1.25 (PBF) and 1.22 (DFSPH) of Rayleigh's period at h = 1 cm
 //! (R = 5h), 1.04–1.05 at R = 7–10 h once the solvers' damping is taken
-//! out; PBF 1.082 (1.033 undamped) at R = 12.5 h, DFSPH 1.009 (0.950) at
-//! R = 10 h. The l = 2 mode at R = 7 h (`-- SOLVER 12 --shape ellipsoid
+//! out; PBF 1.082 (1.033 undamped) at R = 12.4 h, DFSPH 1.009 (0.950) at
+//! R = 9.9 h. The l = 2 mode at R = 7 h (`-- SOLVER 12 --shape ellipsoid
 //! --spacing 0.0035 --across 23`): the damped fit 1.045 (PBF) and 1.098
 //! (DFSPH), 0.990 and 0.983 undamped, but from turn to turn 0.838 and
 //! 0.783: swings damped within two periods do not pin a period down to
