@@ -441,7 +441,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let p = &world.particles;
         let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
         let virial = virial.lock().unwrap_or_else(|e| e.into_inner()).clone();
-        let mechanical = common::pair_virial_pressures(p, kind, &params, &virial);
+        let all: Vec<usize> = (0..p.len()).collect();
+        let mechanical = common::pair_virial_pressures(p, kind, &params, &virial, &all);
         println!("shell (r/R)   particles   pair virial (Pa)   stored (Pa)   ρ (kg/m³)");
         for shell in 0..10 {
             let (lo, hi) = (shell as f64 / 8.0, (shell + 1) as f64 / 8.0);

@@ -181,8 +181,8 @@ fn drop_world(
     (world, r)
 }
 
-/// The mechanical pressure (Pa) of each particle of `p` under PBF or
-/// DFSPH: (ρ_i/6) Σ_j (x_i − x_j)·a_ij over the solver's pressure forces
+/// The mechanical pressure (Pa) of the particles `which` of `p` under PBF
+/// or DFSPH: (ρ_i/6) Σ_j (x_i − x_j)·a_ij over the solver's pressure forces
 /// a_ij = −V_j (κ_i + κ_j) ∇W_ij, plus `akinci[i]`, the surface tension
 /// forces' own virial. Under DFSPH κ is ρ0 p/ρ² and W the cubic spline (a
 /// uniform pressure p reads 1.020 p on the filled lattice), under PBF
@@ -195,6 +195,7 @@ pub fn pair_virial_pressures(
     kind: sph_core::SolverKind,
     params: &sph_core::FluidParams,
     akinci: &[f32],
+    which: &[usize],
 ) -> Vec<f64> {
     use sph_core::{CubicSpline, Kernel, NeighbourGrid, SolverKind, Spiky};
     let (rho0, h) = (params.rest_density, params.h);
@@ -209,8 +210,8 @@ pub fn pair_virial_pressures(
         _ => cubic.gradient(d),
     };
     let grid = NeighbourGrid::build(x, h).unwrap();
-    (0..x.len())
-        .map(|i| {
+    (which.iter())
+        .map(|&i| {
             let mut w = 0.0f64;
             grid.for_each_neighbour(i, |j, _, _| {
                 let d = x[i] - x[j];
@@ -233,13 +234,21 @@ pub fn inner_pair_virial(
     c: sph_core::glam::Vec3,
     within: f64,
 ) -> f64 {
-    let pressures = pair_virial_pressures(p, kind, params, akinci);
+    let inside = indices_within(p, c, within);
+    mean(&pair_virial_pressures(p, kind, params, akinci, &inside))
+}
+
+/// The particles of `p` within `within` of `c`.
+fn indices_within(p: &sph_core::Particles, c: sph_core::glam::Vec3, within: f64) -> Vec<usize> {
     let x = p.positions();
-    let inside: Vec<f64> = (0..x.len())
+    (0..x.len())
         .filter(|&i| f64::from((x[i] - c).length()) < within)
-        .map(|i| pressures[i])
-        .collect();
-    inside.iter().sum::<f64>() / inside.len().max(1) as f64
+        .collect()
+}
+
+/// The mean of `values`; 0 for none.
+fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len().max(1) as f64
 }
 
 /// The kinetic part of the mechanical pressure (Pa) of the particles of
@@ -254,13 +263,12 @@ pub fn inner_kinetic_pressure(
     c: sph_core::glam::Vec3,
     within: f64,
 ) -> f64 {
-    let (x, v, rho) = (p.positions(), p.velocities(), p.densities());
-    let mean = v.iter().sum::<sph_core::glam::Vec3>() / v.len().max(1) as f32;
-    let inside: Vec<f64> = (0..x.len())
-        .filter(|&i| f64::from((x[i] - c).length()) < within)
-        .map(|i| f64::from(rho[i]) * f64::from((v[i] - mean).length_squared()) / 3.0)
+    let (v, rho) = (p.velocities(), p.densities());
+    let centre = v.iter().sum::<sph_core::glam::Vec3>() / v.len().max(1) as f32;
+    let kinetic: Vec<f64> = (indices_within(p, c, within).into_iter())
+        .map(|i| f64::from(rho[i]) * f64::from((v[i] - centre).length_squared()) / 3.0)
         .collect();
-    inside.iter().sum::<f64>() / inside.len().max(1) as f64
+    mean(&kinetic)
 }
 
 /// A DFSPH drop of 4,032 particles at `spacing`, at rest on the lattice
