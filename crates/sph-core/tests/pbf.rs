@@ -1,5 +1,6 @@
 //! Position-based fluids against physics: a hydrostatic tank, a column at
-//! rest and in free fall over 10,000 substeps, momentum of a free cluster,
+//! rest and in free fall over 10,000 substeps, a block falling through
+//! particle sleeping, momentum of a free cluster,
 //! the dam-break front against Ritter, determinism across threads, and bad
 //! input.
 
@@ -217,6 +218,45 @@ fn free_fall_for_ten_thousand_substeps() {
     }
 }
 
+/// Particle sleeping holds a particle only where its substep would move it
+/// slower than the threshold: a block at rest in the air, at a threshold
+/// just below g Δt (the most a step accepts), falls exactly as without
+/// sleeping, and a threshold at g Δt is refused at the first step, by name.
+#[test]
+fn sleeping_below_g_dt_lets_a_block_fall() {
+    let spacing = 0.02;
+    let params = FluidParams::water(2.0 * spacing);
+    let mass = params.particle_mass(spacing).unwrap();
+    let g_dt = 9.81 * PbfParams::default().max_dt;
+    let run = |sleep_speed: f32| {
+        let particles = lattice(6, spacing, Vec3::ZERO, mass);
+        let pbf = PbfParams {
+            sleep_speed,
+            ..PbfParams::default()
+        };
+        let mut world = unbounded(particles, params, pbf);
+        for _ in 0..15 {
+            world.advance(1.0 / 60.0)?;
+        }
+        Ok::<_, Error>(world.particles.positions().to_vec())
+    };
+    let awake = run(0.0).unwrap();
+    let asleep = run(0.99 * g_dt).unwrap();
+    assert_eq!(awake, asleep);
+    // 15 frames, t = 0.25 s, of semi-implicit Euler's fall: ½ g t (t + Δt).
+    let (t, dt) = (0.25, PbfParams::default().max_dt);
+    let drop = 0.05 - awake.iter().map(|x| x.y).sum::<f32>() / awake.len() as f32;
+    let expected = 0.5 * 9.81 * t * (t + dt);
+    assert!(
+        (drop - expected).abs() < 1e-3,
+        "fell {drop} m, not {expected}"
+    );
+    match run(g_dt) {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "pbf.sleep_speed"),
+        other => panic!("expected the threshold refused, got {other:?}"),
+    }
+}
+
 /// No gravity, no walls within reach, no vorticity confinement (a body
 /// force): the pairwise-antisymmetric corrections and XSPH keep the total
 /// momentum of a cluster of unequal masses to round-off.
@@ -339,11 +379,19 @@ fn over_relaxation_lowers_the_density_error() {
 }
 
 /// Bitwise the same particles and reports for 1, 2 and 4 threads, with
-/// XSPH and with the implicit viscosity (whose conjugate gradients sum in
-/// fixed chunks), over half a second of a small dam break.
+/// XSPH, with the implicit viscosity (whose conjugate gradients sum in
+/// fixed chunks) and with particle sleeping, over half a second of a small
+/// dam break.
 #[test]
 fn identical_for_1_2_and_4_threads() {
-    for scene in with_both_viscosities(Scene::dam_break(0.16, 0.08, 0.02)) {
+    let [xsph, implicit] = with_both_viscosities(Scene::dam_break(0.16, 0.08, 0.02));
+    // And with particle sleeping, which holds particles one by one.
+    let mut sleeping = xsph.clone();
+    sleeping.solver.pbf = Some(PbfParams {
+        sleep_speed: 0.02,
+        ..xsph.pbf_params()
+    });
+    for scene in [xsph, implicit, sleeping] {
         identical_for_thread_counts(&scene, 30, &[1, 2, 4]);
     }
 }
@@ -627,6 +675,20 @@ fn bad_parameters_are_errors_naming_the_field() {
             "pbf.over_relaxation",
             PbfParams {
                 over_relaxation: f32::NAN,
+                ..d
+            },
+        ),
+        (
+            "pbf.sleep_speed",
+            PbfParams {
+                sleep_speed: -0.01,
+                ..d
+            },
+        ),
+        (
+            "pbf.sleep_speed",
+            PbfParams {
+                sleep_speed: f32::NAN,
                 ..d
             },
         ),

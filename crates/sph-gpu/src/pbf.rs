@@ -224,8 +224,8 @@ impl GpuPbf {
     /// # Errors
     /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
     /// rejects (the colour-field surface tension among them, WCSPH's only);
-    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"`, which runs
-    /// only on the CPU; [`GpuError::DeviceLimit`] for more particles than
+    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` and for
+    /// `pbf.sleep_speed` > 0, which run only on the CPU; [`GpuError::DeviceLimit`] for more particles than
     /// one dispatch or storage binding of this device holds.
     pub fn new(
         device: &wgpu::Device,
@@ -245,6 +245,11 @@ impl GpuPbf {
         if pbf.viscosity == PbfViscosity::Implicit {
             return Err(GpuError::Invalid(
                 "solver.pbf.viscosity = \"implicit\" runs only on the CPU: on the GPU use \"xsph\" and leave out fluid.viscosity, which XSPH does not apply",
+            ));
+        }
+        if pbf.sleep_speed > 0.0 {
+            return Err(GpuError::Invalid(
+                "solver.pbf.sleep_speed > 0 (particle sleeping) runs only on the CPU: on the GPU leave it out or set it to 0",
             ));
         }
         let n = particles.len();

@@ -315,6 +315,12 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     };
     let e = new(&params, &implicit, &world.particles);
     assert!(e.contains("implicit") && e.contains("CPU"), "{e}");
+    let sleeping = PbfParams {
+        sleep_speed: 0.01,
+        ..pbf
+    };
+    let e = new(&params, &sleeping, &world.particles);
+    assert!(e.contains("sleep_speed") && e.contains("CPU"), "{e}");
     // σ by the thesis's colour field is WCSPH's only, on the GPU as on the
     // CPU (Akinci et al.'s forces, the default, run).
     let colour_field = sph_core::FluidParams {

@@ -2,22 +2,26 @@
 //! surfels' normals lean from vertical, and the volume the surface encloses
 //! against the particles' N m/ρ0.
 //!
-//! `cargo run --release -p surfel-extract --example flat_pool [-- SOLVER]`
+//! `cargo run --release -p surfel-extract --example flat_pool [-- SOLVER
+//! [--solver-toml 'pbf = { ... }']]`
 //!
 //! The pool: 0.6 × 0.2 × 0.6 m of water at 2 cm spacing (h = 4 cm) in a
 //! 0.6 × 0.4 × 0.6 m tank, settled for 2 s by DFSPH, or by the solver named
-//! (`wcsph`, `pbf`, `dfsph`).
+//! (`wcsph`, `pbf`, `dfsph`), with the body of a `[solver]` table (without
+//! `kind`) where given.
 
 use std::time::Instant;
 
+use sph_core::scene::SolverSpec;
 use sph_core::{Scene, SolverKind, World};
 use surfel_extract::anisotropy::Centres;
 use surfel_extract::{Anisotropy, ExtractParams, Extractor, Surface, coverage};
 
-/// The pool settled by `kind`.
-pub fn settled_pool(kind: SolverKind) -> (Scene, World) {
+/// The pool settled by `kind` with the solver parameters of `spec`.
+pub fn settled_pool(kind: SolverKind, spec: SolverSpec) -> (Scene, World) {
     let spacing = 0.02;
-    let mut scene = Scene::dam_break(0.15, 0.6, spacing).with_solver(kind);
+    let mut scene = Scene::dam_break(0.15, 0.6, spacing);
+    scene.solver = SolverSpec { kind, ..spec };
     scene.domain.min = [0.0; 3];
     scene.domain.max = [0.6, 0.4, 0.6];
     scene.blocks[0].min = [0.0; 3];
@@ -37,7 +41,18 @@ fn percentiles(mut angles: Vec<f32>) -> [f32; 3] {
 }
 
 fn main() {
-    let kind = match std::env::args().nth(1).as_deref() {
+    let args: Vec<String> = std::env::args().collect();
+    let spec: SolverSpec = match args.iter().position(|a| a == "--solver-toml") {
+        Some(at) => {
+            let text = args.get(at + 1).map(String::as_str).unwrap_or_default();
+            toml::from_str(text).unwrap_or_else(|e| {
+                eprintln!("--solver-toml: {e}");
+                std::process::exit(2);
+            })
+        }
+        None => SolverSpec::default(),
+    };
+    let kind = match args.get(1).map(String::as_str) {
         None | Some("dfsph") => SolverKind::Dfsph,
         Some("wcsph") => SolverKind::Wcsph,
         Some("pbf") => SolverKind::Pbf,
@@ -47,7 +62,7 @@ fn main() {
         }
     };
     let start = Instant::now();
-    let (scene, world) = settled_pool(kind);
+    let (scene, world) = settled_pool(kind, spec);
     let p = &world.particles;
     let h = scene.fluid.h;
     let volume: f64 = p

@@ -63,6 +63,18 @@
 //! - **Surface tension** σ > 0 adds Akinci et al. 2013's cohesion and
 //!   curvature forces after the viscosity station
 //!   ([`super::surface_tension`], with its measured accuracy).
+//! - **Rest.** PBF's few Jacobi iterations leave water at rest jittering,
+//!   about 80 mm/s rms in a still pool at the defaults: each substep's
+//!   unconverged solve moves particles, and the spiky gradient on a poly6
+//!   density and Jacobi's overshoot keep that motion going (the history of
+//!   attempts is in `docs/benchmark-notes.md`, "Water at rest"). Particle
+//!   sleeping ([`PbfParams::sleep_speed`], Macklin et al. 2014's and FleX's)
+//!   stops it where a scene asks: a particle its substep would move slower
+//!   than the threshold stays where it was. It is off by default, because
+//!   it also stops any real motion slower than the threshold and needs
+//!   damping and more iterations to reach below it (in a 0.2 m pool: XSPH
+//!   0.1 and 4 iterations, a third more solve time), which the dam break
+//!   does not want.
 //! - **Guard.** The predicted displacement per substep is limited to
 //!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
 //!   every clamped particle is counted in [`crate::StepCounters::clamped`].
@@ -182,6 +194,27 @@ pub struct PbfParams {
     /// The implicit viscosity's most conjugate-gradient iterations per
     /// substep. Default 100.
     pub viscosity_max_iterations: u32,
+    /// Particle sleeping (m/s; Macklin et al. 2014, "Unified Particle
+    /// Physics for Real-Time Applications", and FleX's `sleepThreshold`):
+    /// a particle whose substep, solve included, would move it slower than
+    /// this stays where it was, and its velocity is zero (PBF's own
+    /// v = (x* − x)/Δt, with x* = x). Default 0: off.
+    ///
+    /// It stops what PBF's few Jacobi iterations leave moving in water at
+    /// rest: their residual jitters the particles at 80 mm/s in a still
+    /// pool at the defaults (the module docs). It does so only once damping
+    /// has brought that jitter below the threshold, and an odd iteration
+    /// count keeps the bottom of a pool jittering above it: with
+    /// `iterations = 4, xsph = 0.1, sleep_speed = 0.01` the 0.2 m pool of
+    /// `pool_at_rest` is still at 1.5 s and after (`tests/pool.rs`).
+    ///
+    /// The price: any motion slower than the threshold stops where it is.
+    /// A slow slosh freezes tilted, a creeping viscous current halts, and
+    /// the surface keeps whatever shape it had when it fell asleep. It must
+    /// stay below g Δt, the speed gravity gives in one substep, or fluid at
+    /// rest in the air would never start to fall: a step where it is not
+    /// fails with [`Error::InvalidParameter`].
+    pub sleep_speed: f32,
 }
 
 /// The viscosity of a PBF fluid ([`PbfParams::viscosity`]).
@@ -215,6 +248,7 @@ impl Default for PbfParams {
             viscosity: PbfViscosity::Xsph,
             viscosity_tolerance: 1e-3,
             viscosity_max_iterations: 100,
+            sleep_speed: 0.0,
         }
     }
 }
@@ -386,6 +420,13 @@ impl PbfParams {
         count(
             "pbf.viscosity_max_iterations",
             self.viscosity_max_iterations,
+        )?;
+        let s = self.sleep_speed;
+        check(
+            "pbf.sleep_speed",
+            s.into(),
+            s.is_finite() && s >= 0.0,
+            "must be finite and ≥ 0 m/s (0 turns sleeping off)",
         )?;
         Ok(())
     }
@@ -799,6 +840,18 @@ impl Processor for SolveDensity {
         let lists = lists(ctx, particles, "density")?;
         let model = &self.model;
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
+        let sleep = pbf.sleep_speed;
+        let fall = model.params.gravity.length() * dt;
+        if sleep > 0.0 && sleep >= fall {
+            return Err(Error::InvalidParameter {
+                name: "pbf.sleep_speed",
+                value: format!(
+                    "{sleep} m/s, against g Δt = {fall:.4} m/s at this substep of {dt:e} s"
+                ),
+                reason: "must stay below g Δt, the speed gravity gives in one substep, or fluid at rest \
+                         in the air would never start to fall: lower it, or take longer substeps",
+            });
+        }
         let n = particles.len();
         let (iterations, per_pass) = (pbf.iterations as usize, region::blocks(n));
         for rows in &mut self.rows {
@@ -881,6 +934,16 @@ impl Processor for SolveDensity {
                         next[j] = [x.x, x.y, x.z, now[i][3]];
                         let applied = to_pressure * c[i].lambda;
                         p[j] = if k == 0 { applied } else { p[j] + applied };
+                    }
+                    // Sleeping: a particle the substep moves slower than the
+                    // threshold goes back to where it was.
+                    if k + 1 == iterations && sleep > 0.0 {
+                        for (x, v) in x.iter_mut().zip(v.iter_mut()) {
+                            if v.length() < sleep {
+                                *x -= *v * dt;
+                                *v = Vec3::ZERO;
+                            }
+                        }
                     }
                     if k + 1 == iterations {
                         let rho = unsafe { densities.block(r.clone()) };
