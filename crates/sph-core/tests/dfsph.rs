@@ -392,6 +392,20 @@ fn bad_parameters_are_errors_naming_the_field() {
                 ..d
             },
         ),
+        (
+            "dfsph.sleep_speed",
+            DfsphParams {
+                sleep_speed: -0.01,
+                ..d
+            },
+        ),
+        (
+            "dfsph.sleep_speed",
+            DfsphParams {
+                sleep_speed: f32::NAN,
+                ..d
+            },
+        ),
     ];
     for (name, p) in cases {
         match p.validate() {
@@ -403,6 +417,15 @@ fn bad_parameters_are_errors_naming_the_field() {
         let e = scene.build_world().unwrap_err().to_string();
         assert!(e.contains(&format!("solver.{name}")), "{e}");
     }
+    // A sleeping threshold at g × max_dt (0.049 m/s) would hold fluid at
+    // rest in the air: refused when the world is built, by name.
+    let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Dfsph);
+    scene.solver.dfsph = Some(DfsphParams {
+        sleep_speed: 0.05,
+        ..d
+    });
+    let e = scene.build_world().unwrap_err().to_string();
+    assert!(e.contains("solver.dfsph.sleep_speed"), "{e}");
     let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Dfsph);
     scene.solver.dfsph = Some(d);
     let text = scene.to_toml();

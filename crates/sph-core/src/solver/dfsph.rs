@@ -96,6 +96,10 @@
 //! - **Viscosity** is implicit (Weiler et al. 2018,
 //!   [`super::viscosity`]) with [`FluidParams::viscosity`] μ in Pa·s and
 //!   no-slip walls, so no viscosity limits the step.
+//! - **Sleeping** ([`DfsphParams::sleep_speed`], off by default, as PBF's):
+//!   water at rest settles to about 3 mm/s of particle-scale motion at any
+//!   tolerance; a threshold above that stops it, and any real motion
+//!   slower than the threshold with it.
 //! - **Surface tension** σ > 0 adds Akinci et al. 2013's cohesion and
 //!   curvature accelerations after the body forces
 //!   ([`super::surface_tension`], the same forces and σ-to-γ scale as
@@ -158,6 +162,22 @@ pub struct DfsphParams {
     /// The implicit viscosity's most conjugate-gradient iterations per
     /// step (counted as unconverged when reached). Default 100.
     pub viscosity_max_iterations: u32,
+    /// Particle sleeping (m/s), as PBF's ([`super::pbf::PbfParams::sleep_speed`]):
+    /// a particle slower than this at the end of a step does not move, and
+    /// its velocity is zero. Default 0: off.
+    ///
+    /// DFSPH's water at rest settles to about 3 mm/s of particle-scale
+    /// motion, whatever the tolerances (`docs/benchmark-notes.md`, "DFSPH's
+    /// solves know the clearance"); at 0.01 m/s the 0.2 and 0.5 m pools of
+    /// `pool_at_rest` are still from 1.5 and 2 s (`tests/pool.rs`). The
+    /// price is PBF's: motion slower than the threshold stops where it is.
+    ///
+    /// It must stay below g × `max_dt`, the speed gravity gives in the
+    /// longest step, or fluid at rest in the air would never start to
+    /// fall: a world whose threshold is not is refused. Steps shorter than
+    /// threshold / g, which come only with fast motion somewhere in the
+    /// scene, do not put particles to sleep.
+    pub sleep_speed: f32,
 }
 
 impl Default for DfsphParams {
@@ -170,6 +190,7 @@ impl Default for DfsphParams {
             max_iterations: 100,
             viscosity_tolerance: 1e-3,
             viscosity_max_iterations: 100,
+            sleep_speed: 0.0,
         }
     }
 }
@@ -253,6 +274,12 @@ impl DfsphParams {
             (1..=MAX_DFSPH_ITERATIONS).contains(&self.viscosity_max_iterations),
             "must be a whole number from 1 to 10000",
         )?;
+        check(
+            "dfsph.sleep_speed",
+            self.sleep_speed.into(),
+            self.sleep_speed.is_finite() && self.sleep_speed >= 0.0,
+            "must be finite and ≥ 0 m/s (0 turns sleeping off)",
+        )?;
         Ok(())
     }
 
@@ -303,7 +330,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             Update::Accelerations,
         )?)
         .push(DensitySolve(Solve::new(model, shared, Target::Density)))
-        .push(Advect)
+        .push(Advect::new(dfsph.sleep_speed, params.gravity.length()))
         .push(Boundaries::new(boundary)?);
     Ok(program)
 }
@@ -327,6 +354,15 @@ impl Model {
         params.validate()?;
         dfsph.validate()?;
         boundary.validate()?;
+        let (sleep, fall) = (dfsph.sleep_speed, params.gravity.length() * dfsph.max_dt);
+        if sleep > 0.0 && sleep >= fall {
+            return Err(Error::InvalidParameter {
+                name: "dfsph.sleep_speed",
+                value: format!("{sleep} m/s, against g × max_dt = {fall:.4} m/s"),
+                reason: "must stay below g × max_dt, the speed gravity gives in the longest step, \
+                         or fluid at rest in the air would never start to fall",
+            });
+        }
         let h = params.h;
         let cubic = CubicSpline::new(h)?;
         Ok(Self {
@@ -1022,9 +1058,26 @@ impl Processor for DensitySolve {
 }
 
 /// x ← x + Δt v: the positions of the step's end, from the velocities the
-/// density solve left.
+/// density solve left. With particle sleeping
+/// ([`DfsphParams::sleep_speed`]), a particle slower than the threshold
+/// stays and its velocity becomes zero, in steps where gravity alone would
+/// give more than the threshold (|g| Δt above it).
 #[derive(Debug, Clone, Copy, Default)]
-pub struct Advect;
+pub struct Advect {
+    sleep: f32,
+    gravity: f32,
+}
+
+impl Advect {
+    /// With particles slower than `sleep_speed` (m/s; 0 for none) put to
+    /// sleep, under gravity of magnitude `gravity` (m/s²).
+    pub fn new(sleep_speed: f32, gravity: f32) -> Self {
+        Self {
+            sleep: sleep_speed,
+            gravity,
+        }
+    }
+}
 
 impl Processor for Advect {
     fn name(&self) -> &str {
@@ -1036,6 +1089,14 @@ impl Processor for Advect {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let dt = ctx.dt;
         let f = particles.fields_mut();
+        let sleep = self.sleep;
+        if sleep > 0.0 && sleep < self.gravity * dt {
+            region::for_each(f.velocities, |_, v| {
+                if v.length() < sleep {
+                    *v = Vec3::ZERO;
+                }
+            });
+        }
         let v = &*f.velocities;
         region::for_each(f.positions, |i, x| *x += dt * v[i]);
         ctx.invalidate_grid(); // positions moved

@@ -75,6 +75,7 @@
 //!   At tolerances ten times tighter that drop is flat inside (1.1–1.4 Pa),
 //!   and the three drops read 0.794, 0.575 and 0.449: a slope of 1.16 of
 //!   2σ with −1.1 Pa at 1/R = 0.
+//!
 //! So PBF holds Laplace's 1/R at h = 1 cm across drop sizes, and DFSPH's
 //! `tests/dfsph.rs` reading holds at its one drop only.
 //!
