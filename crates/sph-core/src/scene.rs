@@ -600,6 +600,8 @@ impl Scene {
         // bad ones.
         (self.pbf_params().validate()).map_err(in_table("solver"))?;
         (self.dfsph_params().validate()).map_err(in_table("solver"))?;
+        let gravity = Vec3::from(self.fluid.gravity).length();
+        (self.dfsph_params().check_sleep(gravity)).map_err(in_table("solver"))?;
         // The chosen solver applies every fluid parameter as given.
         (self.solver().check_applies(&self.fluid_params())).map_err(in_table("fluid"))?;
         self.check_viscosity_applies()?;

@@ -283,6 +283,22 @@ impl DfsphParams {
         Ok(())
     }
 
+    /// Checks [`Self::sleep_speed`] against gravity of magnitude `gravity`
+    /// (m/s²): a threshold must stay below g × `max_dt`, or fluid at rest in
+    /// the air would never start to fall.
+    pub fn check_sleep(&self, gravity: f32) -> Result<()> {
+        let (sleep, fall) = (self.sleep_speed, gravity * self.max_dt);
+        if sleep > 0.0 && sleep >= fall {
+            return Err(Error::InvalidParameter {
+                name: "dfsph.sleep_speed",
+                value: format!("{sleep} m/s, against g × max_dt = {fall:.4} m/s"),
+                reason: "must stay below g × max_dt, the speed gravity gives in the longest step, \
+                         or fluid at rest in the air would never start to fall",
+            });
+        }
+        Ok(())
+    }
+
     /// The step for particles whose largest |v| + |a| max_dt is `speed`:
     /// λ h / speed, at most `max_dt`.
     pub fn step(&self, h: f32, speed: f32) -> f32 {
@@ -354,15 +370,7 @@ impl Model {
         params.validate()?;
         dfsph.validate()?;
         boundary.validate()?;
-        let (sleep, fall) = (dfsph.sleep_speed, params.gravity.length() * dfsph.max_dt);
-        if sleep > 0.0 && sleep >= fall {
-            return Err(Error::InvalidParameter {
-                name: "dfsph.sleep_speed",
-                value: format!("{sleep} m/s, against g × max_dt = {fall:.4} m/s"),
-                reason: "must stay below g × max_dt, the speed gravity gives in the longest step, \
-                         or fluid at rest in the air would never start to fall",
-            });
-        }
+        dfsph.check_sleep(params.gravity.length())?;
         let h = params.h;
         let cubic = CubicSpline::new(h)?;
         Ok(Self {
