@@ -600,8 +600,14 @@ impl Scene {
         // bad ones.
         (self.pbf_params().validate()).map_err(in_table("solver"))?;
         (self.dfsph_params().validate()).map_err(in_table("solver"))?;
-        let gravity = Vec3::from(self.fluid.gravity).length();
-        (self.dfsph_params().check_sleep(gravity)).map_err(in_table("solver"))?;
+        // Sleeping thresholds that this scene's own steps at rest could not
+        // apply: PBF's substep, and DFSPH's shortest step at rest (a
+        // frame's last two steps share what is left of it).
+        let (gravity, frame_dt) = (Vec3::from(self.fluid.gravity).length(), t.frame_dt);
+        (self.pbf_params().check_sleep(gravity, frame_dt)).map_err(in_table("solver"))?;
+        let dfsph = self.dfsph_params();
+        let shortest = frame_dt.min(0.5 * dfsph.max_dt);
+        (dfsph.check_sleep(gravity, shortest)).map_err(in_table("solver"))?;
         // The chosen solver applies every fluid parameter as given.
         (self.solver().check_applies(&self.fluid_params())).map_err(in_table("fluid"))?;
         self.check_viscosity_applies()?;

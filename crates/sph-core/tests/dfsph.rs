@@ -5,7 +5,10 @@
 mod common;
 
 use sph_core::glam::Vec3;
-use sph_core::{DfsphParams, Error, Particles, Scene, SolverKind, World};
+use sph_core::{
+    Aabb, Boundary, DfsphParams, Error, FluidParams, Particles, Scene, Solver, SolverKind,
+    TimeStepping, World,
+};
 
 /// A tank `w` × `w` across, filled to `depth` on a lattice of 0.02 m
 /// (h = 0.04 m, μ = 0.5 Pa·s: the dam-break scene's fluid), run by DFSPH.
@@ -435,6 +438,52 @@ fn bad_parameters_are_errors_naming_the_field() {
         .to_string();
     assert!(e.contains("solver.dfsph.max_iterations"), "{e}");
     assert_eq!(Scene::from_toml(&text).unwrap().dfsph_params(), d);
+}
+
+/// Particle sleeping skips steps in which gravity gives less than the
+/// threshold: a block at rest in the air with a threshold of 0.99 g ×
+/// max_dt, stepped in frames of 1/300 s (steps of 3.3 ms, g Δt two thirds
+/// of the threshold), falls exactly as without sleeping. A threshold
+/// above g × max_dt is refused when the world is built, by name.
+#[test]
+fn sleeping_skips_steps_too_short_to_start_a_fall() {
+    let spacing = 0.02;
+    let params = FluidParams::water(2.0 * spacing);
+    let mass = params.particle_mass(spacing).unwrap();
+    let g_max_dt = 9.81 * DfsphParams::default().max_dt;
+    let world = |sleep_speed: f32| {
+        let particles = common::lattice(6, spacing, Vec3::ZERO, mass);
+        let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
+        let dfsph = DfsphParams {
+            sleep_speed,
+            ..DfsphParams::default()
+        };
+        World::with_solver(
+            particles,
+            params,
+            boundary,
+            TimeStepping::default(),
+            Solver::Dfsph(dfsph),
+        )
+    };
+    let fall = |sleep_speed| {
+        let mut world = world(sleep_speed).unwrap();
+        for _ in 0..30 {
+            world.advance(1.0 / 300.0).unwrap();
+        }
+        world.particles.positions().to_vec()
+    };
+    let awake = fall(0.0);
+    assert_eq!(awake, fall(0.99 * g_max_dt));
+    let mean_y = awake.iter().map(|x| x.y).sum::<f32>() / awake.len() as f32;
+    assert!(
+        mean_y < 0.05 - 0.04,
+        "the block fell to a mean height of {mean_y} m"
+    );
+    match world(1.01 * g_max_dt) {
+        Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "dfsph.sleep_speed"),
+        other => panic!("expected the threshold refused, got {:?}", other.err()),
+    }
 }
 
 /// Particles started a third of the spacing apart are 27 times denser than

@@ -1,6 +1,6 @@
 //! Position-based fluids against physics: a hydrostatic tank, a column at
-//! rest and in free fall over 10,000 substeps, a block falling through
-//! particle sleeping, momentum of a free cluster,
+//! rest and in free fall over 10,000 substeps, a block that particle
+//! sleeping does not hold in the air, momentum of a free cluster,
 //! the dam-break front against Ritter, determinism across threads, and bad
 //! input.
 
@@ -35,20 +35,6 @@ fn unbounded(particles: Particles, params: FluidParams, pbf: PbfParams) -> World
         Solver::Pbf(pbf),
     )
     .unwrap()
-}
-
-/// An n × n × n lattice of particles of `mass`, `step` apart from `origin`.
-fn lattice(n: i32, step: f32, origin: Vec3, mass: f32) -> Particles {
-    let mut particles = Particles::new();
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                let x = origin + Vec3::new(i as f32, j as f32, k as f32) * step;
-                particles.push(x, Vec3::ZERO, mass);
-            }
-        }
-    }
-    particles
 }
 
 /// Whether every particle is inside the domain and out of the obstacles.
@@ -185,7 +171,7 @@ fn free_fall_for_ten_thousand_substeps() {
     let spacing = 0.02;
     let params = FluidParams::water(2.0 * spacing);
     let mass = params.particle_mass(spacing).unwrap();
-    let particles = lattice(6, spacing, Vec3::ZERO, mass);
+    let particles = common::lattice(6, spacing, Vec3::ZERO, mass);
     let start = particles.positions().to_vec();
     let pbf = PbfParams {
         substeps: 1_000,
@@ -220,8 +206,9 @@ fn free_fall_for_ten_thousand_substeps() {
 
 /// Particle sleeping holds a particle only where its substep would move it
 /// slower than the threshold: a block at rest in the air, at a threshold
-/// just below g Δt (the most a step accepts), falls exactly as without
-/// sleeping, and a threshold at g Δt is refused at the first step, by name.
+/// just below g Δt (the most a frame accepts), falls exactly as without
+/// sleeping, and a threshold above g Δt is refused before the first
+/// substep, by name, leaving the particles where they were.
 #[test]
 fn sleeping_below_g_dt_lets_a_block_fall() {
     let spacing = 0.02;
@@ -229,7 +216,7 @@ fn sleeping_below_g_dt_lets_a_block_fall() {
     let mass = params.particle_mass(spacing).unwrap();
     let g_dt = 9.81 * PbfParams::default().max_dt;
     let run = |sleep_speed: f32| {
-        let particles = lattice(6, spacing, Vec3::ZERO, mass);
+        let particles = common::lattice(6, spacing, Vec3::ZERO, mass);
         let pbf = PbfParams {
             sleep_speed,
             ..PbfParams::default()
@@ -251,10 +238,18 @@ fn sleeping_below_g_dt_lets_a_block_fall() {
         (drop - expected).abs() < 1e-3,
         "fell {drop} m, not {expected}"
     );
-    match run(g_dt) {
+    let particles = common::lattice(6, spacing, Vec3::ZERO, mass);
+    let start = particles.positions().to_vec();
+    let pbf = PbfParams {
+        sleep_speed: 1.01 * g_dt,
+        ..PbfParams::default()
+    };
+    let mut world = unbounded(particles, params, pbf);
+    match world.advance(1.0 / 60.0) {
         Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "pbf.sleep_speed"),
         other => panic!("expected the threshold refused, got {other:?}"),
     }
+    assert_eq!(world.particles.positions(), &start[..]);
 }
 
 /// No gravity, no walls within reach, no vorticity confinement (a body
@@ -391,6 +386,15 @@ fn identical_for_1_2_and_4_threads() {
         sleep_speed: 0.02,
         ..xsph.pbf_params()
     });
+    // Sleeping holds some particles here: the run differs from XSPH's.
+    let positions = |scene: &Scene| {
+        let mut world = scene.build_world().unwrap();
+        for _ in 0..30 {
+            world.advance(1.0 / 60.0).unwrap();
+        }
+        world.particles.positions().to_vec()
+    };
+    assert_ne!(positions(&xsph), positions(&sleeping));
     for scene in [xsph, implicit, sleeping] {
         identical_for_thread_counts(&scene, 30, &[1, 2, 4]);
     }
@@ -794,7 +798,7 @@ fn a_failed_constraint_solve_stops_the_run() {
         iterations: 1,
         ..PbfParams::default()
     };
-    let particles = lattice(6, spacing / 3.0, Vec3::splat(0.2), mass);
+    let particles = common::lattice(6, spacing / 3.0, Vec3::splat(0.2), mass);
     let mut world = unbounded(particles, params, pbf);
     match world.advance(1.0 / 60.0) {
         Err(Error::Unstable { what, hint, .. }) => {
@@ -819,7 +823,7 @@ fn a_user_processor_after_forces_acts_in_pbf() {
         vorticity: 0.0,
         ..PbfParams::default()
     };
-    let mut world = unbounded(lattice(5, spacing, Vec3::ZERO, mass), params, pbf);
+    let mut world = unbounded(common::lattice(5, spacing, Vec3::ZERO, mass), params, pbf);
     let push = sph_core::solver::ExternalAcceleration::new("push", |_, _| Vec3::X);
     assert!(world.program_mut().insert_after("forces", push));
     for _ in 0..30 {

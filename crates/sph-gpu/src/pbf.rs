@@ -225,8 +225,9 @@ impl GpuPbf {
     /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
     /// rejects (the colour-field surface tension among them, WCSPH's only);
     /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` and for
-    /// `pbf.sleep_speed` > 0, which run only on the CPU; [`GpuError::DeviceLimit`] for more particles than
-    /// one dispatch or storage binding of this device holds.
+    /// `pbf.sleep_speed` > 0, which run only on the CPU;
+    /// [`GpuError::DeviceLimit`] for more particles than one dispatch or
+    /// storage binding of this device holds.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,

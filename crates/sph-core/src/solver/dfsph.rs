@@ -97,9 +97,9 @@
 //!   [`super::viscosity`]) with [`FluidParams::viscosity`] μ in Pa·s and
 //!   no-slip walls, so no viscosity limits the step.
 //! - **Sleeping** ([`DfsphParams::sleep_speed`], off by default, as PBF's):
-//!   water at rest settles to about 3 mm/s of particle-scale motion at any
-//!   tolerance; a threshold above that stops it, and any real motion
-//!   slower than the threshold with it.
+//!   water at rest settles towards about 3 mm/s of particle-scale motion
+//!   at any tolerance; 1 cm/s stills a 0.2 m pool by 1.5 s and a 0.5 m one
+//!   by 2 s, and stops any real motion slower than that with it.
 //! - **Surface tension** σ > 0 adds Akinci et al. 2013's cohesion and
 //!   curvature accelerations after the body forces
 //!   ([`super::surface_tension`], the same forces and σ-to-γ scale as
@@ -166,17 +166,22 @@ pub struct DfsphParams {
     /// a particle slower than this at the end of a step does not move, and
     /// its velocity is zero. Default 0: off.
     ///
-    /// DFSPH's water at rest settles to about 3 mm/s of particle-scale
+    /// DFSPH's water at rest settles towards about 3 mm/s of particle-scale
     /// motion, whatever the tolerances (`docs/benchmark-notes.md`, "DFSPH's
-    /// solves know the clearance"); at 0.01 m/s the 0.2 and 0.5 m pools of
-    /// `pool_at_rest` are still from 1.5 and 2 s (`tests/pool.rs`). The
-    /// price is PBF's: motion slower than the threshold stops where it is.
+    /// solves know the clearance"); 0.01 m/s stills the 0.2 m pool of
+    /// `pool_at_rest` from 1.5 s (`tests/pool.rs`) and the 0.5 m pool from
+    /// 2 s (`cargo run --release -p sph-core --example pool_at_rest --
+    /// dfsph --depth 0.5 --solver-toml 'dfsph = { sleep_speed = 0.01 }'`).
+    /// The price is PBF's: motion slower than the threshold stops where it
+    /// is.
     ///
-    /// It must stay below g × `max_dt`, the speed gravity gives in the
-    /// longest step, or fluid at rest in the air would never start to
-    /// fall: a world whose threshold is not is refused. Steps shorter than
-    /// threshold / g, which come only with fast motion somewhere in the
-    /// scene, do not put particles to sleep.
+    /// Only steps in which gravity alone gives more than the threshold,
+    /// |g| Δt above it, put particles to sleep: a shorter one would leave
+    /// fluid at rest in the air hanging. A threshold at or above g ×
+    /// `max_dt` is refused when the world is built
+    /// ([`Self::check_sleep`]), and a scene refuses one at or above g times
+    /// its shortest step at rest, the shorter of its frame and `max_dt`/2
+    /// (a frame's last two steps share what is left).
     pub sleep_speed: f32,
 }
 
@@ -284,16 +289,22 @@ impl DfsphParams {
     }
 
     /// Checks [`Self::sleep_speed`] against gravity of magnitude `gravity`
-    /// (m/s²): a threshold must stay below g × `max_dt`, or fluid at rest in
-    /// the air would never start to fall.
-    pub fn check_sleep(&self, gravity: f32) -> Result<()> {
-        let (sleep, fall) = (self.sleep_speed, gravity * self.max_dt);
+    /// (m/s²) and steps of at least `dt` (s): a threshold must stay below
+    /// g Δt, or those steps would leave fluid at rest in the air hanging,
+    /// and [`Advect`] would never put a particle to sleep. `dt` is
+    /// `max_dt` for a world, and a scene's shortest step at rest for a
+    /// scene.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `dfsph.sleep_speed`.
+    pub fn check_sleep(&self, gravity: f32, dt: f32) -> Result<()> {
+        let (sleep, fall) = (self.sleep_speed, gravity * dt);
         if sleep > 0.0 && sleep >= fall {
             return Err(Error::InvalidParameter {
                 name: "dfsph.sleep_speed",
-                value: format!("{sleep} m/s, against g × max_dt = {fall:.4} m/s"),
-                reason: "must stay below g × max_dt, the speed gravity gives in the longest step, \
-                         or fluid at rest in the air would never start to fall",
+                value: format!("{sleep} m/s, against g Δt = {fall:.4} m/s at steps of {dt:e} s"),
+                reason: "must stay below g Δt, the speed gravity gives in a step at rest, or fluid \
+                         at rest in the air would never start to fall",
             });
         }
         Ok(())
@@ -370,7 +381,7 @@ impl Model {
         params.validate()?;
         dfsph.validate()?;
         boundary.validate()?;
-        dfsph.check_sleep(params.gravity.length())?;
+        dfsph.check_sleep(params.gravity.length(), dfsph.max_dt)?;
         let h = params.h;
         let cubic = CubicSpline::new(h)?;
         Ok(Self {

@@ -73,8 +73,8 @@
 //!   than the threshold stays where it was. It is off by default, because
 //!   it also stops any real motion slower than the threshold and needs
 //!   damping and more iterations to reach below it (in a 0.2 m pool: XSPH
-//!   0.1 and 4 iterations, a third more solve time), which the dam break
-//!   does not want.
+//!   0.1 and 4 iterations instead of 3, a third more Jacobi passes), which
+//!   the dam break does not want.
 //! - **Guard.** The predicted displacement per substep is limited to
 //!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
 //!   every clamped particle is counted in [`crate::StepCounters::clamped`].
@@ -197,23 +197,27 @@ pub struct PbfParams {
     /// Particle sleeping (m/s; Macklin et al. 2014, "Unified Particle
     /// Physics for Real-Time Applications", and FleX's `sleepThreshold`):
     /// a particle whose substep, solve included, would move it slower than
-    /// this stays where it was, and its velocity is zero (PBF's own
-    /// v = (x* − x)/Δt, with x* = x). Default 0: off.
+    /// this stays where it was, and the solve leaves its velocity zero
+    /// (PBF's own v = (x* − x)/Δt, with x* = x; XSPH and vorticity may then
+    /// give it some back for the next substep). Default 0: off.
     ///
     /// It stops what PBF's few Jacobi iterations leave moving in water at
     /// rest: their residual jitters the particles at 80 mm/s in a still
     /// pool at the defaults (the module docs). It does so only once damping
     /// has brought that jitter below the threshold, and an odd iteration
     /// count keeps the bottom of a pool jittering above it: with
-    /// `iterations = 4, xsph = 0.1, sleep_speed = 0.01` the 0.2 m pool of
-    /// `pool_at_rest` is still at 1.5 s and after (`tests/pool.rs`).
+    /// `iterations = 4, xsph = 0.1, sleep_speed = 0.02` the 0.2 m pool of
+    /// `pool_at_rest` is still at 2 s (1.13 mm/s at 1.5 s; `tests/pool.rs`).
     ///
     /// The price: any motion slower than the threshold stops where it is.
-    /// A slow slosh freezes tilted, a creeping viscous current halts, and
-    /// the surface keeps whatever shape it had when it fell asleep. It must
-    /// stay below g Δt, the speed gravity gives in one substep, or fluid at
-    /// rest in the air would never start to fall: a step where it is not
-    /// fails with [`Error::InvalidParameter`].
+    /// A slow slosh freezes tilted, a creeping viscous current halts, the
+    /// surface keeps whatever shape it had when it fell asleep, and fluid on
+    /// a slope is held as by static friction up to asin(S/(g Δt)) (21° at
+    /// S = 0.02 m/s and Δt = 1/180 s). It must stay below g Δt, the speed
+    /// gravity gives in one substep, or fluid at rest in the air would never
+    /// start to fall: a threshold at or above it is refused, naming this
+    /// field, by [`Self::check_sleep`] (a scene's validation and each
+    /// frame of [`crate::World::advance`]).
     pub sleep_speed: f32,
 }
 
@@ -277,6 +281,18 @@ impl PbfParams {
 }
 
 impl PbfParams {
+    /// Checks [`Self::sleep_speed`] against gravity of magnitude `gravity`
+    /// (m/s²) for frames of `frame_dt`: a threshold must stay below g Δt at
+    /// their substep Δt, or fluid at rest in the air would never start to
+    /// fall.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `pbf.sleep_speed`.
+    pub fn check_sleep(&self, gravity: f32, frame_dt: f32) -> Result<()> {
+        let dt = frame_dt / self.substeps_for(frame_dt) as f32;
+        check_sleep_at(self.sleep_speed, gravity, dt)
+    }
+
     /// The substeps a frame of `frame_dt` takes: [`Self::substeps`], more
     /// only where they would be longer than [`Self::max_dt`] (what
     /// [`crate::World::advance`] takes, each `frame_dt` over this).
@@ -286,6 +302,22 @@ impl PbfParams {
         let needed = (frame_dt / self.max_dt * (1.0 - 1e-6)).ceil();
         needed.max(self.substeps as f32) as u32
     }
+}
+
+/// Refuses a sleeping threshold `sleep` (m/s) at or above g Δt for substeps
+/// of `dt` under gravity of magnitude `gravity`.
+fn check_sleep_at(sleep: f32, gravity: f32, dt: f32) -> Result<()> {
+    let fall = gravity * dt;
+    if sleep > 0.0 && sleep >= fall {
+        return Err(Error::InvalidParameter {
+            name: "pbf.sleep_speed",
+            value: format!("{sleep} m/s, against g Δt = {fall:.4} m/s at substeps of {dt:e} s"),
+            reason: "must stay below g Δt, the speed gravity gives in one substep, or fluid at rest \
+                     in the air would never start to fall: lower it, or take fewer, longer substeps \
+                     (solver.pbf.substeps, solver.pbf.max_dt, time_step.frame_dt)",
+        });
+    }
+    Ok(())
 }
 
 /// The Courant number of [`PbfParams::for_fall`]: a substep's largest
@@ -759,6 +791,11 @@ struct Constraint {
 /// (`tests/pbf.rs`, the tank: +0.3 % at the defaults, up to +31 % at
 /// other gravities and iterations).
 ///
+/// With [`PbfParams::sleep_speed`], the last iteration puts back where they
+/// were the particles it would move slower than the threshold, with zero
+/// velocity; a threshold at or above g Δt is an
+/// [`Error::InvalidParameter`].
+///
 /// Stops the run with [`Error::Unstable`] when the solve diverges: a
 /// position becomes non-finite, or the largest density error is above
 /// [`MAX_DENSITY_ERROR`] (twice the rest density) at the last iteration and
@@ -841,17 +878,9 @@ impl Processor for SolveDensity {
         let model = &self.model;
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
         let sleep = pbf.sleep_speed;
-        let fall = model.params.gravity.length() * dt;
-        if sleep > 0.0 && sleep >= fall {
-            return Err(Error::InvalidParameter {
-                name: "pbf.sleep_speed",
-                value: format!(
-                    "{sleep} m/s, against g Δt = {fall:.4} m/s at this substep of {dt:e} s"
-                ),
-                reason: "must stay below g Δt, the speed gravity gives in one substep, or fluid at rest \
-                         in the air would never start to fall: lower it, or take longer substeps",
-            });
-        }
+        // `World::advance` checks each frame before its first substep; this
+        // holds for programs that run the station themselves.
+        check_sleep_at(sleep, model.params.gravity.length(), dt)?;
         let n = particles.len();
         let (iterations, per_pass) = (pbf.iterations as usize, region::blocks(n));
         for rows in &mut self.rows {

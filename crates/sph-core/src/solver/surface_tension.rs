@@ -66,14 +66,14 @@
 //!   Laplace at finer resolutions").
 //!
 //! **Larger drops at the same spacing** (5 mm, `--across 16|23|32`,
-//! R = 49.6, 71.3 and 99.2 mm, over the last of 4 s):
+//! R = 49.4, 71.3 and 99.2 mm, over the last of 4 s):
 //! - PBF: 0.941, 0.934 and 0.894 of 2σ/R. Against 1/R, the inner pressure's
-//!   slope is 0.998 of 2σ, with −0.15 Pa at 1/R = 0.
+//!   least-squares slope is 0.986 of 2σ, with −0.12 Pa at 1/R = 0.
 //! - DFSPH: 0.825, 1.693 and 1.629. At R = 14 spacings the pressure falls
 //!   from 4.8 Pa at the centre to 1.8 Pa at 0.8 R, with the centre 0.085 %
 //!   dense, the shape of a pressure solve's slowest mode left unconverged.
 //!   At tolerances ten times tighter that drop is flat inside (1.1–1.4 Pa),
-//!   and the three drops read 0.794, 0.575 and 0.449: a slope of 1.16 of
+//!   and the three drops read 0.794, 0.575 and 0.449: a slope of 1.15 of
 //!   2σ with −1.1 Pa at 1/R = 0.
 //!
 //! So PBF holds Laplace's 1/R at h = 1 cm across drop sizes, and DFSPH's

@@ -370,6 +370,8 @@ impl World {
             Ok(())
         };
         if let Solver::Pbf(pbf) = self.solver {
+            // Refused before any substep moves a particle.
+            pbf.check_sleep(self.params.gravity.length(), frame_dt)?;
             let n = pbf.substeps_for(frame_dt);
             let dt = frame_dt / n as f32;
             for k in 0..n {

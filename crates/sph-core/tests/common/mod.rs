@@ -439,3 +439,19 @@ fn solve3(m: [[f64; 3]; 3], v: [f64; 3]) -> Option<[f64; 3]> {
         det(a) / d
     }))
 }
+
+#[allow(dead_code)]
+/// An n × n × n lattice of particles of `mass`, `step` apart from `origin`,
+/// at rest.
+pub fn lattice(n: i32, step: f32, origin: sph_core::glam::Vec3, mass: f32) -> sph_core::Particles {
+    let mut particles = sph_core::Particles::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let x = origin + sph_core::glam::Vec3::new(i as f32, j as f32, k as f32) * step;
+                particles.push(x, sph_core::glam::Vec3::ZERO, mass);
+            }
+        }
+    }
+    particles
+}
