@@ -5,10 +5,7 @@
 mod common;
 
 use sph_core::glam::Vec3;
-use sph_core::{
-    Aabb, Boundary, DfsphParams, Error, FluidParams, Particles, Scene, Solver, SolverKind,
-    TimeStepping, World,
-};
+use sph_core::{DfsphParams, Error, FluidParams, Particles, Scene, Solver, SolverKind, World};
 
 /// A tank `w` × `w` across, filled to `depth` on a lattice of 0.02 m
 /// (h = 0.04 m, μ = 0.5 Pa·s: the dam-break scene's fluid), run by DFSPH.
@@ -453,18 +450,11 @@ fn sleeping_skips_steps_too_short_to_start_a_fall() {
     let g_max_dt = 9.81 * DfsphParams::default().max_dt;
     let world = |sleep_speed: f32| {
         let particles = common::lattice(6, spacing, Vec3::ZERO, mass);
-        let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
         let dfsph = DfsphParams {
             sleep_speed,
             ..DfsphParams::default()
         };
-        World::with_solver(
-            particles,
-            params,
-            boundary,
-            TimeStepping::default(),
-            Solver::Dfsph(dfsph),
-        )
+        common::unbounded(particles, params, Solver::Dfsph(dfsph))
     };
     let fall = |sleep_speed| {
         let mut world = world(sleep_speed).unwrap();

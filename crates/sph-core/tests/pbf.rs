@@ -8,8 +8,8 @@ mod common;
 
 use glam::Vec3;
 use sph_core::{
-    Aabb, Boundary, Error, FluidParams, Particles, PbfParams, PbfViscosity, Scene, Solver,
-    SolverKind, TimeStepping, World,
+    Boundary, Error, FluidParams, Particles, PbfParams, PbfViscosity, Scene, Solver, SolverKind,
+    World,
 };
 
 /// Deterministic pseudo-random numbers in [-1, 1).
@@ -23,18 +23,7 @@ fn noise(seed: &mut u64) -> f32 {
 /// `particles` in a domain far larger than they reach, run by PBF, with
 /// the fluid's surface tension off.
 fn unbounded(particles: Particles, params: FluidParams, pbf: PbfParams) -> World {
-    let boundary = Boundary::new(Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
-    World::with_solver(
-        particles,
-        FluidParams {
-            surface_tension: 0.0,
-            ..params
-        },
-        boundary,
-        TimeStepping::default(),
-        Solver::Pbf(pbf),
-    )
-    .unwrap()
+    common::unbounded(particles, params, Solver::Pbf(pbf)).unwrap()
 }
 
 /// Whether every particle is inside the domain and out of the obstacles.

@@ -1,6 +1,7 @@
 //! Water at rest (issue 41): a pool filled on the lattice from the floor,
 //! still from the start, under each solver.
 
+use sph_core::scene::SolverSpec;
 use sph_core::{DfsphParams, PbfParams, Scene, SolverKind, World};
 
 /// Spacing (m); h = 2 spacings.
@@ -9,40 +10,21 @@ const S: f32 = 0.02;
 /// A pool `side` square and `depth` deep, particle centres kept `clearance`
 /// from the walls, run by `kind` for `seconds` of 60 Hz frames.
 fn settled(kind: SolverKind, side: f32, depth: f32, clearance: f32, seconds: f32) -> World {
-    settled_with(kind, Params::Defaults, side, depth, clearance, seconds)
-}
-
-/// PBF's or DFSPH's own parameters for [`settled_with`].
-enum Params {
-    Defaults,
-    Pbf(PbfParams),
-    Dfsph(DfsphParams),
-}
-
-/// [`settled`] with the solver's parameters of `params`.
-fn settled_with(
-    kind: SolverKind,
-    params: Params,
-    side: f32,
-    depth: f32,
-    clearance: f32,
-    seconds: f32,
-) -> World {
-    let mut world = pool(kind, params, side, depth, clearance);
+    let spec = SolverSpec {
+        kind,
+        ..SolverSpec::default()
+    };
+    let mut world = pool(spec, side, depth, clearance);
     for _ in 0..(seconds * 60.0).round() as usize {
         world.advance(1.0 / 60.0).unwrap();
     }
     world
 }
 
-/// The pool of [`settled_with`], not yet run.
-fn pool(kind: SolverKind, params: Params, side: f32, depth: f32, clearance: f32) -> World {
-    let mut scene = Scene::dam_break(0.15, side, S).with_solver(kind);
-    match params {
-        Params::Defaults => {}
-        Params::Pbf(pbf) => scene.solver.pbf = Some(pbf),
-        Params::Dfsph(dfsph) => scene.solver.dfsph = Some(dfsph),
-    }
+/// That pool, not yet run, by the solver and parameters of `spec`.
+fn pool(spec: SolverSpec, side: f32, depth: f32, clearance: f32) -> World {
+    let mut scene = Scene::dam_break(0.15, side, S);
+    scene.solver = spec;
     scene.domain.min = [0.0; 3];
     scene.domain.max = [side, depth + 0.1, side];
     scene.blocks[0].min = [0.0; 3];
@@ -109,11 +91,7 @@ fn dfsph_with_a_clearance_compresses_no_layer() {
         .filter(|b| b.1 > 0)
         .map(|b| (b.0 / b.1 as f64 / 1000.0 - 1.0).abs())
         .fold(0.0, f64::max);
-    let rms = (p.velocities().iter())
-        .map(|v| f64::from(v.length_squared()))
-        .sum::<f64>()
-        / p.len() as f64;
-    let rms = rms.sqrt();
+    let rms = rms_speed(&world);
     eprintln!(
         "largest band density off ρ0: {:.3} %; rms speed {:.1} mm/s",
         100.0 * worst,
@@ -150,29 +128,33 @@ fn rms_speed(world: &World) -> f64 {
 /// PBF's deep pool is 0.3 m square here, to keep the test short.
 #[test]
 fn pools_fall_asleep() {
-    let damped = |iterations, sleep_speed| {
-        Params::Pbf(PbfParams {
+    let damped = |iterations, sleep_speed| SolverSpec {
+        kind: SolverKind::Pbf,
+        pbf: Some(PbfParams {
             iterations,
             xsph: 0.1,
             sleep_speed,
             ..PbfParams::default()
-        })
+        }),
+        ..SolverSpec::default()
     };
-    let dfsph = |sleep_speed| {
-        Params::Dfsph(DfsphParams {
+    let dfsph = |sleep_speed| SolverSpec {
+        kind: SolverKind::Dfsph,
+        dfsph: Some(DfsphParams {
             sleep_speed,
             ..DfsphParams::default()
-        })
+        }),
+        ..SolverSpec::default()
     };
-    let pbf = SolverKind::Pbf;
-    for (kind, params, side, depth, asleep) in [
-        (pbf, damped(4, 0.02), 0.6, 0.2, true),
-        (pbf, damped(6, 0.02), 0.3, 0.5, true),
-        (pbf, damped(4, 0.0), 0.6, 0.2, false),
-        (SolverKind::Dfsph, dfsph(0.01), 0.6, 0.2, true),
+    for (spec, side, depth, asleep) in [
+        (damped(4, 0.02), 0.6, 0.2, true),
+        (damped(6, 0.02), 0.3, 0.5, true),
+        (damped(4, 0.0), 0.6, 0.2, false),
+        (dfsph(0.01), 0.6, 0.2, true),
     ] {
+        let kind = spec.kind;
         // 1.9 s, then where each particle is, then 2 s.
-        let mut world = pool(kind, params, side, depth, 0.0);
+        let mut world = pool(spec, side, depth, 0.0);
         let mut at = std::collections::HashMap::new();
         for frame in 1..=120 {
             world.advance(1.0 / 60.0).unwrap();

@@ -455,3 +455,22 @@ pub fn lattice(n: i32, step: f32, origin: sph_core::glam::Vec3, mass: f32) -> sp
     }
     particles
 }
+
+#[allow(dead_code)]
+/// `particles` in a domain far larger than they reach (20 m across), run
+/// by `solver`, with the fluid's surface tension off.
+pub fn unbounded(
+    particles: sph_core::Particles,
+    params: sph_core::FluidParams,
+    solver: sph_core::Solver,
+) -> Result<sph_core::World, sph_core::Error> {
+    use sph_core::glam::Vec3;
+    let boundary =
+        sph_core::Boundary::new(sph_core::Aabb::new(Vec3::splat(-10.0), Vec3::splat(10.0)));
+    let params = sph_core::FluidParams {
+        surface_tension: 0.0,
+        ..params
+    };
+    let stepping = sph_core::TimeStepping::default();
+    sph_core::World::with_solver(particles, params, boundary, stepping, solver)
+}
