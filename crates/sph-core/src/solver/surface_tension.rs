@@ -77,7 +77,14 @@
 //!   2σ with −1.1 Pa at 1/R = 0.
 //!
 //! So PBF holds Laplace's 1/R at h = 1 cm across drop sizes, and DFSPH's
-//! `tests/dfsph.rs` reading holds at its one drop only.
+//! `tests/dfsph.rs` reading holds at its one drop only. DFSPH's drops at
+//! rest stay compressed inside by about the density tolerance, and how its
+//! solves spread that compression moves the inner pressure by pascals,
+//! as much as the jump: other warm starts of the density solve read
+//! anywhere from 0.37 to 1.97 of 2σ/R on these drops, and PBF's reading,
+//! unlike DFSPH's, does not depend on the radius it is taken within
+//! (`docs/benchmark-notes.md`, "DFSPH's interior pressure: the warm start
+//! and the reading's radius").
 //!
 //! The bulk carries the cohesion term as a tension of order σ/h (15 Pa
 //! at h = 5 mm), balanced by the solver's pressure (25–30 Pa stored
