@@ -81,10 +81,10 @@
 //! rest stay compressed inside by about the density tolerance, and how its
 //! solves spread that compression moves the inner pressure by pascals,
 //! as much as the jump: other warm starts of the density solve read
-//! anywhere from 0.37 to 1.97 of 2σ/R on these drops, and PBF's reading,
-//! unlike DFSPH's, does not depend on the radius it is taken within
-//! (`docs/benchmark-notes.md`, "DFSPH's interior pressure: the warm start
-//! and the reading's radius").
+//! anywhere from 0.37 to 1.97 of 2σ/R on these drops. Read within R − k h
+//! (k = 1 to 4) instead of R/2, PBF's reading moves by at most 0.11, and
+//! DFSPH's by up to 0.6 (`docs/benchmark-notes.md`, "DFSPH's interior
+//! pressure: the warm start and the reading's radius").
 //!
 //! The bulk carries the cohesion term as a tension of order σ/h (15 Pa
 //! at h = 5 mm), balanced by the solver's pressure (25–30 Pa stored
