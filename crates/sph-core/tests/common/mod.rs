@@ -278,7 +278,8 @@ pub fn inner_kinetic_pressure(
 /// splits a frame into steps of unequal length, and its κ corrects each
 /// step's leftover compression in that step, so the pressure pulses from
 /// step to step: read after each frame's last, shorter step only, this
-/// drop reads 0.909 where every step weighted reads 0.805.) Read as the virial of every pair force on those particles,
+/// drop reads 0.909 where every step weighted reads 0.805.) Read as the
+/// virial of every pair force on those particles,
 /// (ρ_i/6) Σ_j (x_i − x_j)·(a_ij^pressure + a_ij^Akinci), with
 /// a_ij^pressure = −V_j (κ_i + κ_j) ∇W_ij, κ = ρ0 p/ρ² (the stored
 /// pressure as DFSPH's κ) and W the cubic spline: a stored pressure
