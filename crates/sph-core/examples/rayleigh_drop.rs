@@ -132,40 +132,6 @@ fn inner_readings(
     [pressure, mechanical, pair_virial, kinetic]
 }
 
-/// After every step that ends at or after `from`: [`inner_readings`] times
-/// the step, and the step, summed. Every step, not every frame: DFSPH splits
-/// a frame into steps of unequal length and its pressure pulses with them,
-/// so a reading after each frame's last (shorter) step alone is biased
-/// (0.909 of 2σ/R against 0.805 on the 16-across drop over 8 s).
-struct Sampler {
-    kind: SolverKind,
-    params: FluidParams,
-    virial: Arc<Mutex<Vec<f32>>>,
-    within: f64,
-    from: f64,
-    sums: Arc<Mutex<([f64; 4], f64)>>,
-}
-
-impl Processor for Sampler {
-    fn name(&self) -> &str {
-        "inner pressure"
-    }
-    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> sph_core::Result<()> {
-        let dt = f64::from(ctx.dt);
-        if ctx.time + dt < self.from {
-            return Ok(());
-        }
-        let virial = self.virial.lock().unwrap_or_else(|e| e.into_inner());
-        let readings = inner_readings(particles, self.kind, &self.params, &virial, self.within);
-        let mut sums = self.sums.lock().unwrap_or_else(|e| e.into_inner());
-        for (sum, reading) in sums.0.iter_mut().zip(readings) {
-            *sum += reading * dt;
-        }
-        sums.1 += dt;
-        Ok(())
-    }
-}
-
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kind = SolverKind::Wcsph;
     let (mut seconds, mut shape, mut eps) = (4.0f64, "box".to_string(), 0.1f32);
@@ -356,13 +322,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         (signal, far)
     };
-    // The inner pressures over every step of the last second.
+    // The inner pressures over every step of the last second, weighted by
+    // the step (`common::StepAverage`: DFSPH's pressure pulses with its
+    // unequal steps, 0.909 of 2σ/R after each frame against 0.805 over
+    // every step on the 16-across drop over 8 s).
     let sums = Arc::new(Mutex::new(([0.0f64; 4], 0.0f64)));
-    world.program_mut().push(Sampler {
-        kind,
-        params,
-        virial: virial.clone(),
-        within: 0.5 * radius,
+    let shared = virial.clone();
+    world.program_mut().push(common::StepAverage {
+        read: move |p: &Particles| {
+            let virial = shared.lock().unwrap_or_else(|e| e.into_inner());
+            inner_readings(p, kind, &params, &virial, 0.5 * radius)
+        },
         from: seconds - 1.0 + 1e-9,
         sums: sums.clone(),
     });
@@ -453,8 +423,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "swing decay rates β (1/s) from turn to turn: {rates:.2?} about {rest:.3}; \
          from the first extremum to the last {overall:.2}; Lamb {lamb:.3} 1/s"
     );
-    let (readings, time) = *sums.lock().unwrap_or_else(|e| e.into_inner());
-    let mean = |k: usize| readings[k] / time.max(f64::MIN_POSITIVE);
+    let means = common::step_means(&sums);
+    let mean = |k: usize| means[k];
     let pressure = mean(0);
     println!(
         "pressure within R/2 over the last second {pressure:.3} Pa; Laplace {laplace:.3} Pa; ratio {:.3}",

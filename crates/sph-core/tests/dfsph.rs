@@ -547,6 +547,19 @@ fn a_drop_at_rest_holds_most_of_laplaces_pressure() {
     assert!((0.7..=1.1).contains(&ratio), "{ratio:.3}");
 }
 
+/// Rayleigh's l = 4 mode under DFSPH, at small amplitude, as PBF's test
+/// (`common::drop_l4_period`, a damped-sinusoid fit, the median of `eps` =
+/// 0.08, 0.10 and 0.12, damped and undamped). Measured, damped / undamped
+/// medians: 1.217 / 1.193 of Rayleigh's period at 5 mm (R = 5 h), 1.090 /
+/// 1.051 at 3.5 mm (7 h); with the paper's equal weights of cohesion and
+/// curvature (`surface_tension::COHESION_WEIGHT` = 1, scale 13) they were
+/// 1.453 / 1.359 and 1.126 / 0.993. Held: at 3.5 mm the undamped period
+/// within issue 42's 10 % and the damped one within 20 %; at 5 mm the
+/// damped one within 30 %, and at least 0.1 longer than at 3.5 mm.
+///
+/// A second resolution, 2.5 mm (R = 20 spacings, 32,752 particles), one
+/// amplitude (0.1): measured 1.009 damped, 0.950 undamped; held as at
+/// 3.5 mm.
 #[test]
 fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
     let dfsph = sph_core::Solver::Dfsph(DfsphParams::default());

@@ -271,14 +271,59 @@ pub fn inner_kinetic_pressure(
     mean(&kinetic)
 }
 
+/// A processor that reads `N` figures of the particles after every step
+/// ending after `from` (s) and sums them weighted by the step, into
+/// `sums` (the weighted sums, and the time they cover): the mean over
+/// every step, not over frames. DFSPH splits a frame into steps of unequal
+/// length, and its κ corrects each step's leftover compression in that
+/// step, so its pressure pulses from step to step; a reading after each
+/// frame's last, shorter step only is biased.
+#[allow(dead_code)]
+pub struct StepAverage<const N: usize, F> {
+    pub read: F,
+    pub from: f64,
+    pub sums: std::sync::Arc<std::sync::Mutex<([f64; N], f64)>>,
+}
+
+impl<const N: usize, F> sph_core::Processor for StepAverage<N, F>
+where
+    F: FnMut(&sph_core::Particles) -> [f64; N] + Send,
+{
+    fn name(&self) -> &str {
+        "step average"
+    }
+    fn process(
+        &mut self,
+        particles: &mut sph_core::Particles,
+        ctx: &mut sph_core::Context,
+    ) -> sph_core::Result<()> {
+        let dt = f64::from(ctx.dt);
+        if ctx.time + dt > self.from {
+            let figures = (self.read)(particles);
+            let mut sums = self.sums.lock().unwrap_or_else(|e| e.into_inner());
+            for (sum, figure) in sums.0.iter_mut().zip(figures) {
+                *sum += figure * dt;
+            }
+            sums.1 += dt;
+        }
+        Ok(())
+    }
+}
+
+/// The means of a [`StepAverage`]'s sums so far (NaN before any step was
+/// read).
+#[allow(dead_code)]
+pub fn step_means<const N: usize>(sums: &std::sync::Mutex<([f64; N], f64)>) -> [f64; N] {
+    let (sums, time) = *sums.lock().unwrap_or_else(|e| e.into_inner());
+    sums.map(|s| s / time)
+}
+
 /// A DFSPH drop of 4,032 particles at `spacing`, at rest on the lattice
 /// from the start, run for `seconds` in 1/60 s frames: its mechanical
 /// pressure within R/2 of the centre over Laplace's 2σ/R, the mean over
-/// every step of the last second weighted by the step's length. (DFSPH
-/// splits a frame into steps of unequal length, and its κ corrects each
-/// step's leftover compression in that step, so the pressure pulses from
-/// step to step: read after each frame's last, shorter step only, this
-/// drop reads 0.909 where every step weighted reads 0.805.) Read as the
+/// every step of the last second weighted by the step's length
+/// ([`StepAverage`]: read after each frame only, this drop reads 0.909
+/// where every step weighted reads 0.805). Read as the
 /// virial of every pair force on those particles,
 /// (ρ_i/6) Σ_j (x_i − x_j)·(a_ij^pressure + a_ij^Akinci), with
 /// a_ij^pressure = −V_j (κ_i + κ_j) ∇W_ij, κ = ρ0 p/ρ² (the stored
@@ -318,47 +363,23 @@ pub fn dfsph_drop_laplace(spacing: f32, seconds: f64) -> f64 {
     let program = world.program_mut();
     assert!(program.remove("surface tension"));
     assert!(program.insert_after("forces", Measured(station, virial.clone())));
-    /// After each step that ends in the last second: the inner pressure
-    /// times the step, and the step, summed.
-    struct Sample {
-        params: sph_core::FluidParams,
-        virial: Arc<Mutex<Vec<f32>>>,
-        within: f64,
-        from: f64,
-        sums: Arc<Mutex<(f64, f64)>>,
-    }
-    impl Processor for Sample {
-        fn name(&self) -> &str {
-            "sample"
-        }
-        fn process(&mut self, p: &mut Particles, ctx: &mut Context) -> sph_core::Result<()> {
-            let dt = f64::from(ctx.dt);
-            if ctx.time + dt > self.from {
-                let x = p.positions();
-                let c = x.iter().sum::<Vec3>() / x.len() as f32;
-                let virial = self.virial.lock().unwrap();
-                let kind = sph_core::SolverKind::Dfsph;
-                let w = inner_pair_virial(p, kind, &self.params, &virial, c, self.within);
-                let mut sums = self.sums.lock().unwrap();
-                sums.0 += w * dt;
-                sums.1 += dt;
-            }
-            Ok(())
-        }
-    }
-    let sums = Arc::new(Mutex::new((0.0, 0.0)));
-    program.push(Sample {
-        params,
-        virial,
-        within: 0.5 * r,
+    let sums = Arc::new(Mutex::new(([0.0], 0.0)));
+    program.push(StepAverage {
+        read: move |p: &Particles| {
+            let x = p.positions();
+            let c = x.iter().sum::<Vec3>() / x.len() as f32;
+            let virial = virial.lock().unwrap();
+            let kind = sph_core::SolverKind::Dfsph;
+            [inner_pair_virial(p, kind, &params, &virial, c, 0.5 * r)]
+        },
         from: seconds - 1.0 + 1e-9,
         sums: sums.clone(),
     });
     while world.time() < seconds - 1e-9 {
         world.advance(1.0 / 60.0).unwrap();
     }
-    let (sum, time) = *sums.lock().unwrap();
-    sum / time / (2.0 * SIGMA / r)
+    let [pressure] = step_means(&sums);
+    pressure / (2.0 * SIGMA / r)
 }
 
 /// The drop of [`drop_world`] run by `solver` for `seconds` in 1/60 s
