@@ -46,6 +46,11 @@
 //!     [--solver-toml 'viscosity = "implicit"']]
 //! ```
 //!
+//! `--profile` (PBF and DFSPH) adds the same steps' radial profile in
+//! shells R/8 thick: the pressure forces' and Akinci's pair virials, their
+//! sum, the stored pressure and the density, and the check that both
+//! virials over the whole drop add to zero.
+//!
 //! `--model colour-field|akinci` picks the force that applies σ (each
 //! solver's own by default; WCSPH takes either).
 //!
@@ -130,6 +135,48 @@ fn inner_readings(
     };
     let kinetic = common::inner_kinetic_pressure(p, c, within);
     [pressure, mechanical, pair_virial, kinetic]
+}
+
+/// Shells R/8 thick from the centre, to 1.25 R, in [`shell_sums`].
+const SHELLS: usize = 10;
+
+/// Per shell, in five figures each (`SHELLS` × 5): the particles and the
+/// sums over them of the pressure forces' pair virial, the Akinci forces'
+/// virial, the stored pressure and the density; then, over all particles,
+/// Σ V_i times each of the two virials and Σ V_i (V_i = m_i/ρ_i). A drop at
+/// rest has Σ V (both virials) = 0 (the virial theorem), so how the pressure
+/// virial is spread between the surface shell and the interior sets the
+/// inner pressure (PBF and DFSPH).
+fn shell_sums(
+    p: &Particles,
+    kind: SolverKind,
+    params: &FluidParams,
+    virial: &[f32],
+    radius: f64,
+) -> [f64; SHELLS * 5 + 3] {
+    let x = p.positions();
+    let c = x.iter().sum::<Vec3>() / p.len() as f32;
+    let all: Vec<usize> = (0..p.len()).collect();
+    let pressure = common::pair_virial_pressures(p, kind, params, &[], &all);
+    let mut out = [0.0f64; SHELLS * 5 + 3];
+    for (i, &pv) in pressure.iter().enumerate() {
+        let akinci = virial.get(i).map_or(0.0, |&w| f64::from(w));
+        let rho = f64::from(p.densities()[i]);
+        let volume = f64::from(p.masses()[i]) / rho;
+        let shell = (f64::from((x[i] - c).length()) / radius * 8.0) as usize;
+        if shell < SHELLS {
+            let row = &mut out[shell * 5..][..5];
+            row[0] += 1.0;
+            row[1] += pv;
+            row[2] += akinci;
+            row[3] += f64::from(p.pressures()[i]);
+            row[4] += rho;
+        }
+        out[SHELLS * 5] += volume * pv;
+        out[SHELLS * 5 + 1] += volume * akinci;
+        out[SHELLS * 5 + 2] += volume;
+    }
+    out
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -336,6 +383,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         from: seconds - 1.0 + 1e-9,
         sums: sums.clone(),
     });
+    // With `--profile`, the same steps' profile in shells.
+    let shells = Arc::new(Mutex::new(([0.0f64; SHELLS * 5 + 3], 0.0f64)));
+    if profile && kind != SolverKind::Wcsph {
+        let shared = virial.clone();
+        world.program_mut().push(common::StepAverage {
+            read: move |p: &Particles| {
+                let virial = shared.lock().unwrap_or_else(|e| e.into_inner());
+                shell_sums(p, kind, &params, &virial, radius)
+            },
+            from: seconds - 1.0 + 1e-9,
+            sums: shells.clone(),
+        });
+    }
     let frame = 1.0 / 60.0;
     let start = measure(&world.particles);
     let mut series = vec![(0.0f64, start.0)];
@@ -453,33 +513,33 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         }
     }
     if profile && kind != SolverKind::Wcsph {
-        // The last frame's pressure against the distance from the centre,
-        // in ten shells R/8 thick (to 1.25 R): the pair virial's mechanical pressure, the
-        // stored pressure and the density.
-        let p = &world.particles;
-        let c = p.positions().iter().sum::<Vec3>() / p.len() as f32;
-        let virial = virial.lock().unwrap_or_else(|e| e.into_inner()).clone();
-        let all: Vec<usize> = (0..p.len()).collect();
-        let mechanical = common::pair_virial_pressures(p, kind, &params, &virial, &all);
-        println!("shell (r/R)   particles   pair virial (Pa)   stored (Pa)   ρ (kg/m³)");
-        for shell in 0..10 {
+        // Over every step of the last second: the pair virials per shell
+        // (their sum is the mechanical pressure), the stored pressure and
+        // the density.
+        let m = common::step_means(&shells);
+        println!(
+            "shell (r/R)   particles   pressure forces' virial   Akinci's virial   both (Pa)   stored (Pa)   ρ (kg/m³)"
+        );
+        for (shell, row) in m.chunks_exact(5).take(SHELLS).enumerate() {
             let (lo, hi) = (shell as f64 / 8.0, (shell + 1) as f64 / 8.0);
-            let inside: Vec<usize> = (0..p.len())
-                .filter(|&i| {
-                    let r = f64::from((p.positions()[i] - c).length()) / radius;
-                    (lo..hi).contains(&r)
-                })
-                .collect();
-            let n = inside.len().max(1) as f64;
-            let mean = |f: &dyn Fn(usize) -> f64| inside.iter().map(|&i| f(i)).sum::<f64>() / n;
+            let n = row[0].max(f64::MIN_POSITIVE);
             println!(
-                "{lo:.3}–{hi:.3}   {:9}   {:16.3}   {:11.3}   {:9.2}",
-                inside.len(),
-                mean(&|i| mechanical[i]),
-                mean(&|i| f64::from(p.pressures()[i])),
-                mean(&|i| f64::from(p.densities()[i])),
+                "{lo:.3}–{hi:.3}   {:9.1}   {:23.3}   {:15.3}   {:9.3}   {:11.3}   {:9.2}",
+                row[0],
+                row[1] / n,
+                row[2] / n,
+                (row[1] + row[2]) / n,
+                row[3] / n,
+                row[4] / n,
             );
         }
+        let (pressure, akinci, volume) = (m[SHELLS * 5], m[SHELLS * 5 + 1], m[SHELLS * 5 + 2]);
+        println!(
+            "over the drop's {volume:.4e} m³: Σ V × the pressure forces' virial {pressure:.4e} Pa·m³, \
+             × Akinci's {akinci:.4e}; sum {:.4e} (0 at rest), {:.3} % of either",
+            pressure + akinci,
+            100.0 * (pressure + akinci) / pressure.abs().max(f64::MIN_POSITIVE),
+        );
     }
     Ok(())
 }
