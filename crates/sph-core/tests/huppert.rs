@@ -12,38 +12,25 @@
 mod common;
 
 use sph_core::glam::Vec3;
-use sph_core::{NeighbourGrid, NeighbourLists, Scene, SolverKind};
+use sph_core::{Scene, SolverKind};
 
-/// The current's radius: the farthest horizontal distance from the centre
-/// of the particles with at least 5 neighbours (a lone particle ahead of
-/// the front does not count).
-fn radius(positions: &[Vec3], centre: Vec3, h: f32) -> f32 {
-    let grid = NeighbourGrid::build(positions, h).unwrap();
-    let lists = NeighbourLists::build(&grid);
-    (0..positions.len())
-        .filter(|&i| lists.of(i).len() >= 5)
-        .map(|i| {
-            let d = positions[i] - centre;
-            (d.x * d.x + d.z * d.z).sqrt()
-        })
-        .fold(0.0f32, f32::max)
-}
-
-/// A cylinder of radius 0.113 m and height 0.1 m (V ≈ 0.004 m³, 3,990
+/// A cylinder of radius 0.113 m and height 0.1 m (V ≈ 0.004 m³, 3,960
 /// particles at 1 cm) let go on the floor of a 1.2 m square tank at
 /// viscosity `mu`: (t, r, Huppert's r) at each of `times`.
 fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
-    let (side, height, tank, spacing) = (0.2f32, 0.1f32, 1.2f32, 0.01f32);
-    let mut scene = Scene::dam_break(side, side, spacing).with_solver(SolverKind::Dfsph);
+    let (height, tank, spacing) = (0.1f32, 1.2f32, 0.01f32);
+    let r0 = 0.2 / std::f32::consts::PI.sqrt();
+    let mut scene = Scene::dam_break(2.0 * r0, height, spacing).with_solver(SolverKind::Dfsph);
     scene.fluid.viscosity = Some(mu);
     scene.domain.max = [tank, 0.3, tank];
     let c = 0.5 * tank;
-    scene.blocks[0].min = [c - 0.5 * side, 0.0, c - 0.5 * side];
-    scene.blocks[0].max = [c + 0.5 * side, height, c + 0.5 * side];
-    // The block cut to the cylinder of its area: Huppert's current is
-    // axisymmetric, and a square's corners would lead it for seconds.
+    scene.blocks[0].min = [c - r0, 0.0, c - r0];
+    scene.blocks[0].max = [c + r0, height, c + r0];
+    // A block 2 r0 square cut to the cylinder of radius r0: Huppert's
+    // current is axisymmetric, and a square's corners would lead it for
+    // seconds. (Cut from a block 0.2 m square instead, as this test once
+    // was, the "cylinder" kept the square's flat sides: 3,600 particles.)
     let mut particles = scene.particles().unwrap();
-    let r0 = side / std::f32::consts::PI.sqrt();
     let keep: Vec<bool> = (particles.positions().iter())
         .map(|x| (x.x - c).hypot(x.z - c) <= r0)
         .collect();
@@ -61,7 +48,7 @@ fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
                 .unwrap();
             assert_eq!(r.unconverged, 0, "μ = {mu}: {r:?}");
         }
-        let r = radius(world.particles.positions(), centre, scene.fluid.h);
+        let r = common::current_radius(world.particles.positions(), centre, scene.fluid.h);
         rows.push((t, f64::from(r), k * t.powf(0.125)));
     }
     println!("μ = {mu} Pa·s: t (s), r (m), Huppert (m)");
@@ -76,25 +63,36 @@ fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
 
 /// The current at 100 Pa·s from 1 to 8 s, sampled at √2 steps, against
 /// Huppert's similarity solution, and the current at 1,000 Pa·s against
-/// the first by the law's own scaling.
+/// the first by the law's own scaling. The radius is the front's median
+/// over 32 sectors (`common::current_radius`).
 ///
 /// At late times (4 to 8 s, r 1.7–1.9 times the cylinder's 0.113 m):
 /// - the exponent of log r against log t (Huppert's is 1/8) measured
-///   0.157: the cylinder starts below the similarity solution and reaches
+///   0.156: the cylinder starts below the similarity solution and reaches
 ///   it from below, so the exponent is above 1/8 and falls towards it.
 ///   Asserted in [0.125, 0.175]: a current that stopped spreading gives 0.
-/// - r⁸ grows at Huppert's rate 0.894⁸ ρ g V³/3μ (whatever the current's
-///   virtual time origin): measured 0.91 of it, asserted within 0.8–1.0
-///   (r⁸ magnifies an error in the radius eightfold).
-/// - the radius measured 3.8 and 3.0 % below Huppert's at 5.7 and 8 s,
-///   asserted within 5 % (a current frozen at its 4 s radius is 12.9 %
+/// - r⁸ grows at 0.76 of Huppert's rate 0.894⁸ ρ g V³/3μ, asserted within
+///   0.7–1.0 (r⁸ magnifies an error in the radius eightfold). That rate is
+///   the similarity solution's whatever the virtual time origin, and a
+///   current still approaching it, as the exponent says this one is,
+///   grows r⁸ more slowly.
+/// - the radius measured 5.8 and 5.1 % below Huppert's at 5.7 and 8 s,
+///   asserted within 7 % (a current frozen at its 4 s radius is 14.8 %
 ///   short at 8 s).
+///
+/// These are the method's, not the resolution's: at 5 mm (32,040
+/// particles, `cargo run --release -p sph-core --example huppert_current --
+/// --spacing 0.005`) the exponent is 0.151, the rate 0.78 and the radius
+/// 5.3 and 4.6 % short. (This test once cut its cylinder from a block 0.2
+/// m square, which kept the square's flat sides, and took the farthest
+/// particle for the radius: 3,600 particles, read 0.91 of the rate and 3.0 %
+/// short at 8 s.)
 ///
 /// At low Reynolds number r depends on t and μ through t/μ alone (the
 /// law's r ∝ (t/μ)^{1/8} is the late-time form of that), so the current
 /// at 1,000 Pa·s at t is the current at 100 Pa·s at t/10: measured
-/// within 1.2 %, asserted within 2.5 % from 2 to 8 s (where the currents
-/// are still 11–13 % short of the similarity solution). A viscosity solve
+/// within 1.4 %, asserted within 2.5 % from 2 to 8 s (where the currents
+/// are still 12–15 % short of the similarity solution). A viscosity solve
 /// that did nothing would let the 1,000 Pa·s current run far ahead.
 #[test]
 fn axisymmetric_current_spreads_as_huppert() {
@@ -123,10 +121,10 @@ fn axisymmetric_current_spreads_as_huppert() {
         (0.125..=0.175).contains(&exponent),
         "exponent {exponent} over 4–8 s"
     );
-    assert!((0.8..=1.0).contains(&rate), "r⁸ rate {rate} of Huppert's");
+    assert!((0.7..=1.0).contains(&rate), "r⁸ rate {rate} of Huppert's");
     for &(t, r, theory) in &tail[1..] {
         assert!(
-            (r / theory - 1.0).abs() <= 0.05,
+            (r / theory - 1.0).abs() <= 0.07,
             "t = {t}: r {r} m, Huppert {theory} m"
         );
     }

@@ -526,3 +526,30 @@ pub fn unbounded(
     let stepping = sph_core::TimeStepping::default();
     sph_core::World::with_solver(particles, params, boundary, stepping, solver)
 }
+
+/// A spreading current's radius about `centre` (horizontal, in x and z):
+/// the median over 32 equal sectors of each sector's farthest particle
+/// with at least 5 neighbours within `h`. A lone particle ahead of the
+/// front does not count, and the median does not follow the one particle
+/// of a hundred on the front that leads (the farthest over all particles
+/// did: 3.5 % between two currents that agree within 1.4 % by this).
+#[allow(dead_code)]
+pub fn current_radius(
+    positions: &[sph_core::glam::Vec3],
+    centre: sph_core::glam::Vec3,
+    h: f32,
+) -> f32 {
+    use std::f32::consts::{PI, TAU};
+    const SECTORS: usize = 32;
+    let grid = sph_core::NeighbourGrid::build(positions, h).unwrap();
+    let lists = sph_core::NeighbourLists::build(&grid);
+    let mut far = [0.0f32; SECTORS];
+    for i in (0..positions.len()).filter(|&i| lists.of(i).len() >= 5) {
+        let d = positions[i] - centre;
+        let sector = ((d.z.atan2(d.x) + PI) / TAU * SECTORS as f32) as usize;
+        let far = &mut far[sector.min(SECTORS - 1)];
+        *far = far.max(d.x.hypot(d.z));
+    }
+    far.sort_by(f32::total_cmp);
+    0.5 * (far[SECTORS / 2 - 1] + far[SECTORS / 2])
+}
