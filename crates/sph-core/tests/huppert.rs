@@ -11,45 +11,18 @@
 
 mod common;
 
-use sph_core::glam::Vec3;
-use sph_core::{Scene, SolverKind};
-
-/// A cylinder of radius 0.113 m and height 0.1 m (V ≈ 0.004 m³, 3,960
-/// particles at 1 cm) let go on the floor of a 1.2 m square tank at
-/// viscosity `mu`: (t, r, Huppert's r) at each of `times`.
+/// Huppert's current (`common::HuppertCurrent`: V ≈ 0.004 m³, 3,960
+/// particles at 1 cm) at viscosity `mu`: (t, r, Huppert's r) at each of
+/// `times`.
 fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
-    let (height, tank, spacing) = (0.1f32, 1.2f32, 0.01f32);
-    let r0 = 0.2 / std::f32::consts::PI.sqrt();
-    let mut scene = Scene::dam_break(2.0 * r0, height, spacing).with_solver(SolverKind::Dfsph);
-    scene.fluid.viscosity = Some(mu);
-    scene.domain.max = [tank, 0.3, tank];
-    let c = 0.5 * tank;
-    scene.blocks[0].min = [c - r0, 0.0, c - r0];
-    scene.blocks[0].max = [c + r0, height, c + r0];
-    // A block 2 r0 square cut to the cylinder of radius r0: Huppert's
-    // current is axisymmetric, and a square's corners would lead it for
-    // seconds. (Cut from a block 0.2 m square instead, as this test once
-    // was, the "cylinder" kept the square's flat sides: 3,600 particles.)
-    let mut particles = scene.particles().unwrap();
-    let keep: Vec<bool> = (particles.positions().iter())
-        .map(|x| (x.x - c).hypot(x.z - c) <= r0)
-        .collect();
-    particles.retain(&keep).unwrap();
-    let volume = particles.len() as f64 * f64::from(spacing).powi(3);
-    let mut world = scene.world_with(particles).unwrap();
-    let rho_g = f64::from(scene.fluid.rest_density) * 9.81;
-    let k = 0.894 * (rho_g * volume.powi(3) / (3.0 * f64::from(mu))).powf(0.125);
-    let centre = Vec3::new(c, 0.0, c);
+    let mut current = common::HuppertCurrent::new(0.01, mu, 0.0).unwrap();
     let mut rows = Vec::new();
     for &t in times {
-        while world.time() < t - 1e-9 {
-            let r = world
-                .advance(((t - world.time()) as f32).min(1.0 / 60.0))
-                .unwrap();
+        let unconverged = |r: &sph_core::FrameReport| {
             assert_eq!(r.unconverged, 0, "μ = {mu}: {r:?}");
-        }
-        let r = common::current_radius(world.particles.positions(), centre, scene.fluid.h);
-        rows.push((t, f64::from(r), k * t.powf(0.125)));
+        };
+        let (r, theory) = current.run_to(t, unconverged).unwrap();
+        rows.push((t, r, theory));
     }
     println!("μ = {mu} Pa·s: t (s), r (m), Huppert (m)");
     for &(t, r, theory) in &rows {
@@ -102,9 +75,7 @@ fn axisymmetric_current_spreads_as_huppert() {
     let thin = spread(100.0, &times);
     let thick = spread(1000.0, &late[2..]);
     let tail = &thin[thin.len() - 3..];
-    let exponent = common::slope(tail.iter().map(|&(t, r, _)| (t.ln(), r.ln())));
-    let k8 = tail[0].2.powi(8) / tail[0].0;
-    let rate = common::slope(tail.iter().map(|&(t, r, _)| (t, r.powi(8)))) / k8;
+    let (exponent, rate) = common::huppert_fit(tail);
     println!(
         "μ = 100 Pa·s, 4 to 8 s: exponent {exponent:.4}; r⁸ grows at {rate:.3} of Huppert's rate"
     );
