@@ -1,5 +1,5 @@
 //! Divergence-free SPH against physics: a hydrostatic tank (density error,
-//! pressure against ρ0 g depth, rest), the dam break's compression,
+//! pressure against the weight above, rest), the dam break's compression,
 //! determinism across threads, and bad input.
 
 mod common;
@@ -44,17 +44,21 @@ fn contained(world: &World, scene: &Scene) -> bool {
 }
 
 /// A tank at rest, 0.48 m square and 0.2 m deep (5,760 particles), from the
-/// second second on: the density error, the pressure against depth, rest.
+/// second second on: the density error, the pressure against the weight of
+/// the fluid above, rest.
 ///
-/// The pressure is fitted where the walls do not disturb it: beyond 2h from
-/// the floor and the side walls, h below the surface. The walls push with
-/// the particle's own κ only (the gradient of their density term, the force
-/// that neither adds nor takes energy: see `sph_core::boundary`), so the
-/// layer on a wall holds twice the hydrostatic pressure, and its
-/// neighbours' pressure bends towards it. Where the particles settle
-/// matters at the level of the 2 % bound: while this solver was written,
-/// 0.32 m tanks measured from −2.65 % to +1.84 %; this one measures
-/// +0.86 %.
+/// The pressure is read where the walls do not disturb it: beyond 2h from
+/// the floor and the side walls, h below the top layer
+/// ([`common::pressures_and_weights_above`]). The walls push with the
+/// particle's own κ only (the gradient of their density term, the force
+/// that neither adds nor takes energy: see `sph_core::boundary`), so
+/// without a clearance the layer on the floor holds about twice the
+/// weight above it and the next one less; with a clearance of half a
+/// spacing every layer's pressure is within 4 % of its weight above. Over
+/// height, the same pressures' slope reads 2–4 % steep or shallow,
+/// depending on how much of the surface's closer layers a fit takes in
+/// (`docs/benchmark-notes.md`, "The hydrostatic tank against the weight
+/// above").
 ///
 /// The first steps settle the lattice by under a millimetre into the
 /// edges and corners, where the walls' union formula leaves 0.3–0.8 % of
@@ -83,26 +87,26 @@ fn hydrostatic_tank() {
         }
     }
     // The pressure of the particles more than 2h from the side walls and
-    // the floor and h below the surface, at every step of another half
-    // second (a Jacobi solve stopped at its tolerance leaves each step's
-    // pressure some % off, and the steps' errors alternate; their average
-    // holds).
+    // the floor and h below the surface against the weight above them, at
+    // every step of another half second (a Jacobi solve stopped at its
+    // tolerance leaves each step's pressure some % off, and the steps'
+    // errors alternate; their average holds).
     let h = scene.fluid.h;
-    let (mut ys, mut ps) = (Vec::new(), Vec::new());
+    let mut samples = Vec::new();
     let end = world.time() + 0.5;
     while world.time() < end {
         world.step().unwrap();
         let p = &world.particles;
-        for (x, &pressure) in p.positions().iter().zip(p.pressures()) {
-            let side = |c: f32| c > 2.0 * h && c < w - 2.0 * h;
-            if side(x.x) && side(x.z) && x.y > 2.0 * h && x.y < depth - h {
-                ys.push(x.y);
-                ps.push(pressure);
-            }
-        }
+        samples.extend(common::pressures_and_weights_above(
+            p,
+            9.81,
+            w,
+            scene.spacing,
+            h,
+            2.0 * h,
+        ));
     }
-    let s = common::pressure_slope(&ys, &ps);
-    let expected = -f64::from(scene.fluid.rest_density * 9.81);
+    let s = common::slope(samples.iter().copied());
     let rms = rms_speed(&world.particles);
     // The net drift from 3 s to the end (4.5 s).
     let drift = (positions_by_id(&world.particles).iter().zip(&at_3s))
@@ -111,13 +115,11 @@ fn hydrostatic_tank() {
     let drift = (drift / n as f64).sqrt();
     println!(
         "{n} particles, from 1 s: density error ≤ {:.4} % avg, ≤ {:.3} % max, {unconverged} unconverged; \
-         pressure slope {s:.0} Pa/m over {} samples (ρ0 g = {:.0}, {:+.2} %); \
+         pressure over the weight above {s:.4} over {} samples; \
          rms speed {rms_at_2s:.4} m/s at 2 s, {rms:.4} m/s at 4 s; rms drift {:.3} mm from 3 to 4.5 s",
         100.0 * worst_avg,
         100.0 * worst_max,
-        ys.len(),
-        -expected,
-        100.0 * (s / expected - 1.0),
+        samples.len(),
         1e3 * drift
     );
     assert_eq!(world.particles.len(), n);
@@ -125,7 +127,7 @@ fn hydrostatic_tank() {
     assert!(worst_avg <= 0.001, "average density error {worst_avg}");
     assert!(worst_max <= 0.01, "largest density error {worst_max}");
     assert_eq!(unconverged, 0);
-    assert!((s / expected - 1.0).abs() <= 0.02, "slope {s} Pa/m");
+    assert!((s - 1.0).abs() <= 0.02, "pressure over weight {s}");
     // At rest: the step's velocities below 1 % of the free-fall speed
     // √(g depth) ≈ 1.4 m/s (each step starts with g Δt = 0.05 m/s of fall
     // that its solves take out to their tolerance), and the particles

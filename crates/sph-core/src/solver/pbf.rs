@@ -37,7 +37,13 @@
 //!   wall instead of piling into it. Where walls meet, their half-spaces
 //!   are united, not added (`Walls::at`). Every iteration projects
 //!   positions back out of walls ([`Boundary::project`]): nothing leaks,
-//!   whatever the step.
+//!   whatever the step. Under a [`Boundary::clearance`] the walls' term is
+//!   the fluid's lattice continued behind them (`Walls::at_layers`, as
+//!   DFSPH's): the analytic half-space starts a lattice's first layer,
+//!   held at half a spacing, 2.6 % above rest density at h = 2 spacings
+//!   (0.216 of ρ0 against the lattice's missing 0.191), and the demo's
+//!   1,000 Pa·s slab slump took a first frame of 1.06 % average density
+//!   error against 0.45 % without the clearance (0.52 % with the layers).
 //! - **Gradient.** ∇W_spiky, as the paper. The exact gradient of the poly6
 //!   density (needing Jacobi under-relaxed by 0.75 to stay stable) was
 //!   tried in a throwaway patch: it settled a tank ten times tighter and
@@ -590,9 +596,23 @@ struct Model {
     lanes: LaneKernels,
     /// W_poly6(0).
     w0: f32,
+    /// Whether the walls continue the fluid's lattice
+    /// ([`Walls::at_layers`]): where a clearance holds particles off them.
+    layered_walls: bool,
 }
 
 impl Model {
+    /// The walls' density term and its gradient over ρ0 at `x`, for a
+    /// particle of mass `m` ([`Walls`]).
+    #[inline(always)]
+    fn walls_at(&self, x: Vec3, m: f32) -> (f32, Vec3) {
+        if self.layered_walls {
+            self.walls.at_layers_of(x, m * self.inv_rho0)
+        } else {
+            self.walls.at(x)
+        }
+    }
+
     fn new(params: FluidParams, pbf: PbfParams, boundary: Boundary) -> Result<Self> {
         params.validate()?;
         pbf.validate()?;
@@ -600,6 +620,7 @@ impl Model {
         let h = params.h;
         let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
         let dq = pbf.scorr_dq * h;
+        let layered_walls = boundary.clearance > 0.0;
         Ok(Self {
             params,
             pbf,
@@ -609,6 +630,7 @@ impl Model {
             inv_rho0: 1.0 / params.rest_density,
             lanes: LaneKernels::new(&poly6, &spiky, h),
             w0: poly6.value_r2(0.0),
+            layered_walls,
         })
     }
 
@@ -622,7 +644,7 @@ impl Model {
         lists: &NeighbourLists,
     ) -> Constraint {
         let xi = rows[i];
-        let (rho_wall, wall) = self.walls.at(Vec3::new(xi[0], xi[1], xi[2]));
+        let (rho_wall, wall) = self.walls_at(Vec3::new(xi[0], xi[1], xi[2]), xi[3]);
         let inv_rho0 = S::splat(self.inv_rho0);
         // ρ, ∇_i C_i and Σ|∇_j C_i|² (∇_j C_i = −G_ij).
         let mut sums = DensitySums::new();
@@ -729,7 +751,7 @@ impl Model {
         let x = Vec3::new(xi[0], xi[1], xi[2]);
         let curl = Vec3::new(acc[1].sum(), acc[2].sum(), acc[3].sum());
         Sums {
-            rho: self.walls.at(x).0 + xi[3] * self.w0 + acc[0].sum(),
+            rho: self.walls_at(x, xi[3]).0 + xi[3] * self.w0 + acc[0].sum(),
             curl,
             curl_len: curl.length(),
             mean: Vec3::new(acc[4].sum(), acc[5].sum(), acc[6].sum()),
@@ -1265,7 +1287,7 @@ mod tests {
             let plain: f32 = (0..n)
                 .map(|j| m[j] * poly6.value_r2((x[i] - x[j]).length_squared()))
                 .sum();
-            let expected = plain + model.walls.at(x[i]).0;
+            let expected = plain + model.walls_at(x[i], m[i]).0;
             assert!(
                 (c.rho - expected).abs() <= 1e-5 * expected,
                 "particle {i}: {} against {expected}",

@@ -24,6 +24,54 @@ pub fn pressure_slope(ys: &[f32], ps: &[f32]) -> f64 {
     )
 }
 
+/// A square tank at rest read as hydrostatics does: for each particle more
+/// than `margin` from the side walls (x and z in (`margin`, `side` −
+/// `margin`)) and the floor, and more than `h` below the top layer, the
+/// weight per area of the fluid above it (Pa) and its pressure (Pa).
+///
+/// dp/dy = −ρ g holds with ρ the fluid's mass per volume. Near a free
+/// surface SPH's density reads ρ0 with the layers closer together than in
+/// the bulk (the kernel's missing neighbours), so a pressure slope over
+/// height counts that closeness as excess pressure, and how much of it a
+/// fit sees depends on where the surface settled. The weight above does
+/// not: it sums the masses of every particle of the tank more than half a
+/// `spacing` above this one, and half of those within half a spacing (its
+/// own layer), times g over the floor's area `side`². The top layer is the
+/// 99th percentile of the heights.
+#[allow(dead_code)]
+pub fn pressures_and_weights_above(
+    p: &sph_core::Particles,
+    g: f32,
+    side: f32,
+    spacing: f32,
+    h: f32,
+    margin: f32,
+) -> Vec<(f64, f64)> {
+    let mut layers: Vec<(f32, f64)> = (p.positions().iter().zip(p.masses()))
+        .map(|(x, &m)| (x.y, f64::from(m)))
+        .collect();
+    layers.sort_by(|a, b| a.0.total_cmp(&b.0));
+    // mass_above[k]: the mass of the particles from k up.
+    let mut mass_above = vec![0.0f64; layers.len() + 1];
+    for k in (0..layers.len()).rev() {
+        mass_above[k] = mass_above[k + 1] + layers[k].1;
+    }
+    let above = |y: f32| mass_above[layers.partition_point(|l| l.0 <= y)];
+    let top = layers[(0.99 * (layers.len() - 1) as f64) as usize].0;
+    let per_area = f64::from(g) / f64::from(side * side);
+    let inside = |c: f32| c > margin && c < side - margin;
+    (p.positions().iter().zip(p.pressures()))
+        .filter(|(x, _)| inside(x.x) && inside(x.z) && x.y > margin && x.y < top - h)
+        .map(|(x, &pressure)| {
+            let (clear, own) = (above(x.y + 0.5 * spacing), above(x.y - 0.5 * spacing));
+            (
+                per_area * (clear + 0.5 * (own - clear)),
+                f64::from(pressure),
+            )
+        })
+        .collect()
+}
+
 /// The l = 2 period of a weightless water drop (σ = 0.0728 N/m, μ = 0.01
 /// Pa·s, h = 2 spacings) of 4,032 particles (a sphere of the volume of 16³
 /// lattice cells, R ≈ 9.9 spacings) stretched by
