@@ -53,6 +53,23 @@ struct FluidModel {
 }
 
 impl FluidModel {
+    /// A wall's density term at distance `d` from a particle of mass `m`,
+    /// as a fraction of ρ0, and its slope −d/dd: the analytic half-space,
+    /// or under a clearance the fluid's lattice continued behind the wall
+    /// ([`WallKernel::layers_fraction_and_density`]), which a lattice's
+    /// first layer held at half a spacing sums to ρ0 with.
+    #[inline]
+    fn wall_term(&self, d: f32, m: f32) -> (f32, f32) {
+        if self.boundary.clearance > 0.0 {
+            let spacing = (m / self.params.rest_density).cbrt();
+            self.wall.layers_fraction_and_density(d, spacing)
+        } else {
+            (self.wall.volume_fraction(d), self.wall.plane_density(d))
+        }
+    }
+}
+
+impl FluidModel {
     fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         params.validate()?;
         boundary.validate()?;
@@ -72,17 +89,20 @@ impl Processor for DensityPressure {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let grid = grid(ctx, particles, self.0.params.h, "density")?;
         let masses = particles.masses();
+        let model = &self.0;
         let FluidModel {
             params,
             kernels,
-            wall,
             boundary: b,
-        } = &self.0;
+            ..
+        } = model;
         let (poly6, rho0, h) = (kernels.poly6, params.rest_density, params.h);
-        let masses = grid.to_slot_order(masses);
-        let rho = grid.par_map(|_, nb| {
-            let mut rho = nb.poly6_sums(&poly6, &masses).value;
-            b.for_each_wall_within(nb.centre(), h, |d, _| rho += rho0 * wall.volume_fraction(d));
+        let slot_masses = grid.to_slot_order(masses);
+        let rho = grid.par_map(|i, nb| {
+            let mut rho = nb.poly6_sums(&poly6, &slot_masses).value;
+            b.for_each_wall_within(nb.centre(), h, |d, _| {
+                rho += rho0 * model.wall_term(d, masses[i]).0;
+            });
             rho
         });
         let (k, suction) = (params.stiffness, params.negative_pressure_scale);
@@ -138,7 +158,7 @@ impl Processor for Forces {
             spiky,
             viscosity,
         } = self.0.kernels;
-        let (prm, wall, b) = (self.0.params, self.0.wall, &self.0.boundary);
+        let (model, prm, b) = (&self.0, self.0.params, &self.0.boundary);
         // Per-particle factors, so the pair loop has no division but the spiky
         // kernel's 1/r: volume m/ρ and pressure term p/ρ² (eq. 15).
         let n = m.len();
@@ -186,7 +206,7 @@ impl Processor for Forces {
             } = force_sums(&nb, centre, &kernels, &fluid);
             b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
                 // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
-                a_p += pi * prm.rest_density * wall.plane_density(d) * normal;
+                a_p += pi * prm.rest_density * model.wall_term(d, m[i]).1 * normal;
             });
             let mut a = a_p + (prm.viscosity / rho[i]) * a_v + prm.gravity;
             let n_len = n.length();
