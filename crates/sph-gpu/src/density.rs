@@ -77,7 +77,8 @@ impl GpuDensity {
             stiffness: params.stiffness,
             suction: params.negative_pressure_scale,
             poly6: 315.0 / (64.0 * std::f32::consts::PI * h.powi(9)),
-            domain_min: boundary.domain.min.extend(0.0).to_array(),
+            // w: the clearance, under which the walls continue the lattice.
+            domain_min: boundary.domain.min.extend(boundary.clearance).to_array(),
             domain_max: boundary.domain.max.extend(0.0).to_array(),
         };
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

@@ -59,7 +59,8 @@ fn density(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var k = 0u; k < wall_count(); k++) {
         let w = wall(k, x);
         if w.w < f.h {
-            rho += f.rest_density * wall_volume_fraction(max(w.w, 0.0));
+            let d = max(w.w, 0.0);
+            rho += f.rest_density * wall_term(d, positions[i].w, vec2<f32>(wall_volume_fraction(d), 0.0)).x;
         }
     }
     densities[i] = rho;

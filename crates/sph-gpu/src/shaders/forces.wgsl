@@ -75,7 +75,9 @@ fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var k = 0u; k < wall_count(); k++) {
         let w = wall(k, x);
         if w.w < f.h {
-            a_p += pi * f.rest_density * plane_density(max(w.w, 0.0)) * w.xyz;
+            let d = max(w.w, 0.0);
+            let slope = wall_term(d, positions[i].w, vec2<f32>(0.0, plane_density(d))).y;
+            a_p += pi * f.rest_density * slope * w.xyz;
         }
     }
     var a = a_p + (f.viscosity / rho_i) * a_v + f.gravity.xyz;

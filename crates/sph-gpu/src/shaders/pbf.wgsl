@@ -166,8 +166,9 @@ fn fraction_and_density(d: f32) -> vec2<f32> {
 
 // The walls' density over ρ0 at x (in `.w`) and its gradient (`.xyz`): the
 // union of the half-spaces within h, 1 − Π_k (1 − f_k) (sph-core's
-// `Walls::at`; walls beyond the eighth are added, as there).
-fn walls_at(x: vec3<f32>) -> vec4<f32> {
+// `Walls::at`, or `Walls::at_layers` under a clearance; walls beyond the
+// eighth are added, as there).
+fn walls_at(x: vec3<f32>, m: f32) -> vec4<f32> {
     var keep: array<f32, 8>;
     var grads: array<vec3<f32>, 8>;
     var count = 0u;
@@ -177,7 +178,8 @@ fn walls_at(x: vec3<f32>) -> vec4<f32> {
         if w.w >= f.h {
             continue;
         }
-        let fd = fraction_and_density(max(w.w, 0.0));
+        let d = max(w.w, 0.0);
+        let fd = wall_term(d, m, fraction_and_density(d));
         let grad = -fd.y * w.xyz;
         if count < 8u {
             keep[count] = 1.0 - fd.x;
@@ -308,7 +310,7 @@ fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let xi = positions[i];
-    let walls = walls_at(xi.xyz);
+    let walls = walls_at(xi.xyz, xi.w);
     var rho = 0.0;
     var grad = vec3<f32>(0.0);
     var squares = 0.0;
@@ -434,7 +436,7 @@ fn curl(@builtin(global_invocation_id) id: vec3<u32>) {
         curl += cross(u, d * (ws.y * vol));
         mean += u * (vol * ws.x);
     }
-    densities[i] = f.rest_density * walls_at(xi.xyz).w + xi.w * f.w0 + rho;
+    densities[i] = f.rest_density * walls_at(xi.xyz, xi.w).w + xi.w * f.w0 + rho;
     curls[i] = vec4<f32>(curl, length(curl));
     means[i] = vec4<f32>(mean, 0.0);
 }

@@ -1,6 +1,7 @@
 // The walls of sph-core's `Boundary`: the domain box's six planes, then the
 // obstacles (boxes and spheres), in the CPU's order. Expects a uniform `f` with
-// `h`, `inv_h`, `domain_min` and `domain_max`, and the shader's
+// `h`, `inv_h`, `rest_density`, `domain_min` (w: the clearance) and
+// `domain_max`, and the shader's
 // `obstacles: array<Obstacle>` (one entry of kind NONE when there are none).
 
 // A box: a = (min, BOX), b = (max, 0); a sphere: a = (centre, SPHERE), b.x = radius.
@@ -70,4 +71,36 @@ fn plane_density(d: f32) -> f32 {
     let dd = clamp(d, 0.0, f.h);
     let q = f.h * f.h - dd * dd;
     return 315.0 / 256.0 * pow(f.inv_h, 9.0) * q * q * q * q;
+}
+
+// ∫ W_poly6 over the plane at distance d and its slope −d/dd
+// (`WallKernel::plane_and_slope`).
+fn plane_and_slope(d: f32) -> vec2<f32> {
+    let u = clamp(d * f.inv_h, 0.0, 1.0);
+    let w = 1.0 - u * u;
+    let w3 = w * w * w;
+    let c = 315.0 / 256.0;
+    return vec2<f32>(c * f.inv_h * w3 * w, 8.0 * c * f.inv_h * f.inv_h * u * w3);
+}
+
+// Under a clearance (`f.domain_min.w` > 0), a wall's fraction of ρ0 and its
+// slope at distance d from a particle of mass m, the fluid's lattice continued
+// behind the wall in layers V^⅓ apart, V = m/ρ0
+// (`WallKernel::layers_fraction_and_density`, sph-core's walls under a
+// clearance). `half_space` is returned without one.
+fn wall_term(d: f32, m: f32, half_space: vec2<f32>) -> vec2<f32> {
+    if f.domain_min.w <= 0.0 {
+        return half_space;
+    }
+    let s = pow(m / f.rest_density, 1.0 / 3.0);
+    var sum = vec2<f32>(0.0);
+    var z = max(d, 0.0) + 0.5 * s;
+    loop {
+        if z >= f.h {
+            break;
+        }
+        sum += plane_and_slope(z);
+        z += s;
+    }
+    return s * sum;
 }
