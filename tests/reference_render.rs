@@ -137,10 +137,11 @@ fn cases() -> Vec<Case> {
             camera: Camera::looking_at(Vec3::new(0.1, 0.2, 0.45), Vec3::new(0.1, 0.03, 0.0)),
             // A coarse (3 particles deep) slab with thin jets and a droplet: a
             // long silhouette, so the overhang of flat discs weighs most here.
-            // Measured: IoU 0.9887, 1.46°, FLIP 0.0297.
+            // Measured: IoU 0.9870, 0.89°, FLIP 0.0245 (with the scenes'
+            // default clearance; 0.9887, 1.46° and 0.0297 without it).
             min_iou: 0.984,
-            max_normal_error: 1.75,
-            max_flip: 0.036,
+            max_normal_error: 1.2,
+            max_flip: 0.031,
         },
     ]
 }

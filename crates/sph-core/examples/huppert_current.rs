@@ -10,20 +10,20 @@
 //!
 //! ```text
 //! cargo run --release -p sph-core --example huppert_current -- \
-//!     [--spacing 0.01] [--clearance 0] [--mu 100] [--seconds 8]
+//!     [--spacing 0.01] [--clearance C] [--mu 100] [--seconds 8]
 //! ```
 
 #[path = "../tests/common/mod.rs"]
 mod common;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let (mut spacing, mut clearance, mut mu, mut seconds) = (0.01f32, 0.0f32, 100.0f32, 8.0f64);
+    let (mut spacing, mut clearance, mut mu, mut seconds) = (0.01f32, None, 100.0f32, 8.0f64);
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = || args.next().ok_or(format!("{arg} needs a value"));
         match arg.as_str() {
             "--spacing" => spacing = value()?.parse()?,
-            "--clearance" => clearance = value()?.parse()?,
+            "--clearance" => clearance = Some(value()?.parse()?),
             "--mu" => mu = value()?.parse()?,
             "--seconds" => seconds = value()?.parse()?,
             other => return Err(format!("unknown argument `{other}`").into()),
@@ -31,8 +31,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let mut current = common::HuppertCurrent::new(spacing, mu, clearance)?;
     println!(
-        "{} particles at {spacing} m, clearance {clearance} m, μ = {mu} Pa·s; t (s), r (m), Huppert (m)",
-        current.particles
+        "{} particles at {spacing} m, clearance {} m, μ = {mu} Pa·s; t (s), r (m), Huppert (m)",
+        current.particles,
+        clearance.unwrap_or(0.5 * spacing)
     );
     // √2 steps down from `seconds` to 0.2 s, in order.
     let mut times: Vec<f64> = (0..)

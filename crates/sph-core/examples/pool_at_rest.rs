@@ -13,7 +13,8 @@
 //!     [--solver-toml 'pbf = { xsph = 0.1 }']]
 //! ```
 //!
-//! - `--clearance C`: the scene's `clearance` (m).
+//! - `--clearance C`: the scene's `clearance` (m; half the spacing when
+//!   left out).
 //! - `--gravity G`: gravity's magnitude (m/s², 9.81 by default).
 //! - `--every T`: every T seconds, the rms speed split into the mean
 //!   velocity of cells 2h wide and the motion about it (particle-scale
@@ -32,7 +33,7 @@ use sph_core::{Particles, Scene, SolverKind};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (side, s) = (0.6f32, 0.02f32);
     let mut kinds = Vec::new();
-    let (mut depths, mut seconds, mut clearance) = (vec![0.2f32, 0.5], 2.0f32, 0.0f32);
+    let (mut depths, mut seconds, mut clearance) = (vec![0.2f32, 0.5], 2.0f32, None);
     let (mut every, mut bands, mut extra) = (0.0f32, false, String::new());
     let mut gravity = 9.81f32;
     let mut args = std::env::args().skip(1);
@@ -41,7 +42,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         match arg.as_str() {
             "--depth" => depths = vec![value("--depth")?.parse()?],
             "--seconds" => seconds = value("--seconds")?.parse()?,
-            "--clearance" => clearance = value("--clearance")?.parse()?,
+            "--clearance" => clearance = Some(value("--clearance")?.parse()?),
             "--every" => every = value("--every")?.parse()?,
             "--bands" => bands = true,
             "--gravity" => gravity = value("--gravity")?.parse()?,

@@ -175,9 +175,10 @@ fn dam_break_errors(
 /// DFSPH against WCSPH on the dam break's first second: the densities each
 /// step starts from (after the last step's motion), every step.
 ///
-/// Measured (this test's output): DFSPH at most 1.06 % in a single
-/// particle and 0.073 % on average, in 555 steps; WCSPH 16.5 % and 0.45 %,
-/// in 3,057. Asserted: at most 1.25 % and 0.085 %, at most half WCSPH's
+/// Measured (this test's output): DFSPH at most 1.156 % in a single
+/// particle and 0.056 % on average, in 568 steps; WCSPH 9.98 % and 0.17 %,
+/// in 3,020 (without the scenes' default clearance: DFSPH 1.06 % and
+/// 0.073 %, WCSPH 16.5 % and 0.45 %). Asserted: at most 1.25 % and 0.085 %, at most half WCSPH's
 /// largest, in under a third of its steps. At the default density
 /// tolerance, a mean compression of 0.05 %, single particles are left
 /// above 1 %: the solve stops on the mean, the start's corner particles
@@ -215,9 +216,10 @@ fn dam_break_compression() {
 /// The 1 % for the single particle, met with the density solve's
 /// tolerance at 0.01 % instead of the default 0.05 %, at the same steps.
 ///
-/// Measured (this test's output): at most 0.66 % in a single particle
-/// and 0.035 % on average, in 556 steps, 16.9 density iterations per step
-/// against 5.0 at the default; asserted at most 0.8 % and 0.045 %. (At
+/// Measured (this test's output): at most 0.814 % in a single particle
+/// and 0.019 % on average, in 574 steps, 16.3 density iterations per step
+/// against 4.7 at the default; asserted at most 0.9 % and 0.045 %. (Before
+/// the scenes' default clearance of half a spacing, 0.66 % and 0.035 %. At
 /// 1 cm spacing, 10,000 particles, a throwaway copy of this test measured
 /// 0.64 % in 1,148 steps, 21.8 iterations per step against 5.2, 1.8 times
 /// the wall time.) The maximum is not monotonic in the tolerance (a sweep
@@ -242,7 +244,7 @@ fn dam_break_compression_at_a_tight_tolerance() {
         100.0 * max,
         100.0 * avg,
     );
-    assert!(max <= 0.008, "largest compression {max}");
+    assert!(max <= 0.009, "largest compression {max}");
     assert!(avg <= 0.00045, "average compression {avg}");
     assert_eq!(unconverged, 0);
     // The same steps, set by the flow: the tolerance buys iterations only.
@@ -259,7 +261,7 @@ fn dam_break_compression_at_a_tight_tolerance() {
 fn identical_for_1_2_and_4_threads() {
     let mut scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Dfsph);
     identical_for_thread_counts(&scene, 20, &[1, 2, 4]);
-    scene.clearance = 0.01;
+    scene.clearance = Some(0.01);
     identical_for_thread_counts(&scene, 20, &[1, 2, 4]);
 }
 

@@ -15,7 +15,7 @@ mod common;
 /// particles at 1 cm) at viscosity `mu`: (t, r, Huppert's r) at each of
 /// `times`.
 fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
-    let mut current = common::HuppertCurrent::new(0.01, mu, 0.0).unwrap();
+    let mut current = common::HuppertCurrent::new(0.01, mu, None).unwrap();
     let mut rows = Vec::new();
     for &t in times {
         let unconverged = |r: &sph_core::FrameReport| {
@@ -39,19 +39,31 @@ fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
 /// the first by the law's own scaling. The radius is the front's median
 /// over 32 sectors (`common::current_radius`).
 ///
-/// At late times (4 to 8 s, r 1.7–1.9 times the cylinder's 0.113 m):
+/// At late times (4 to 8 s, r 1.7–1.9 times the cylinder's 0.113 m), with
+/// the scenes' default clearance (half a spacing):
 /// - the exponent of log r against log t (Huppert's is 1/8) measured
-///   0.156: the cylinder starts below the similarity solution and reaches
+///   0.151: the cylinder starts below the similarity solution and reaches
 ///   it from below, so the exponent is above 1/8 and falls towards it.
 ///   Asserted in [0.125, 0.175]: a current that stopped spreading gives 0.
-/// - r⁸ grows at 0.76 of Huppert's rate 0.894⁸ ρ g V³/3μ, asserted within
-///   0.7–1.0 (r⁸ magnifies an error in the radius eightfold). That rate is
+/// - r⁸ grows at 0.68 of Huppert's rate 0.894⁸ ρ g V³/3μ, asserted within
+///   0.65–1.0 (r⁸ magnifies an error in the radius eightfold). That rate is
 ///   the similarity solution's whatever the virtual time origin, and a
 ///   current still approaching it, as the exponent says this one is,
 ///   grows r⁸ more slowly.
-/// - the radius measured 5.8 and 5.1 % below Huppert's at 5.7 and 8 s,
-///   asserted within 7 % (a current frozen at its 4 s radius is 14.8 %
+/// - the radius measured 7.1 and 6.3 % below Huppert's at 5.7 and 8 s,
+///   asserted within 7.5 % (a current frozen at its 4 s radius is 14.8 %
 ///   short at 8 s).
+///
+/// The clearance costs this thin current (two layers deep at 8 s) speed:
+/// with its first layer free to sink into the floor it read a rate of
+/// 0.76 and 5.8 and 5.1 % short, and the bounds were 0.7 and 7 %
+/// (`cargo run --release -p sph-core --example huppert_current --
+/// --clearance 0`). The clearance holds the first layer where the lattice
+/// put it, a quarter of the current's depth, against the no-slip floor
+/// (the wall friction that gives Poiseuille's flow rate within 5 % in
+/// `tests/viscosity.rs`); the sinking layer had made room for the layers
+/// above. The gap shrinks with resolution (at 5 mm, with the older
+/// square-cut current: 0.82 without and 0.75 with a clearance).
 ///
 /// These are the method's, not the resolution's: at 5 mm (32,040
 /// particles, `cargo run --release -p sph-core --example huppert_current --
@@ -92,10 +104,10 @@ fn axisymmetric_current_spreads_as_huppert() {
         (0.125..=0.175).contains(&exponent),
         "exponent {exponent} over 4–8 s"
     );
-    assert!((0.7..=1.0).contains(&rate), "r⁸ rate {rate} of Huppert's");
+    assert!((0.65..=1.0).contains(&rate), "r⁸ rate {rate} of Huppert's");
     for &(t, r, theory) in &tail[1..] {
         assert!(
-            (r / theory - 1.0).abs() <= 0.07,
+            (r / theory - 1.0).abs() <= 0.075,
             "t = {t}: r {r} m, Huppert {theory} m"
         );
     }

@@ -8,8 +8,9 @@ use sph_core::{DfsphParams, PbfParams, Scene, SolverKind, World};
 const S: f32 = 0.02;
 
 /// A pool `side` square and `depth` deep, particle centres kept `clearance`
-/// from the walls, run by `kind` for `seconds` of 60 Hz frames.
-fn settled(kind: SolverKind, side: f32, depth: f32, clearance: f32, seconds: f32) -> World {
+/// from the walls (`None`: the scene's default, half a spacing), run by
+/// `kind` for `seconds` of 60 Hz frames.
+fn settled(kind: SolverKind, side: f32, depth: f32, clearance: Option<f32>, seconds: f32) -> World {
     let spec = SolverSpec {
         kind,
         ..SolverSpec::default()
@@ -22,7 +23,7 @@ fn settled(kind: SolverKind, side: f32, depth: f32, clearance: f32, seconds: f32
 }
 
 /// That pool, not yet run, by the solver and parameters of `spec`.
-fn pool(spec: SolverSpec, side: f32, depth: f32, clearance: f32) -> World {
+fn pool(spec: SolverSpec, side: f32, depth: f32, clearance: Option<f32>) -> World {
     let mut scene = Scene::dam_break(0.15, side, S);
     scene.solver = spec;
     scene.domain.min = [0.0; 3];
@@ -45,15 +46,16 @@ fn first_layer(world: &World, side: f32) -> f32 {
     heights.iter().sum::<f32>() / heights.len() as f32
 }
 
-/// With a clearance of half a spacing, the first layer of every solver
-/// rests within 10 % of half a spacing above the floor, where the lattice
-/// put it. (Without one it sinks to 1–4 mm of its 10: `cargo run --release
-/// -p sph-core --example pool_at_rest`.)
+/// With the scenes' default clearance (half a spacing), the first layer of
+/// every solver rests within 10 % of half a spacing above the floor, where
+/// the lattice put it. (Without one it sinks to 1–4 mm of its 10: `cargo
+/// run --release -p sph-core --example pool_at_rest -- SOLVER --clearance
+/// 0`.)
 #[test]
 fn the_first_layer_rests_half_a_spacing_above_the_floor() {
     for kind in SolverKind::ALL {
         let (side, depth) = (0.3, 0.2);
-        let world = settled(kind, side, depth, 0.5 * S, 1.0);
+        let world = settled(kind, side, depth, None, 1.0);
         let layer = first_layer(&world, side);
         eprintln!("{kind}: first layer {:.2} mm", 1e3 * layer);
         assert!(
@@ -66,7 +68,7 @@ fn the_first_layer_rests_half_a_spacing_above_the_floor() {
 }
 
 /// DFSPH's solves know the clearance's projection ("Contacts" in
-/// `solver::dfsph`): with a clearance of half a spacing, no layer of a
+/// `solver::dfsph`): with the default clearance of half a spacing, no layer of a
 /// pool 0.5 m deep takes the compression the first layer cannot, and the
 /// pool comes to rest. After 1 s, each 2 cm band's mean density (more
 /// than 2h from the side walls, below the top 4 cm) within 0.2 % of ρ0
@@ -76,7 +78,7 @@ fn the_first_layer_rests_half_a_spacing_above_the_floor() {
 #[test]
 fn dfsph_with_a_clearance_compresses_no_layer() {
     let (side, depth) = (0.3, 0.5);
-    let world = settled(SolverKind::Dfsph, side, depth, 0.5 * S, 1.0);
+    let world = settled(SolverKind::Dfsph, side, depth, None, 1.0);
     let p = &world.particles;
     let inside = |c: f32| c > 4.0 * S && c < side - 4.0 * S;
     let mut bands = vec![(0.0f64, 0usize); (depth / 0.02).round() as usize];
@@ -119,11 +121,13 @@ fn rms_speed(world: &World) -> f64 {
 ///   shallow pool jittering above 5 mm/s, and the defaults at about
 ///   80 mm/s (`cargo run --release -p sph-core --example pool_at_rest --
 ///   pbf`).
-/// - DFSPH (`DfsphParams::sleep_speed`, 1 cm/s) at its defaults, which
-///   leave about 10 mm/s at 2 s without sleeping (the shallow pool only
+/// - DFSPH (`DfsphParams::sleep_speed`, 1.5 cm/s) at its defaults, which
+///   leave about 8 mm/s at 2 s without sleeping (the shallow pool only
 ///   here; the deep one, 0.6 m square, is still from 2 s too: `cargo run
 ///   --release -p sph-core --example pool_at_rest -- dfsph --depth 0.5
-///   --solver-toml 'dfsph = { sleep_speed = 0.01 }'`).
+///   --solver-toml 'dfsph = { sleep_speed = 0.015 }'`). At 1 cm/s the
+///   shallow pool stayed awake at 12.3 mm/s: the particles next to the
+///   walls' clearance planes keep moving above it for longer.
 ///
 /// PBF's deep pool is 0.3 m square here, to keep the test short.
 #[test]
@@ -150,11 +154,11 @@ fn pools_fall_asleep() {
         (damped(4, 0.02), 0.6, 0.2, true),
         (damped(6, 0.02), 0.3, 0.5, true),
         (damped(4, 0.0), 0.6, 0.2, false),
-        (dfsph(0.01), 0.6, 0.2, true),
+        (dfsph(0.015), 0.6, 0.2, true),
     ] {
         let kind = spec.kind;
         // 1.9 s, then where each particle is, then 2 s.
-        let mut world = pool(spec, side, depth, 0.0);
+        let mut world = pool(spec, side, depth, None);
         let mut at = std::collections::HashMap::new();
         for frame in 1..=120 {
             world.advance(1.0 / 60.0).unwrap();

@@ -206,12 +206,17 @@ fn hydrostatic_tank() {
         .map(|&i| (p.densities()[i] as f64 - rho0).abs() / rho0)
         .sum::<f64>()
         / interior.len() as f64;
-    // Least-squares slope of pressure against depth.
+    // Least-squares slope of pressure against depth, and against the weight
+    // of the fluid above (`common::pressures_and_weights_above`: near the
+    // free surface the layers sit closer than in the bulk, which a slope
+    // over depth reads as pressure).
     let slope = common::slope(interior.iter().map(|&i| {
         let d = f64::from(top - p.positions()[i].y);
         (d, f64::from(p.pressures()[i]))
     }));
     let rho_g = rho0 * 9.81;
+    let weighed =
+        common::slope(common::pressures_and_weights_above(p, 9.81, w, spacing, h, h).into_iter());
     let rms_speed = (p
         .velocities()
         .iter()
@@ -220,14 +225,22 @@ fn hydrostatic_tank() {
         / p.len() as f64)
         .sqrt();
     println!(
-        "density error {:.3} %, dp/d(depth) = {slope:.1} Pa/m vs ρ0 g = {rho_g:.1} ({:+.2} %), rms speed {rms_speed:.4} m/s",
+        "density error {:.3} %, dp/d(depth) = {slope:.1} Pa/m vs ρ0 g = {rho_g:.1} ({:+.2} %), \
+         pressure over the weight above {weighed:.4}, rms speed {rms_speed:.4} m/s",
         100.0 * density_error,
         100.0 * (slope - rho_g) / rho_g
     );
     assert!(density_error < 0.03, "mean density error {density_error}");
-    // Measured −1.23 % (DFSPH's tank: +1.21 %).
+    // Measured −2.08 % with the scenes' default clearance (−1.23 % without
+    // one; DFSPH's tank: +1.21 %). Against the weight of the fluid above,
+    // the same pressures read 0.874: this stiffness lets the column settle
+    // 13 % below its filled depth (the 99th percentile of heights 0.346 m
+    // of 0.4), about 1,130 kg/m³ of particle mass per volume, while the
+    // poly6 density reads 0.36 % above ρ0. The printed ratio is that
+    // compression's measure; the slope over depth is what the pressure
+    // force balances.
     assert!(
-        (slope - rho_g).abs() < 0.02 * rho_g,
+        (slope - rho_g).abs() < 0.025 * rho_g,
         "slope {slope} vs ρ0 g {rho_g}"
     );
     // 2.5 % of the free-fall speed √(g·depth) ≈ 2 m/s.
@@ -304,11 +317,15 @@ fn dam_break_soak_stays_contained_and_subcritical() {
         }
     }
     assert!(world.particles.positions().iter().all(|x| x.is_finite()));
-    // And it does run out: measured 0.727 of Ritter's ideal (frictionless,
-    // dry-bed) speed, which experiments also stay below; asserted within
-    // 0.05 of that.
+    // And it does run out: measured 0.495 of Ritter's ideal (frictionless,
+    // dry-bed) speed, which experiments also stay below (Martin & Moyce's
+    // front averages 0.47 of it to Z = 4, where this tank ends: see
+    // `tests/dam_break_experiment.rs`); asserted within 0.05 of that. It
+    // read 0.727 before the walls continued the lattice under the
+    // clearance: the first step kicked the column's over-dense wall and
+    // corner particles ahead of the front.
     assert!(
-        (fastest / ritter - 0.727).abs() <= 0.05,
+        (fastest / ritter - 0.495).abs() <= 0.05,
         "the front moved at most {fastest} m/s, Ritter {ritter} m/s"
     );
     println!(

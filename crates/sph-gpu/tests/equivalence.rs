@@ -280,7 +280,7 @@ fn hundred_gpu_steps_with_a_clearance_match_the_cpu_solver() {
 fn with_obstacles(clearance: f32) -> sph_core::Scene {
     use sph_core::scene::ObstacleSpec;
     let mut scene = sph_core::Scene::dam_break(0.2, 0.06, 0.02);
-    scene.clearance = clearance;
+    scene.clearance = Some(clearance);
     // A sphere inside the column (its lattice points are left out) and a box
     // against the column's front: fluid is within h of both from the start.
     scene.obstacles = vec![

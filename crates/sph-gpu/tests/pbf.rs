@@ -16,7 +16,7 @@ use splat_render::GpuContext;
 fn with_obstacles(clearance: f32) -> Scene {
     use sph_core::scene::ObstacleSpec;
     let mut scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
-    scene.clearance = clearance;
+    scene.clearance = Some(clearance);
     scene.obstacles = vec![
         ObstacleSpec::Sphere {
             centre: [0.1, 0.2, 0.03],

@@ -39,12 +39,16 @@ fn covered(out: &Surfels, field: &ColourField) -> (f64, usize) {
 /// settled for 2 s by DFSPH. Its top's surfels (facing up, 2h from the
 /// walls) lean from vertical by at most 1° at the median (issue 28's
 /// target), the surface covers all of the field's iso-surface, and it
-/// encloses N m/ρ0. Measured (this test's output), anisotropic: 0.89°
-/// median, 2.49° at the 99th percentile, volume 0.990, coverage 100 %;
-/// isotropic: 1.49°, 4.31°, 1.001, 100 %. Asserted: the medians ≤ 1°
+/// encloses N m/ρ0. Measured (this test's output), anisotropic: 0.97°
+/// median, 2.90° at the 99th percentile, volume 0.985, coverage 100 %;
+/// isotropic: 1.52°, 4.27°, 0.991, 100 %. Asserted: the medians ≤ 1°
 /// (anisotropic) and 1.75° (isotropic), the anisotropic one at least 0.4°
 /// below the isotropic, the 99th percentiles ≤ 3° and 5°, the volumes
-/// within 1.5 %, coverage ≥ 99 %.
+/// within 2 %, coverage ≥ 99 %. The scenes' clearance holds the particles
+/// half a spacing off the floor and the four walls, and the surface,
+/// which knows nothing of walls, stays off them with the particles: before
+/// it the first layers sank towards the walls and the volumes read 0.990
+/// and 1.001 (0.89° and 1.49° at the median), and the bound was 1.5 %.
 /// On a pool settled by WCSPH, whose top is rougher, 8.9° against 11.2°
 /// (`cargo run --release -p surfel-extract --example flat_pool -- wcsph`).
 #[test]
@@ -104,7 +108,7 @@ fn settled_pool_is_flat_and_keeps_its_volume() {
         assert!(median <= most, "{surface:?}: median {median}°");
         assert!(p99 <= most_p99, "{surface:?}: 99th percentile {p99}°");
         assert!(
-            (enclosed - 1.0).abs() <= 0.015,
+            (enclosed - 1.0).abs() <= 0.02,
             "{surface:?}: volume {enclosed}"
         );
         assert!(covered >= 0.99, "{surface:?}: coverage {covered}");

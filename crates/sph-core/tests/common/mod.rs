@@ -605,7 +605,8 @@ pub fn current_radius(
 /// Huppert (1982)'s axisymmetric viscous current (`tests/huppert.rs`): a
 /// cylinder of radius 0.113 m (r0, the radius of a 0.2 m square's area)
 /// and height 0.1 m let go on the floor of a 1.2 m square tank, DFSPH with
-/// its implicit viscosity μ, the walls' clearance `clearance`.
+/// its implicit viscosity μ, the walls' clearance `clearance` (`None`: the
+/// scene's default, half a spacing).
 #[allow(dead_code)]
 pub struct HuppertCurrent {
     pub world: sph_core::World,
@@ -622,7 +623,7 @@ pub struct HuppertCurrent {
 #[allow(dead_code)]
 impl HuppertCurrent {
     /// The current at `spacing` (m), `mu` (Pa·s) and `clearance` (m).
-    pub fn new(spacing: f32, mu: f32, clearance: f32) -> sph_core::Result<Self> {
+    pub fn new(spacing: f32, mu: f32, clearance: Option<f32>) -> sph_core::Result<Self> {
         let (height, tank) = (0.1f32, 1.2f32);
         let r0 = 0.2 / std::f32::consts::PI.sqrt();
         let mut scene = sph_core::Scene::dam_break(2.0 * r0, height, spacing)
