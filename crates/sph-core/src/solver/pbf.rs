@@ -596,20 +596,28 @@ struct Model {
     lanes: LaneKernels,
     /// W_poly6(0).
     w0: f32,
-    /// Whether the walls continue the fluid's lattice
-    /// ([`Walls::at_layers`]): where a clearance holds particles off them.
-    layered_walls: bool,
+    /// Under a clearance, the spacing of the fluid's lattice that the
+    /// walls continue behind them ([`Walls::at_layers`]): the lightest
+    /// particle's V^⅓, set by each station's pass ([`Model::set_layers`]).
+    layers: Option<f32>,
 }
 
 impl Model {
-    /// The walls' density term and its gradient over ρ0 at `x`, for a
-    /// particle of mass `m` ([`Walls`]).
+    /// The walls' density term and its gradient over ρ0 at `x` ([`Walls`]).
     #[inline(always)]
-    fn walls_at(&self, x: Vec3, m: f32) -> (f32, Vec3) {
-        if self.layered_walls {
-            self.walls.at_layers_of(x, m * self.inv_rho0)
-        } else {
-            self.walls.at(x)
+    fn walls_at(&self, x: Vec3) -> (f32, Vec3) {
+        match self.layers {
+            Some(spacing) => self.walls.at_layers(x, spacing),
+            None => self.walls.at(x),
+        }
+    }
+
+    /// Under a clearance, the walls' layers at the spacing of the lightest
+    /// of `masses`, V^⅓ = (m/ρ0)^⅓, as DFSPH takes each particle's.
+    fn set_layers(&mut self, masses: &[f32]) {
+        if self.walls.boundary().clearance > 0.0 {
+            let spacing = (super::lanes::lightest(masses) * self.inv_rho0).cbrt();
+            self.layers = spacing.is_finite().then_some(spacing);
         }
     }
 
@@ -620,7 +628,6 @@ impl Model {
         let h = params.h;
         let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
         let dq = pbf.scorr_dq * h;
-        let layered_walls = boundary.clearance > 0.0;
         Ok(Self {
             params,
             pbf,
@@ -630,7 +637,7 @@ impl Model {
             inv_rho0: 1.0 / params.rest_density,
             lanes: LaneKernels::new(&poly6, &spiky, h),
             w0: poly6.value_r2(0.0),
-            layered_walls,
+            layers: None,
         })
     }
 
@@ -644,7 +651,7 @@ impl Model {
         lists: &NeighbourLists,
     ) -> Constraint {
         let xi = rows[i];
-        let (rho_wall, wall) = self.walls_at(Vec3::new(xi[0], xi[1], xi[2]), xi[3]);
+        let (rho_wall, wall) = self.walls_at(Vec3::new(xi[0], xi[1], xi[2]));
         let inv_rho0 = S::splat(self.inv_rho0);
         // ρ, ∇_i C_i and Σ|∇_j C_i|² (∇_j C_i = −G_ij).
         let mut sums = DensitySums::new();
@@ -751,7 +758,7 @@ impl Model {
         let x = Vec3::new(xi[0], xi[1], xi[2]);
         let curl = Vec3::new(acc[1].sum(), acc[2].sum(), acc[3].sum());
         Sums {
-            rho: self.walls_at(x, xi[3]).0 + xi[3] * self.w0 + acc[0].sum(),
+            rho: self.walls_at(x).0 + xi[3] * self.w0 + acc[0].sum(),
             curl,
             curl_len: curl.length(),
             mean: Vec3::new(acc[4].sum(), acc[5].sum(), acc[6].sum()),
@@ -897,6 +904,7 @@ impl Processor for SolveDensity {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "density")?;
+        self.model.set_layers(particles.masses());
         let model = &self.model;
         let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
         let sleep = pbf.sleep_speed;
@@ -1146,6 +1154,7 @@ impl Processor for VorticityXsph {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "viscosity")?;
+        self.model.set_layers(particles.masses());
         let model = &self.model;
         let dt = ctx.dt;
         let c = match model.pbf.viscosity {
@@ -1287,7 +1296,7 @@ mod tests {
             let plain: f32 = (0..n)
                 .map(|j| m[j] * poly6.value_r2((x[i] - x[j]).length_squared()))
                 .sum();
-            let expected = plain + model.walls_at(x[i], m[i]).0;
+            let expected = plain + model.walls_at(x[i]).0;
             assert!(
                 (c.rho - expected).abs() <= 1e-5 * expected,
                 "particle {i}: {} against {expected}",

@@ -57,15 +57,6 @@ impl Walls {
         self.united(x, |d| self.kernel.layers_fraction_and_density(d, spacing))
     }
 
-    /// [`Self::at_layers`] for a particle of volume `volume` = m/ρ0, whose
-    /// lattice spacing V^⅓ is taken only where a wall is within h.
-    #[inline(always)]
-    pub(crate) fn at_layers_of(&self, x: Vec3, volume: f32) -> (f32, Vec3) {
-        self.united(x, |d| {
-            (self.kernel).layers_fraction_and_density(d, volume.cbrt())
-        })
-    }
-
     /// The union of the walls within h of `x`, each of fraction and slope
     /// `wall(d)` at distance d.
     #[inline(always)]
