@@ -67,9 +67,7 @@ impl FluidModel {
             (self.wall.volume_fraction(d), self.wall.plane_density(d))
         }
     }
-}
 
-impl FluidModel {
     fn new(params: FluidParams, boundary: Boundary) -> Result<Self> {
         params.validate()?;
         boundary.validate()?;
