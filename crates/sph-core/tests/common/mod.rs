@@ -92,16 +92,48 @@ pub fn drop_period(solver: sph_core::Solver, spacing: f32, stretch: f32, seconds
     };
     let (series, rayleigh, r) =
         drop_oscillation(solver, spacing, 16, 2, |x, _| x * scale, extent, seconds);
-    let (mut turns, mut last) = (Vec::new(), series[0].1);
+    turn_period(&series, 0.02 * r)
+        .unwrap_or_else(|| panic!("stretch {stretch}: fewer than 3 turns"))
+        / rayleigh
+}
+
+/// The period of an oscillating `series` (t, y) from its turns: twice the
+/// mean spacing of its local extrema after the start, a turn counting where
+/// it lies more than `min_swing` from the last (so that a resting signal's
+/// wiggles do not). `None` with fewer than three turns. The first half
+/// swing, from the start to the first turn, is left out.
+#[allow(dead_code)]
+pub fn turn_period(series: &[(f64, f64)], min_swing: f64) -> Option<f64> {
+    let (mut turns, mut last) = (Vec::new(), series.first()?.1);
     for w in series.windows(3) {
         let (a, b, c) = (w[0].1, w[1].1, w[2].1);
-        if ((b > a && b >= c) || (b < a && b <= c)) && (b - last).abs() > 0.02 * r {
+        if ((b > a && b >= c) || (b < a && b <= c)) && (b - last).abs() > min_swing {
             turns.push(w[1].0);
             last = b;
         }
     }
-    assert!(turns.len() >= 3, "stretch {stretch}: turns at {turns:?}");
-    2.0 * (turns[turns.len() - 1] - turns[0]) / (turns.len() - 1) as f64 / rayleigh
+    (turns.len() >= 3).then(|| 2.0 * (turns[turns.len() - 1] - turns[0]) / (turns.len() - 1) as f64)
+}
+
+/// The l = 4 drop of [`drop_l4_period`] at amplitude `eps`, its period read
+/// from the amplitude's turns ([`turn_period`], a turn at least 0.01 from
+/// the last, as `rayleigh_drop` reads it) over Rayleigh's. For large `eps`,
+/// where the inviscid drop itself swings slower than Rayleigh's linear
+/// period (`scripts/inviscid_drop.py`).
+#[allow(dead_code)]
+pub fn drop_l4_turns(
+    solver: sph_core::Solver,
+    spacing: f32,
+    across: u32,
+    eps: f32,
+    seconds: f64,
+) -> f64 {
+    use sph_core::glam::Vec3;
+    let amplitude = |x: &[Vec3], c: Vec3, r: f64| l4_amplitude(x, c, r);
+    let move_point = move |x: Vec3, r: f32| x + eps * r * l4_flow(x / r);
+    let (series, rayleigh, _) =
+        drop_oscillation(solver, spacing, across, 4, move_point, amplitude, seconds);
+    turn_period(&series, 0.01).unwrap_or_else(|| panic!("eps {eps}: fewer than 3 turns")) / rayleigh
 }
 
 /// The l = 4 period of the same drop at `across`³ cells' volume (R ≈ 0.62
