@@ -220,6 +220,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             _ => seconds = arg.parse()?,
         }
     }
+    if !(sigma.is_finite() && sigma > 0.0) {
+        return Err(format!(
+            "--sigma {sigma}: must be positive (N/m); the drop is read against Rayleigh's period \
+             and Laplace's pressure, which both need σ"
+        )
+        .into());
+    }
     let params = FluidParams {
         gravity: Vec3::ZERO,
         // `--akinci` replaces PBF's and DFSPH's own σ.

@@ -504,6 +504,10 @@ fn drop_oscillation(
 /// oscillation in that range).
 #[allow(dead_code)]
 pub fn damped_fit(series: &[(f64, f64)], omega: f64) -> Option<(f64, f64)> {
+    // The search's range scales with ω: none to search without one.
+    if !(omega.is_finite() && omega > 0.0) {
+        return None;
+    }
     let decay: Vec<Vec<f64>> = (0..=500)
         .map(|k| {
             series
