@@ -487,9 +487,16 @@ impl WallKernel {
     /// the first half a spacing behind the plane, at distance `d` from it
     /// (each layer integrated in its plane: s Σ_k ∫ W dA at
     /// d + (k + ½) s), and its slope −d/dd. A particle of a cubic lattice
-    /// filled to the wall then sums to the density of the lattice inside
-    /// (the midpoint rule of [`Self::fraction_and_density`]'s integral,
-    /// which starts such a particle a few % compressed at h = 2 spacings).
+    /// filled to the wall then sums to about the density of the lattice
+    /// inside (the midpoint rule of [`Self::fraction_and_density`]'s
+    /// integral, which starts such a particle a few % compressed at h = 2
+    /// spacings). How closely depends on the kernel and on `spacing`. At
+    /// h = 2 spacings the cubic spline's first layer sums to ρ0 within
+    /// 0.03 %. Poly6's sums 0.19 % over, because its in-plane integral
+    /// exceeds the lattice's in-plane sum. It sums 0.40 % over where
+    /// `spacing` is taken as V^⅓ of poly6's lattice mass, which is 0.3 %
+    /// short of the lattice's spacing, as PBF and WCSPH take it
+    /// (`docs/benchmark-notes.md`, "The walls' layers at V^⅓").
     #[inline]
     pub fn layers_fraction_and_density(&self, d: f32, spacing: f32) -> (f32, f32) {
         let (mut f, mut slope) = (0.0, 0.0);
