@@ -949,20 +949,21 @@ fn a_drop_rings_near_rayleighs_l4_period_when_resolved() {
 
 /// Rayleigh's period is the small-amplitude limit: a drop far from round
 /// swings slower. An inviscid drop in l = 4 at amplitude +0.2 and −0.2
-/// swings at 1.064 and 1.084 of Rayleigh's period by its turns
-/// (`scripts/inviscid_drop.py --mode 4 --eps 0.2 -0.2`, potential flow at
-/// finite amplitude from the same start; Zrnic & Brenn 2021 give the same
-/// kind of lengthening for l = 2). PBF's drop at 2.5 mm (R = 20 spacings),
-/// read the same way over 3 s: measured 1.054 and 1.077, where at ε = 0.05
-/// it reads 0.973 (`rayleigh_drop -- pbf 3 --shape l4 --eps E --spacing
-/// 0.0025 --across 32`). Held: each within 4 % of the inviscid drop's, which
-/// a drop that kept Rayleigh's period at every amplitude would miss.
+/// swings at 1.065 and 1.084 of Rayleigh's period by its turns
+/// (`common::inviscid_drop`, potential flow at finite amplitude from the
+/// same start, checked in `tests/inviscid_drop.rs`). PBF's drop at 2.5 mm
+/// (R = 20 spacings), read the same way over 3 s: measured 1.054 and 1.077,
+/// where at ε = 0.05 it reads 0.973 (`rayleigh_drop -- pbf 3 --shape l4
+/// --eps E --spacing 0.0025 --across 32`). Held: each within 4 % of the
+/// inviscid drop's, which a drop that kept Rayleigh's period at every
+/// amplitude would miss.
 #[test]
 fn a_large_drop_swings_as_slowly_as_an_inviscid_one() {
     let pbf = Solver::Pbf(PbfParams::default());
-    for (eps, inviscid) in [(0.2f32, 1.064), (-0.2, 1.084)] {
+    for eps in [0.2f32, -0.2] {
+        let inviscid = common::inviscid_drop::period(4, f64::from(eps));
         let ratio = common::drop_l4_turns(pbf, 0.0025, 32, eps, 3.0);
-        println!("eps {eps}: period / Rayleigh's {ratio:.3}, the inviscid drop's {inviscid}");
+        println!("eps {eps}: period / Rayleigh's {ratio:.3}, the inviscid drop's {inviscid:.3}");
         assert!(
             (ratio / inviscid - 1.0).abs() <= 0.04,
             "eps {eps}: {ratio:.3}"

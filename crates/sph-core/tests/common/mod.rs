@@ -2,6 +2,9 @@
 //! module and uses part of it.
 
 #[allow(dead_code)]
+pub mod inviscid_drop;
+
+#[allow(dead_code)]
 /// The least-squares slope of y over x for the points (x, y).
 pub fn slope(points: impl Iterator<Item = (f64, f64)> + Clone) -> f64 {
     let n = points.clone().count() as f64;
@@ -119,7 +122,7 @@ pub fn turn_period(series: &[(f64, f64)], min_swing: f64) -> Option<f64> {
 /// from the amplitude's turns ([`turn_period`], a turn at least 0.01 from
 /// the last, as `rayleigh_drop` reads it) over Rayleigh's. For large `eps`,
 /// where the inviscid drop itself swings slower than Rayleigh's linear
-/// period (`scripts/inviscid_drop.py`).
+/// period ([`inviscid_drop`]).
 #[allow(dead_code)]
 pub fn drop_l4_turns(
     solver: sph_core::Solver,
