@@ -103,6 +103,17 @@
 //! faster than Lamb's viscous rate: the solvers' own dissipation, not the
 //! fluid's μ.
 //!
+//! Far from round, a drop swings slower in fact too: an inviscid drop
+//! in l = 4 at amplitude ±0.2 swings at 1.065 and 1.084 of Rayleigh's
+//! period (potential flow at finite amplitude, `tests/common/inviscid_drop.rs`).
+//! PBF's at R = 10 h reads 1.054 and 1.077 (`tests/pbf.rs`).
+//!
+//! These periods hold at μ ≥ 0.01 Pa·s. At water's μ = 0.001, DFSPH's l = 4
+//! drop at R = 7 h swings at 1.32 of Rayleigh's period, against 1.04 at
+//! 0.01. Its particles at rest move at 7–15 mm/s there, and why that
+//! slows the swing is not known (`docs/benchmark-notes.md`, "DFSPH's drops
+//! at water's viscosity"). PBF's XSPH does not read μ.
+//!
 //! One drop's period moves by several per cent with rounding-level
 //! changes (moving these sums into lanes moved the PBF test's three drops
 //! from 0.945–1.068 to 0.930–0.953 of Rayleigh's period).
