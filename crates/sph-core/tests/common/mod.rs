@@ -131,12 +131,25 @@ pub fn drop_l4_turns(
     eps: f32,
     seconds: f64,
 ) -> f64 {
+    let (series, rayleigh) = l4_series(solver, spacing, across, eps, seconds);
+    turn_period(&series, 0.01).unwrap_or_else(|| panic!("eps {eps}: fewer than 3 turns")) / rayleigh
+}
+
+/// The l = 4 amplitude of [`drop_l4_period`]'s drop against time, and
+/// Rayleigh's l = 4 period.
+fn l4_series(
+    solver: sph_core::Solver,
+    spacing: f32,
+    across: u32,
+    eps: f32,
+    seconds: f64,
+) -> (Vec<(f64, f64)>, f64) {
     use sph_core::glam::Vec3;
     let amplitude = |x: &[Vec3], c: Vec3, r: f64| l4_amplitude(x, c, r);
     let move_point = move |x: Vec3, r: f32| x + eps * r * l4_flow(x / r);
     let (series, rayleigh, _) =
         drop_oscillation(solver, spacing, across, 4, move_point, amplitude, seconds);
-    turn_period(&series, 0.01).unwrap_or_else(|| panic!("eps {eps}: fewer than 3 turns")) / rayleigh
+    (series, rayleigh)
 }
 
 /// The l = 4 period of the same drop at `across`³ cells' volume (R ≈ 0.62
@@ -158,11 +171,7 @@ pub fn drop_l4_period(
     eps: f32,
     seconds: f64,
 ) -> (f64, f64) {
-    use sph_core::glam::Vec3;
-    let amplitude = |x: &[Vec3], c: Vec3, r: f64| l4_amplitude(x, c, r);
-    let move_point = move |x: Vec3, r: f32| x + eps * r * l4_flow(x / r);
-    let (series, rayleigh, _) =
-        drop_oscillation(solver, spacing, across, 4, move_point, amplitude, seconds);
+    let (series, rayleigh) = l4_series(solver, spacing, across, eps, seconds);
     let omega_r = 2.0 * std::f64::consts::PI / rayleigh;
     let (omega, beta) = damped_fit(&series, omega_r).expect("the drop rings");
     (omega_r / omega, omega_r / omega.hypot(beta))
