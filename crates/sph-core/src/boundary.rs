@@ -18,6 +18,9 @@
 //! see a density deficit, are pushed into it by the fluid behind them and pile up
 //! there; the analytic wall term costs nothing per neighbour, unlike boundary
 //! particles (Akinci et al. 2012), and needs no sampling of curved obstacles.
+//! Under a [`Boundary::clearance`] the solvers take the fluid behind a wall
+//! as their lattice continued layer by layer ([`WallKernel::lattice_layers`]),
+//! so that a lattice filled to a wall starts its first layer at rest density.
 //!
 //! Known limitation: where walls meet, each adds its own half-space's fluid,
 //! so the region behind both is counted twice. A particle on a box edge gets
@@ -34,6 +37,7 @@
 use glam::Vec3;
 
 use crate::error::{Error, Result};
+use crate::kernels::{CubicSpline, Poly6, lattice_sum};
 
 /// An axis-aligned box.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -380,6 +384,18 @@ enum Shape {
     CubicSpline,
 }
 
+/// The layers in which a wall continues the fluid's lattice behind it
+/// ([`WallKernel::layers_fraction_and_density`]), from
+/// [`WallKernel::lattice_layers`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Layers {
+    /// The distance between layers, the lattice's spacing (m).
+    pub spacing: f32,
+    /// Each layer's fluid volume per unit area (m): V/s² on a lattice
+    /// of spacing s, corrected for the in-plane sum.
+    pub thickness: f32,
+}
+
 impl WallKernel {
     /// For the poly6 kernel of smoothing length `h`.
     pub fn new(h: f32) -> Self {
@@ -483,30 +499,93 @@ impl WallKernel {
     }
 
     /// The wall as the fluid's own lattice continued behind it: the
-    /// kernel-weighted volume fraction of layers of fluid `spacing` apart,
-    /// the first half a spacing behind the plane, at distance `d` from it
-    /// (each layer integrated in its plane: s Σ_k ∫ W dA at
-    /// d + (k + ½) s), and its slope −d/dd. A particle of a cubic lattice
-    /// filled to the wall then sums to about the density of the lattice
-    /// inside (the midpoint rule of [`Self::fraction_and_density`]'s
-    /// integral, which starts such a particle a few % compressed at h = 2
-    /// spacings). How closely depends on the kernel and on `spacing`. At
-    /// h = 2 spacings the cubic spline's first layer sums to ρ0 within
-    /// 0.03 %. Poly6's sums 0.19 % over, because its in-plane integral
-    /// exceeds the lattice's in-plane sum. It sums 0.40 % over where
-    /// `spacing` is taken as V^⅓ of poly6's lattice mass, which is 0.3 %
-    /// short of the lattice's spacing, as PBF and WCSPH take it
-    /// (`docs/benchmark-notes.md`, "The walls' layers at V^⅓").
+    /// kernel-weighted volume fraction of `layers` of fluid, the first half
+    /// a spacing behind the plane, at distance `d` from it (each layer
+    /// integrated in its plane: t Σ_k ∫ W dA at d + (k + ½) s), and its
+    /// slope −d/dd. With the layers of [`Self::lattice_layers`], a particle
+    /// of a cubic lattice filled to the wall, half a spacing from it, sums
+    /// to the density of the lattice inside, where the continuous half-space
+    /// ([`Self::fraction_and_density`]) starts it a few % compressed at h = 2
+    /// spacings.
     #[inline]
-    pub fn layers_fraction_and_density(&self, d: f32, spacing: f32) -> (f32, f32) {
+    pub fn layers_fraction_and_density(&self, d: f32, layers: Layers) -> (f32, f32) {
         let (mut f, mut slope) = (0.0, 0.0);
-        let mut z = d.max(0.0) + 0.5 * spacing;
+        let mut z = d.max(0.0) + 0.5 * layers.spacing;
         while z < self.h {
             let (p, dp) = self.plane_and_slope(z);
             (f, slope) = (f + p, slope + dp);
-            z += spacing;
+            z += layers.spacing;
         }
-        (spacing * f, spacing * slope)
+        (layers.thickness * f, layers.thickness * slope)
+    }
+
+    /// The layers of the cubic lattice whose particles weigh `mass` at
+    /// `rest_density` with this kernel ([`crate::FluidParams::lattice_mass`]):
+    /// - the spacing s is that lattice's, found from the mass by the fixed
+    ///   point s ← s (m Σ W / ρ0)^⅓ over the lattice's kernel sum Σ W (a few
+    ///   iterations: the sum is about 1/s³ times a slowly varying factor).
+    ///   The particle's V^⅓, V = m/ρ0, is 0.3 % short of it for poly6 at
+    ///   h = 2 spacings, 3·10⁻⁵ for the cubic spline;
+    /// - the thickness t makes the layers' plane integrals sum what the
+    ///   lattice's discrete layers sum for a particle half a spacing from
+    ///   the wall: t = V Σ_{k≥1} Σ_ij W(i s, j s, k s) / Σ_{k≥1} ∫ W dA at
+    ///   k s. It is within a few tenths of a % of V/s², each layer's
+    ///   volume per unit area, by which the plane integral over-counts the
+    ///   in-plane sum (0.19 % for poly6 at h = 2 spacings).
+    ///
+    /// So a lattice filled to a wall starts its first layer at the lattice's
+    /// density, to rounding. Layers deeper than h/2 see the wall's layers at
+    /// distances where t's calibration is approximate (h > 2 spacings).
+    /// Where no lattice of that mass is within [`MAX_H_OVER_SPACING`]
+    /// (a mass far lighter than any scene's), the layers are V^⅓ apart and
+    /// V^⅓ thick, the same volume per particle without the lattice's sums.
+    ///
+    /// [`MAX_H_OVER_SPACING`]: crate::solver::MAX_H_OVER_SPACING
+    pub fn lattice_layers(&self, mass: f32, rest_density: f32) -> Layers {
+        let volume = f64::from(mass) / f64::from(rest_density);
+        let side = volume.cbrt() as f32;
+        let cubes = Layers {
+            spacing: side,
+            thickness: side,
+        };
+        if !(side > 0.0 && side.is_finite()) || self.h / side > crate::solver::MAX_H_OVER_SPACING {
+            return cubes;
+        }
+        let sum = |s: f32, layers| match self.shape {
+            Shape::Poly6 => Poly6::new(self.h).map(|k| lattice_sum(&k, s, layers)),
+            Shape::CubicSpline => CubicSpline::new(self.h).map(|k| lattice_sum(&k, s, layers)),
+        };
+        let reach = |s: f32| (self.h / s).ceil() as i32;
+        let mut s = side;
+        for _ in 0..32 {
+            let Ok(total) = sum(s, -reach(s)..=reach(s)) else {
+                return cubes;
+            };
+            let next = s * (volume * total).cbrt() as f32;
+            let done = (next - s).abs() <= 1e-6 * s;
+            s = next;
+            if done {
+                break;
+            }
+        }
+        if !(s > 0.0 && s.is_finite()) || self.h / s > crate::solver::MAX_H_OVER_SPACING {
+            return cubes;
+        }
+        let Ok(beyond) = sum(s, 1..=reach(s)) else {
+            return cubes;
+        };
+        let planes: f64 = (1..=reach(s))
+            .map(|k| f64::from(self.plane_and_slope(k as f32 * s).0))
+            .sum();
+        let thickness = if planes > 0.0 {
+            (volume * beyond / planes) as f32
+        } else {
+            s
+        };
+        Layers {
+            spacing: s,
+            thickness,
+        }
     }
 
     /// −d/dd of [`Self::volume_fraction`]: ∫ W over the plane at distance
@@ -656,18 +735,25 @@ mod tests {
     }
 
     /// A particle of a cubic lattice half a spacing from a wall, the lattice
-    /// filled up to the wall: its fluid neighbours and the layered wall sum
-    /// to the density of the lattice's interior (within 0.1 % for the cubic
-    /// spline at h = 2 spacings, where the continuous half-space gives
-    /// 3.8 % more), and the layers' slope is their fraction's derivative.
+    /// filled up to the wall: the layers [`WallKernel::lattice_layers`]
+    /// finds from the particles' mass alone are the lattice's spacing, and
+    /// the particle's fluid neighbours and the layered wall sum to the
+    /// lattice's interior density to rounding (where the continuous
+    /// half-space gives 3.8 % more for the cubic spline at h = 2 spacings,
+    /// and layers V^⅓ apart and V^⅓ thick 0.40 % more for poly6). The
+    /// second layer, which at h > 2 spacings reaches the wall's layers too,
+    /// within 0.05 %. The layers' slope is their fraction's derivative.
     #[test]
     fn layered_walls_continue_a_lattice() {
         use crate::kernels::{CubicSpline, Kernel, Poly6};
-        let s = 0.02f32;
-        for (name, h, tolerance) in [
-            ("cubic", 2.0 * s, 1e-3),
-            ("cubic", 2.5 * s, 2e-3),
-            ("poly6", 2.0 * s, 5e-3),
+        let (s, rho0) = (0.02f32, 1000.0f32);
+        for (name, h) in [
+            ("cubic", 2.0 * s),
+            ("cubic", 2.5 * s),
+            ("cubic", 3.0 * s),
+            ("poly6", 2.0 * s),
+            ("poly6", 2.5 * s),
+            ("poly6", 3.0 * s),
         ] {
             let (kernel, wall): (Box<dyn Fn(Vec3) -> f32>, _) = if name == "cubic" {
                 let k = CubicSpline::new(h).unwrap();
@@ -677,43 +763,80 @@ mod tests {
                 (Box::new(move |r| k.value(r)), WallKernel::new(h))
             };
             let n = 4;
-            let (mut inside, mut beside) = (0.0f64, 0.0f64);
-            for i in -n..=n {
-                for j in -n..=n {
-                    for k in -n..=n {
-                        let w = kernel(Vec3::new(i as f32, j as f32, k as f32) * s) as f64;
-                        inside += w;
-                        // The wall half a spacing below row 0.
-                        if j >= 0 {
-                            beside += w;
+            let sum = |layers: std::ops::RangeInclusive<i32>| {
+                let mut sum = 0.0f64;
+                for i in -n..=n {
+                    for j in layers.clone() {
+                        for k in -n..=n {
+                            sum += kernel(Vec3::new(i as f32, j as f32, k as f32) * s) as f64;
                         }
                     }
                 }
-            }
-            let (f, _) = wall.layers_fraction_and_density(0.5 * s, s);
-            let v = (s as f64).powi(3);
-            let total = beside * v + f as f64;
-            let rel = total / (inside * v) - 1.0;
-            assert!(rel.abs() < tolerance, "{name} h/s {}: {rel}", h / s);
-            let (continuous, _) = wall.fraction_and_density(0.5 * s);
-            println!(
-                "{name} h/s {}: layered {:+.4} %, continuous {:+.4} %",
+                sum
+            };
+            let inside = sum(-n..=n);
+            let mass = (rho0 as f64 / inside) as f32;
+            let layers = wall.lattice_layers(mass, rho0);
+            assert!(
+                (layers.spacing / s - 1.0).abs() < 1e-5,
+                "{name} h/s {}: spacing {} for {s}",
                 h / s,
-                100.0 * rel,
-                100.0 * ((beside * v + continuous as f64) / (inside * v) - 1.0)
+                layers.spacing
             );
+            let volume = mass as f64 / rho0 as f64;
+            let cubes = Layers {
+                spacing: volume.cbrt() as f32,
+                thickness: volume.cbrt() as f32,
+            };
+            // Rows j ≥ 0 of the lattice, the wall half a spacing below row 0;
+            // rows j ≥ 1 for the second layer.
+            for (row, beside, tolerance) in [(0, sum(0..=n), 1e-5), (1, sum(-1..=n), 5e-4)] {
+                let d = (row as f32 + 0.5) * s;
+                let (f, _) = wall.layers_fraction_and_density(d, layers);
+                let rel = (beside * volume + f as f64) / (inside * volume) - 1.0;
+                let (old, _) = wall.layers_fraction_and_density(d, cubes);
+                let (continuous, _) = wall.fraction_and_density(d);
+                println!(
+                    "{name} h/s {}, layer {}: layered {:+.4} %, V^⅓ layers {:+.4} %, continuous {:+.4} %",
+                    h / s,
+                    row + 1,
+                    100.0 * rel,
+                    100.0 * ((beside * volume + old as f64) / (inside * volume) - 1.0),
+                    100.0 * ((beside * volume + continuous as f64) / (inside * volume) - 1.0)
+                );
+                assert!(
+                    rel.abs() < tolerance,
+                    "{name} h/s {}, layer {}: {rel}",
+                    h / s,
+                    row + 1
+                );
+            }
             for d in [0.0f32, 0.3, 0.9, 1.7] {
                 let d = d * s;
                 let e = 1e-4 * s;
-                let fd = (wall.layers_fraction_and_density(d.max(e) - e, s).0
-                    - wall.layers_fraction_and_density(d.max(e) + e, s).0)
+                let fd = (wall.layers_fraction_and_density(d.max(e) - e, layers).0
+                    - wall.layers_fraction_and_density(d.max(e) + e, layers).0)
                     / (2.0 * e);
-                let slope = wall.layers_fraction_and_density(d.max(e), s).1;
+                let slope = wall.layers_fraction_and_density(d.max(e), layers).1;
                 assert!(
                     (fd - slope).abs() < 2e-3 * slope.abs().max(1.0 / h),
                     "{name} d {d}: {fd} vs {slope}"
                 );
             }
+        }
+    }
+
+    /// A mass with no lattice within reach of h gets layers V^⅓ apart and
+    /// V^⅓ thick, and so does a mass that is not a positive number.
+    #[test]
+    fn layers_of_a_mass_without_a_lattice_are_cubes() {
+        let wall = WallKernel::new(0.04);
+        let tiny = wall.lattice_layers(1e-12, 1000.0);
+        assert_eq!(tiny.spacing, tiny.thickness);
+        assert!((tiny.spacing - 1e-5).abs() < 1e-9);
+        for m in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            let l = wall.lattice_layers(m, 1000.0);
+            assert!(!(l.spacing > 0.0 && l.spacing.is_finite()), "{m}: {l:?}");
         }
     }
 

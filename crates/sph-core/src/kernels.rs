@@ -24,6 +24,30 @@ use crate::error::{Result, check_kernel_h};
 pub(crate) mod sums;
 pub use sums::{Poly6Sums, SecondMoment};
 
+/// Σ W(r) over the points r = (i, j, k)·`spacing` of a cubic lattice
+/// through the kernel's centre, i and j free and k in `layers` (every point
+/// within reach: `-n..=n` for the whole lattice, n = ⌈h/spacing⌉), in f64.
+/// What a particle of a lattice sums from its own layers
+/// ([`crate::FluidParams::lattice_mass`]) or from those beyond a wall
+/// ([`crate::boundary::WallKernel::lattice_layers`]).
+pub(crate) fn lattice_sum(
+    kernel: &impl Kernel,
+    spacing: f32,
+    layers: std::ops::RangeInclusive<i32>,
+) -> f64 {
+    let n = (kernel.h() / spacing).ceil() as i32;
+    let mut sum = 0.0f64;
+    for k in layers {
+        for j in -n..=n {
+            for i in -n..=n {
+                let r = Vec3::new(i as f32, j as f32, k as f32) * spacing;
+                sum += kernel.value(r) as f64;
+            }
+        }
+    }
+    sum
+}
+
 /// A radially symmetric smoothing kernel with compact support h.
 ///
 /// `r` is always the offset **x − x_j** from the kernel's centre.

@@ -67,6 +67,54 @@ fn the_first_layer_rests_half_a_spacing_above_the_floor() {
     }
 }
 
+/// Without gravity, a pool filled on the lattice to its walls is already at
+/// rest density everywhere: the walls continue the lattice layer by layer
+/// (`WallKernel::lattice_layers`), so PBF's one-sided constraints and
+/// DFSPH's solves find nothing to correct, and the pool stays still. After
+/// 1 s: rms speed below 0.01 mm/s and the free surface within 0.01 % of the
+/// lattice's. Measured: PBF 0.0020 mm/s and +0.0027 %, DFSPH 0.0009 mm/s
+/// and +0.0010 %. With layers V^⅓
+/// apart and V^⅓ thick (the walls before, which started poly6's first
+/// layer 0.40 % over ρ0), PBF's pool moved at 11.5 mm/s after 1 s and had
+/// swollen by 12.7 % (`cargo run --release -p sph-core --example
+/// pool_at_rest -- pbf --depth 0.2 --seconds 1 --gravity 0`).
+#[test]
+fn a_pool_without_gravity_stays_still() {
+    for kind in [SolverKind::Pbf, SolverKind::Dfsph] {
+        let (side, depth) = (0.3, 0.2);
+        let spec = SolverSpec {
+            kind,
+            ..SolverSpec::default()
+        };
+        let mut scene = Scene::dam_break(0.15, side, S);
+        scene.solver = spec;
+        scene.fluid.gravity = [0.0; 3];
+        scene.domain.min = [0.0; 3];
+        scene.domain.max = [side, depth + 0.1, side];
+        scene.blocks[0].min = [0.0; 3];
+        scene.blocks[0].max = [side, depth, side];
+        let mut world = scene.build_world().unwrap();
+        for _ in 0..60 {
+            world.advance(1.0 / 60.0).unwrap();
+        }
+        let rms = rms_speed(&world);
+        let top = (world.particles.positions().iter())
+            .map(|x| x.y)
+            .fold(f32::MIN, f32::max);
+        let surface = top + 0.5 * S;
+        eprintln!(
+            "{kind}: rms speed {:.4} mm/s, free surface {:+.4} %",
+            1e3 * rms,
+            100.0 * (surface / depth - 1.0)
+        );
+        assert!(rms < 1e-5, "{kind}: rms speed {rms} m/s");
+        assert!(
+            (surface / depth - 1.0).abs() < 1e-4,
+            "{kind}: surface {surface} m"
+        );
+    }
+}
+
 /// DFSPH's solves know the clearance's projection ("Contacts" in
 /// `solver::dfsph`): with the default clearance of half a spacing, no layer of a
 /// pool 0.5 m deep takes the compression the first layer cannot, and the

@@ -22,6 +22,7 @@ struct Fluid {
     poly6: f32,
     domain_min: [f32; 4],
     domain_max: [f32; 4],
+    layers: [f32; 4],
 }
 
 /// Density by poly6 summation plus the walls' and obstacles' density (eq. 4 and
@@ -39,6 +40,8 @@ pub struct GpuDensity {
 
 impl GpuDensity {
     /// The pass for `grid`'s particles with these parameters and walls.
+    /// Under a clearance the walls continue the lattice of the lightest of
+    /// `masses`, the particles' masses.
     ///
     /// # Errors
     /// [`GpuError::Params`] for parameters or a boundary sph-core rejects (its
@@ -52,6 +55,7 @@ impl GpuDensity {
         capacity: usize,
         params: &FluidParams,
         boundary: &Boundary,
+        masses: &[f32],
     ) -> Result<Self, GpuError> {
         params.validate().map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
@@ -80,6 +84,7 @@ impl GpuDensity {
             // w: the clearance, under which the walls continue the lattice.
             domain_min: boundary.domain.min.extend(boundary.clearance).to_array(),
             domain_max: boundary.domain.max.extend(0.0).to_array(),
+            layers: crate::solver::wall_layers(params, boundary, masses),
         };
         let uniform = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("density params"),
@@ -262,7 +267,8 @@ mod tests {
                 suction,
                 poly6,
                 domain_min,
-                domain_max
+                domain_max,
+                layers
             }
         )
         .unwrap();

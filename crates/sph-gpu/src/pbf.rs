@@ -88,6 +88,8 @@ struct Uniform {
     /// Their cohesion spline's 32/(πh⁹) times `surface_tension::COHESION_WEIGHT`.
     cohesion: f32,
     pad0: u32,
+    /// The walls' layers under a clearance: spacing, thickness.
+    layers: [f32; 4],
 }
 
 /// Mirrors `struct Stats` in `shaders/pbf.wgsl`.
@@ -302,6 +304,7 @@ impl GpuPbf {
             gamma: surface_tension::gamma(fluid),
             cohesion: surface_tension::cohesion_coefficient(h),
             pad0: 0,
+            layers: crate::solver::wall_layers(fluid, boundary, particles.masses()),
         };
         let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("pbf params"),
@@ -1029,7 +1032,8 @@ mod tests {
                 table,
                 gamma,
                 cohesion,
-                pad0
+                pad0,
+                layers
             }
         )
         .unwrap();

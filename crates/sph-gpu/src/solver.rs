@@ -3,6 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
+use sph_core::boundary::WallKernel;
 use sph_core::{Boundary, FluidParams, Particles, PressureKernel, TimeStepping};
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
@@ -60,6 +61,20 @@ struct Params {
     push_origin: [f32; 4],
     push_dir: [f32; 4],
     push_accel: [f32; 4],
+    layers: [f32; 4],
+}
+
+/// Under a clearance, the walls' layers of the lattice of the lightest of
+/// `masses` (sph-core's `WallKernel::lattice_layers`) as the shaders'
+/// `layers` (spacing, thickness, 0, 0); zeros without a clearance or a
+/// particle, where `walls.wgsl` takes the half-space.
+pub(crate) fn wall_layers(params: &FluidParams, boundary: &Boundary, masses: &[f32]) -> [f32; 4] {
+    let lightest = masses.iter().copied().fold(f32::INFINITY, f32::min);
+    if boundary.clearance <= 0.0 || !lightest.is_finite() {
+        return [0.0; 4];
+    }
+    let layers = WallKernel::new(params.h).lattice_layers(lightest, params.rest_density);
+    [layers.spacing, layers.thickness, 0.0, 0.0]
 }
 
 /// Mirrors `struct StepState` in `shaders/timestep.wgsl`.
@@ -163,7 +178,14 @@ impl GpuSolver {
         let capacity = n.max(1);
         let mut grid = GpuGrid::new(device, capacity, params.h, 1)?;
         grid.upload_with_masses(queue, particles.positions(), Some(particles.masses()))?;
-        let density = GpuDensity::new(device, &grid, capacity, params, boundary)?;
+        let density = GpuDensity::new(
+            device,
+            &grid,
+            capacity,
+            params,
+            boundary,
+            particles.masses(),
+        )?;
         let vec4s = |label, data: &[Vec3]| {
             let buffer = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
@@ -210,6 +232,7 @@ impl GpuSolver {
             push_origin: [0.0; 4],
             push_dir: [0.0; 4],
             push_accel: [0.0; 4],
+            layers: wall_layers(params, boundary, particles.masses()),
         };
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("solver params"),
@@ -656,7 +679,8 @@ mod tests {
                 frame_dt,
                 push_origin,
                 push_dir,
-                push_accel
+                push_accel,
+                layers
             }
         )
         .unwrap();

@@ -149,17 +149,17 @@ fn bad_input_is_an_error() {
     // A density pass smaller than its grid would write past its buffers.
     let params = sph_core::FluidParams::water(0.1);
     let boundary = sph_core::Boundary::new(sph_core::Aabb::new(Vec3::splat(-1.0), Vec3::ONE));
-    match sph_gpu::GpuDensity::new(&ctx.device, &grid, 1, &params, &boundary) {
+    match sph_gpu::GpuDensity::new(&ctx.device, &grid, 1, &params, &boundary, &[]) {
         Err(e) => assert!(e.to_string().contains("capacity"), "{e}"),
         Ok(_) => panic!("a density pass for 1 particle on a grid of 2"),
     }
-    sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &boundary).unwrap();
+    sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &boundary, &[]).unwrap();
     // sph-core's own checks, their reasons passed on.
     let bad_boundary = sph_core::Boundary {
         restitution: 2.0,
         ..boundary.clone()
     };
-    let err = sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &bad_boundary)
+    let err = sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &bad_boundary, &[])
         .err()
         .expect("a restitution of 2");
     assert!(err.to_string().contains("restitution"), "{err}");
@@ -211,7 +211,8 @@ fn gpu_density_matches_the_cpu_processor() {
     let mut grid = GpuGrid::new(&ctx.device, n, params.h, 1).unwrap();
     grid.upload_with_masses(&ctx.queue, cpu.positions(), Some(cpu.masses()))
         .unwrap();
-    let mut density = GpuDensity::new(&ctx.device, &grid, n, &params, &boundary).unwrap();
+    let mut density =
+        GpuDensity::new(&ctx.device, &grid, n, &params, &boundary, cpu.masses()).unwrap();
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     grid.encode_build(&mut encoder);
     density.encode(&ctx.queue, &mut encoder, &grid);

@@ -89,14 +89,17 @@ fn compare(
     assert!(diff(stats.surface_particles, cpu.stats.surface_particles) <= 0.01);
     assert!(diff(stats.all_around, cpu.stats.all_around) <= 0.02);
     assert!(diff(stats.discarded, cpu.stats.discarded) <= 0.05);
-    // The same surfels, in another order: nearly all within rounding of a CPU one.
+    // The same surfels, in another order: nearly all within rounding of a CPU
+    // one. The radius of a lone particle's sphere is the root of its iso
+    // radius, which lavapipe and the CPU solve up to 4.2e-6 h apart (the
+    // dam break at 0.4 s, 28 of 2,122 surfels, none off by more): 1e-5 h.
     let matched = surfels
         .iter()
         .filter(|g| {
             cpu.surfels.iter().any(|c| {
                 (g.position - c.position).length() < 1e-3 * field.h()
                     && (g.normal - c.normal).length() < 1e-3
-                    && (g.radius - c.radius).abs() < 1e-6 * field.h()
+                    && (g.radius - c.radius).abs() < 1e-5 * field.h()
             })
         })
         .count();
@@ -614,10 +617,14 @@ fn uploaded_particles_get_their_kernels_on_the_gpu() {
 
 /// Flat water through the GPU path (issue 44): the issue's pool (0.6 × 0.2
 /// × 0.6 m at 2 cm, settled for 2 s by DFSPH on the CPU), its particles and
-/// volumes uploaded and extracted on the GPU on the anisotropic field (the
-/// kernels computed there). The top's surfels (facing up, 2h from the
-/// walls) lean from vertical by at most 1° at the median and 5° at the
-/// 99th percentile.
+/// volumes uploaded and extracted on the GPU with the app's parameters (the
+/// anisotropic field, its kernels computed there; hole closing, 3×3 first
+/// splits). The top's surfels (facing up, 2h from the walls) lean from
+/// vertical by at most 1° at the median and 5° at the 99th percentile.
+/// Measured on lavapipe: 0.98° and 2.46°, the CPU extractor's figures on
+/// the same pool (`cargo run --release -p surfel-extract --example
+/// flat_pool -- dfsph`). The thesis mode (no hole closing, 2×2 splits)
+/// read 1.00° and 2.56°: this pool's median sits at the bound.
 #[test]
 fn settled_pool_is_flat_through_the_gpu_path() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
@@ -636,7 +643,7 @@ fn settled_pool_is_flat_through_the_gpu_path() {
     let h = scene.fluid.h;
     let mut field = ColourField::new(Surface::anisotropic()).unwrap();
     field.refill_from_particles(p, h).unwrap();
-    let params = ExtractParams::new(h).thesis().anisotropic();
+    let params = ExtractParams::new(h).anisotropic();
     let mut gpu = GpuExtractor::new(&ctx.device, p.len(), 1 << 20, &params).unwrap();
     gpu.upload(&ctx.queue, p.positions(), field.volumes())
         .unwrap();

@@ -28,9 +28,9 @@
 //! under this kernel ([`crate::Solver::particle_mass`]).
 //!
 //! **Walls.** The walls' density term f_i = ρ_wall(x_i)/ρ0 is the fluid's
-//! own lattice continued behind each wall, in layers V_i^⅓ apart
-//! ([`crate::boundary::WallKernel::layers_fraction_and_density`]), so a
-//! lattice filled to the walls starts at rest density. (The continuous
+//! own lattice continued behind each wall, in the layers of the lightest
+//! particle's lattice ([`crate::boundary::WallKernel::lattice_layers`]),
+//! so a lattice filled to the walls starts at rest density. (The continuous
 //! half-space integral of WCSPH and PBF starts the layer on a wall 3.8 %
 //! compressed under this kernel, and the first step kicked a resting tank
 //! to 0.3 m/s.) Meeting walls are united as in PBF.
@@ -116,8 +116,8 @@ use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
-use super::walls::Walls;
-use crate::boundary::{Boundary, WallKernel};
+use super::walls::{LayersCache, Walls};
+use crate::boundary::{Boundary, Layers, WallKernel};
 use crate::error::{Error, Result};
 use crate::grid::NeighbourLists;
 use crate::kernels::{CubicSpline, Kernel};
@@ -338,6 +338,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             model: model.clone(),
             shared: shared.clone(),
             rows: Vec::new(),
+            layers: None,
         })
         .push(DivergenceSolve(Solve::new(
             model.clone(),
@@ -412,13 +413,12 @@ impl Model {
         i: usize,
         rows: &[[f32; 4]],
         lists: &NeighbourLists,
+        layers: Option<Layers>,
         pairs: &mut [Vec3],
     ) -> Factor {
         let xi = rows[i];
         let (x, mi) = (Vec3::new(xi[0], xi[1], xi[2]), xi[3]);
-        // The walls continue the particle's lattice: spacing V_i^⅓.
-        let spacing = (mi * self.inv_rho0).cbrt();
-        let (rho_wall, wall) = self.walls.at_layers(x, spacing);
+        let (rho_wall, wall) = self.walls.at_either(x, layers);
         let inv_rho0 = S::splat(self.inv_rho0);
         let mut sums = DensitySums::new();
         for (chunk, (_, slots, count)) in lists.lanes(i).enumerate() {
@@ -442,7 +442,6 @@ impl Model {
             wall,
             fraction: rho_wall * self.inv_rho0,
             pairs: squares,
-            spacing,
         }
     }
 }
@@ -452,6 +451,8 @@ struct FactorPass<'a> {
     model: &'a Model,
     rows: &'a [[f32; 4]],
     lists: &'a NeighbourLists,
+    /// The walls' layers (none without a particle).
+    layers: Option<Layers>,
 }
 
 impl LaneRowMap for FactorPass<'_> {
@@ -459,7 +460,7 @@ impl LaneRowMap for FactorPass<'_> {
     type Pair = Vec3;
     #[inline(always)]
     fn particle<S: F32x8>(&self, i: usize, pairs: &mut [Vec3]) -> Factor {
-        self.model.factor::<S>(i, self.rows, self.lists, pairs)
+        (self.model).factor::<S>(i, self.rows, self.lists, self.layers, pairs)
     }
 }
 
@@ -478,8 +479,6 @@ struct Factor {
     fraction: f32,
     /// Σ_j |G_ij|² (1/m²).
     pairs: f32,
-    /// The particle's lattice spacing V_i^⅓ (m), for the walls' layers.
-    spacing: f32,
 }
 
 /// Which error a [`Solve`] drives to its tolerance.
@@ -586,6 +585,8 @@ struct Linearisation {
     pairs: Vec<Vec3>,
     /// The particles within reach of a wall's clearance.
     contacts: Vec<Contact>,
+    /// The walls' layers of the step ([`Walls::layers`]).
+    layers: Option<Layers>,
 }
 
 /// The [`Linearisation`] the stations of one program share.
@@ -609,6 +610,8 @@ pub struct Factors {
     shared: Shared,
     /// (x, m) per particle.
     rows: Vec<[f32; 4]>,
+    /// The walls' layers, for the lightest particle's lattice.
+    layers: LayersCache,
 }
 
 impl Processor for Factors {
@@ -626,15 +629,18 @@ impl Processor for Factors {
             factors,
             pairs,
             contacts,
+            layers,
         } = &mut *shared;
         let f = particles.fields_mut();
         rows_of(f.positions, f.masses, &mut self.rows);
         pairs.resize(lists.pairs(), Vec3::ZERO);
         factors.resize(f.positions.len(), Factor::default());
+        *layers = model.walls.layers(f.masses, &mut self.layers);
         let pass = FactorPass {
             model,
             rows: &self.rows,
             lists,
+            layers: *layers,
         };
         par_map_rows(&pass, lists, factors, pairs);
         // Padding, so that a row's last chunk of G_ij reads as eight lanes.
@@ -756,7 +762,7 @@ impl Solve {
         let model = &*self.model;
         let n = particles.len();
         let shared = lock(&self.shared);
-        let (factors, pairs) = (&shared.factors, &shared.pairs);
+        let (factors, pairs, layers) = (&shared.factors, &shared.pairs, shared.layers);
         if factors.len() != n || pairs.len() != lists.pairs() + PAIR_PADDING {
             return Err(Error::Pipeline {
                 processor: target.name(),
@@ -821,7 +827,7 @@ impl Solve {
                     source: -dt * (rate + vi.dot(c.wall)),
                 },
                 Target::Density => {
-                    let (rho_wall, wall) = model.walls.at_layers(x[i] + dt * vi, c.spacing);
+                    let (rho_wall, wall) = model.walls.at_either(x[i] + dt * vi, layers);
                     let walls = rho_wall * inv_rho0 - c.fraction;
                     let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
                     Row {
@@ -1150,13 +1156,14 @@ mod tests {
             model: &model,
             rows: &rows,
             lists: &lists,
+            layers: Some(WallKernel::cubic_spline(h).lattice_layers(m[0], params.rest_density)),
         };
         let kinds = every_kind_rows(&pass, &lists);
         assert!(kinds.len() >= 2, "at least the plain and one vector kind");
         let bits = |factors: &[Factor], pairs: &[Vec3]| {
             let mut b: Vec<u32> = Vec::new();
             for f in factors {
-                b.extend([f.rho, f.alpha, f.fraction, f.pairs, f.spacing].map(f32::to_bits));
+                b.extend([f.rho, f.alpha, f.fraction, f.pairs].map(f32::to_bits));
                 b.extend(f.grad.to_array().map(f32::to_bits));
                 b.extend(f.wall.to_array().map(f32::to_bits));
             }

@@ -172,15 +172,7 @@ impl FluidParams {
             });
         }
         let n = (self.h / spacing).ceil() as i32;
-        let mut sum = 0.0f64;
-        for k in -n..=n {
-            for j in -n..=n {
-                for i in -n..=n {
-                    let r = Vec3::new(i as f32, j as f32, k as f32) * spacing;
-                    sum += kernel.value(r) as f64;
-                }
-            }
-        }
+        let sum = crate::kernels::lattice_sum(kernel, spacing, -n..=n);
         Ok((self.rest_density as f64 / sum) as f32)
     }
 }

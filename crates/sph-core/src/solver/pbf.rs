@@ -38,12 +38,14 @@
 //!   are united, not added (`Walls::at`). Every iteration projects
 //!   positions back out of walls ([`Boundary::project`]): nothing leaks,
 //!   whatever the step. Under a [`Boundary::clearance`] the walls' term is
-//!   the fluid's lattice continued behind them (`Walls::at_layers`, as
-//!   DFSPH's): the analytic half-space starts a lattice's first layer,
-//!   held at half a spacing, 2.6 % above rest density at h = 2 spacings
+//!   the fluid's lattice continued behind them, in the layers of the
+//!   lightest particle's lattice (`Walls::at_layers`,
+//!   [`crate::boundary::WallKernel::lattice_layers`], as DFSPH's), so a
+//!   lattice's first layer, held at half a spacing, starts at rest density.
+//!   The analytic half-space starts it 2.6 % above at h = 2 spacings
 //!   (0.216 of ρ0 against the lattice's missing 0.191), and the demo's
-//!   1,000 Pa·s slab slump took a first frame of 1.06 % average density
-//!   error against 0.45 % without the clearance (0.52 % with the layers).
+//!   1,000 Pa·s slab slump then took a first frame of 1.06 % average
+//!   density error against 0.45 % without the clearance.
 //! - **Gradient.** ∇W_spiky, as the paper. The exact gradient of the poly6
 //!   density (needing Jacobi under-relaxed by 0.75 to stay stable) was
 //!   tried in a throwaway patch: it settled a tank ten times tighter and
@@ -92,7 +94,7 @@ use glam::Vec3;
 use super::params::FluidParams;
 use super::stations::{Boundaries, BuildGrid};
 use crate::NeighbourLists;
-use crate::boundary::{Boundary, WallKernel};
+use crate::boundary::{Boundary, Layers, WallKernel};
 use crate::error::{Error, Result};
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
@@ -104,7 +106,7 @@ use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
-use super::walls::Walls;
+use super::walls::{LayersCache, Walls};
 use crate::region::{self, Blocks, OwnedPass, Pass};
 use crate::simd::F32x8;
 
@@ -596,28 +598,26 @@ struct Model {
     lanes: LaneKernels,
     /// W_poly6(0).
     w0: f32,
-    /// Under a clearance, the spacing of the fluid's lattice that the
-    /// walls continue behind them ([`Walls::at_layers`]): the lightest
-    /// particle's V^⅓, set by each station's pass ([`Model::set_layers`]).
-    layers: Option<f32>,
+    /// Under a clearance, the layers of the fluid's lattice that the walls
+    /// continue behind them ([`Walls::at_layers`]): the lightest
+    /// particle's lattice, set by each station's pass
+    /// ([`Model::set_layers`]), with the mass they were found for.
+    layers: Option<Layers>,
+    layers_cache: LayersCache,
 }
 
 impl Model {
     /// The walls' density term and its gradient over ρ0 at `x` ([`Walls`]).
     #[inline(always)]
     fn walls_at(&self, x: Vec3) -> (f32, Vec3) {
-        match self.layers {
-            Some(spacing) => self.walls.at_layers(x, spacing),
-            None => self.walls.at(x),
-        }
+        self.walls.at_either(x, self.layers)
     }
 
-    /// Under a clearance, the walls' layers at the spacing of the lightest
-    /// of `masses`, V^⅓ = (m/ρ0)^⅓, as DFSPH takes each particle's.
+    /// Under a clearance, the walls' layers of the lattice of the lightest
+    /// of `masses` ([`crate::boundary::WallKernel::lattice_layers`]).
     fn set_layers(&mut self, masses: &[f32]) {
         if self.walls.boundary().clearance > 0.0 {
-            let spacing = (super::lanes::lightest(masses) * self.inv_rho0).cbrt();
-            self.layers = spacing.is_finite().then_some(spacing);
+            self.layers = self.walls.layers(masses, &mut self.layers_cache);
         }
     }
 
@@ -638,6 +638,7 @@ impl Model {
             lanes: LaneKernels::new(&poly6, &spiky, h),
             w0: poly6.value_r2(0.0),
             layers: None,
+            layers_cache: None,
         })
     }
 

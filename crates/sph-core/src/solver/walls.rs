@@ -5,7 +5,7 @@
 
 use glam::Vec3;
 
-use crate::boundary::{Boundary, WallKernel};
+use crate::boundary::{Boundary, Layers, WallKernel};
 
 /// The walls of a boundary, seen by a fluid of one density kernel and rest
 /// density ρ0.
@@ -32,6 +32,12 @@ impl Walls {
         &self.boundary
     }
 
+    /// The layers of the lattice of the lightest of `masses`
+    /// ([`lightest_layers`]).
+    pub(crate) fn layers(&self, masses: &[f32], cache: &mut LayersCache) -> Option<Layers> {
+        lightest_layers(&self.kernel, self.rest_density, masses, cache)
+    }
+
     /// The walls' density term at `x` and its gradient over ρ0,
     /// ∇(ρ_wall/ρ0).
     ///
@@ -48,13 +54,22 @@ impl Walls {
         self.united(x, |d| self.kernel.fraction_and_density(d))
     }
 
-    /// [`Self::at`] with each wall the fluid's lattice of `spacing`
-    /// continued behind it ([`WallKernel::layers_fraction_and_density`]):
-    /// DFSPH's walls, under which a lattice filled to the walls starts at
+    /// [`Self::at`] with each wall the fluid's lattice continued behind it
+    /// in `layers` ([`WallKernel::layers_fraction_and_density`]): the walls
+    /// under a clearance, where a lattice filled to the walls starts at
     /// rest density.
     #[inline]
-    pub(crate) fn at_layers(&self, x: Vec3, spacing: f32) -> (f32, Vec3) {
-        self.united(x, |d| self.kernel.layers_fraction_and_density(d, spacing))
+    pub(crate) fn at_layers(&self, x: Vec3, layers: Layers) -> (f32, Vec3) {
+        self.united(x, |d| self.kernel.layers_fraction_and_density(d, layers))
+    }
+
+    /// [`Self::at_layers`] in `layers`, or [`Self::at`] without.
+    #[inline]
+    pub(crate) fn at_either(&self, x: Vec3, layers: Option<Layers>) -> (f32, Vec3) {
+        match layers {
+            Some(layers) => self.at_layers(x, layers),
+            None => self.at(x),
+        }
     }
 
     /// The union of the walls within h of `x`, each of fraction and slope
@@ -94,5 +109,32 @@ impl Walls {
             grad += others * g;
         }
         (self.rest_density * (1.0 - outside + extra.0), grad)
+    }
+}
+
+/// The last lightest mass and its layers.
+pub(crate) type LayersCache = Option<(f32, Layers)>;
+
+/// The walls' layers under a clearance ([`WallKernel::lattice_layers`]) for
+/// the lattice of the lightest of `masses`, which every particle near a wall
+/// sees; kept in `cache` while that mass stays the same. None without a
+/// particle.
+pub(crate) fn lightest_layers(
+    kernel: &WallKernel,
+    rest_density: f32,
+    masses: &[f32],
+    cache: &mut LayersCache,
+) -> Option<Layers> {
+    let lightest = super::lanes::lightest(masses);
+    if !lightest.is_finite() {
+        return None;
+    }
+    match *cache {
+        Some((m, layers)) if m == lightest => Some(layers),
+        _ => {
+            let layers = kernel.lattice_layers(lightest, rest_density);
+            *cache = Some((lightest, layers));
+            Some(layers)
+        }
     }
 }

@@ -19,7 +19,8 @@ use super::force_sums::{Centre, ForceKernels, ForceSums, SlotFluid, force_sums};
 use super::params::{FluidParams, PressureKernel, SurfaceTensionModel};
 use super::stations::{Boundaries, BuildGrid, FindNeighbours, Integrate, grid};
 use super::surface_tension::{SurfaceTension, Update};
-use crate::boundary::{Boundary, WallKernel};
+use super::walls::{LayersCache, lightest_layers};
+use crate::boundary::{Boundary, Layers, WallKernel};
 use crate::error::Result;
 use crate::kernels::Kernels;
 use crate::particles::Particles;
@@ -50,23 +51,36 @@ struct FluidModel {
     kernels: Kernels,
     wall: WallKernel,
     boundary: Boundary,
+    /// The walls' layers and the mass they were found for.
+    layers: LayersCache,
 }
 
 impl FluidModel {
-    /// A wall's density term at distance `d` from a particle of mass `m`,
-    /// as a fraction of ρ0, and its slope −d/dd: the analytic half-space,
-    /// or under a clearance the fluid's lattice continued behind the wall
-    /// ([`WallKernel::layers_fraction_and_density`]) in layers V^⅓ apart,
-    /// with which a lattice's first layer held at half a spacing sums to
-    /// 0.4 % over ρ0 at h = 2 spacings (poly6's lattice mass makes V^⅓
-    /// 0.3 % short of the spacing).
+    /// A wall's density term at distance `d`, as a fraction of ρ0, and its
+    /// slope −d/dd: the analytic half-space, or in `layers` (under a
+    /// clearance) the fluid's lattice continued behind the wall
+    /// ([`WallKernel::layers_fraction_and_density`]), with which a
+    /// lattice's first layer held at half a spacing starts at rest density.
     #[inline]
-    fn wall_term(&self, d: f32, m: f32) -> (f32, f32) {
+    fn wall_term(&self, d: f32, layers: Option<Layers>) -> (f32, f32) {
+        match layers {
+            Some(layers) => self.wall.layers_fraction_and_density(d, layers),
+            None => (self.wall.volume_fraction(d), self.wall.plane_density(d)),
+        }
+    }
+
+    /// Under a clearance, the walls' layers of the lattice of the lightest
+    /// of `masses` ([`WallKernel::lattice_layers`]).
+    fn layers(&mut self, masses: &[f32]) -> Option<Layers> {
         if self.boundary.clearance > 0.0 {
-            let spacing = (m / self.params.rest_density).cbrt();
-            self.wall.layers_fraction_and_density(d, spacing)
+            lightest_layers(
+                &self.wall,
+                self.params.rest_density,
+                masses,
+                &mut self.layers,
+            )
         } else {
-            (self.wall.volume_fraction(d), self.wall.plane_density(d))
+            None
         }
     }
 
@@ -78,6 +92,7 @@ impl FluidModel {
             kernels: Kernels::new(params.h)?,
             wall: WallKernel::new(params.h),
             boundary,
+            layers: None,
         })
     }
 }
@@ -89,6 +104,7 @@ impl Processor for DensityPressure {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let grid = grid(ctx, particles, self.0.params.h, "density")?;
         let masses = particles.masses();
+        let layers = self.0.layers(masses);
         let model = &self.0;
         let FluidModel {
             params,
@@ -98,10 +114,10 @@ impl Processor for DensityPressure {
         } = model;
         let (poly6, rho0, h) = (kernels.poly6, params.rest_density, params.h);
         let slot_masses = grid.to_slot_order(masses);
-        let rho = grid.par_map(|i, nb| {
+        let rho = grid.par_map(|_, nb| {
             let mut rho = nb.poly6_sums(&poly6, &slot_masses).value;
             b.for_each_wall_within(nb.centre(), h, |d, _| {
-                rho += rho0 * model.wall_term(d, masses[i]).0;
+                rho += rho0 * model.wall_term(d, layers).0;
             });
             rho
         });
@@ -147,6 +163,7 @@ impl Processor for Forces {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let grid = grid(ctx, particles, self.0.params.h, "forces")?;
+        let layers = self.0.layers(particles.masses());
         let v = particles.velocities();
         let (m, rho, p) = (
             particles.masses(),
@@ -206,7 +223,7 @@ impl Processor for Forces {
             } = force_sums(&nb, centre, &kernels, &fluid);
             b.for_each_wall_within(nb.centre(), prm.h, |d, normal| {
                 // −m_i (p_i/ρ_i²) ∇ρ_wall / m_i: the gradient of the wall term's energy.
-                a_p += pi * prm.rest_density * model.wall_term(d, m[i]).1 * normal;
+                a_p += pi * prm.rest_density * model.wall_term(d, layers).1 * normal;
             });
             let mut a = a_p + (prm.viscosity / rho[i]) * a_v + prm.gravity;
             let n_len = n.length();

@@ -13,6 +13,7 @@ struct Fluid {
     poly6: f32,     // 315 / (64 pi h^9)
     domain_min: vec4<f32>,
     domain_max: vec4<f32>,
+    layers: vec4<f32>,  // the walls' layers under a clearance: spacing, thickness (walls.wgsl)
 };
 
 @group(0) @binding(0) var<uniform> f: Fluid;
@@ -60,7 +61,7 @@ fn density(@builtin(global_invocation_id) id: vec3<u32>) {
         let w = wall(k, x);
         if w.w < f.h {
             let d = max(w.w, 0.0);
-            rho += f.rest_density * wall_term(d, positions[i].w, vec2<f32>(wall_volume_fraction(d), 0.0)).x;
+            rho += f.rest_density * wall_term(d, vec2<f32>(wall_volume_fraction(d), 0.0)).x;
         }
     }
     densities[i] = rho;

@@ -76,7 +76,7 @@ fn forces(@builtin(global_invocation_id) id: vec3<u32>) {
         let w = wall(k, x);
         if w.w < f.h {
             let d = max(w.w, 0.0);
-            let slope = wall_term(d, positions[i].w, vec2<f32>(0.0, plane_density(d))).y;
+            let slope = wall_term(d, vec2<f32>(0.0, plane_density(d))).y;
             a_p += pi * f.rest_density * slope * w.xyz;
         }
     }

@@ -51,6 +51,7 @@ struct Pbf {
     gamma: f32,             // Akinci et al.'s γ (0: no surface tension)
     cohesion: f32,          // their cohesion spline's 32 / (π h⁹) × COHESION_WEIGHT
     pad0: u32,
+    layers: vec4<f32>,      // the walls' layers under a clearance: spacing, thickness (walls.wgsl)
 };
 
 // What a frame's substeps add up; cleared when a frame starts, read back
@@ -168,7 +169,7 @@ fn fraction_and_density(d: f32) -> vec2<f32> {
 // union of the half-spaces within h, 1 − Π_k (1 − f_k) (sph-core's
 // `Walls::at`, or `Walls::at_layers` under a clearance; walls beyond the
 // eighth are added, as there).
-fn walls_at(x: vec3<f32>, m: f32) -> vec4<f32> {
+fn walls_at(x: vec3<f32>) -> vec4<f32> {
     var keep: array<f32, 8>;
     var grads: array<vec3<f32>, 8>;
     var count = 0u;
@@ -179,7 +180,7 @@ fn walls_at(x: vec3<f32>, m: f32) -> vec4<f32> {
             continue;
         }
         let d = max(w.w, 0.0);
-        let fd = wall_term(d, m, fraction_and_density(d));
+        let fd = wall_term(d, fraction_and_density(d));
         let grad = -fd.y * w.xyz;
         if count < 8u {
             keep[count] = 1.0 - fd.x;
@@ -310,7 +311,7 @@ fn lambda(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let xi = positions[i];
-    let walls = walls_at(xi.xyz, xi.w);
+    let walls = walls_at(xi.xyz);
     var rho = 0.0;
     var grad = vec3<f32>(0.0);
     var squares = 0.0;
@@ -436,7 +437,7 @@ fn curl(@builtin(global_invocation_id) id: vec3<u32>) {
         curl += cross(u, d * (ws.y * vol));
         mean += u * (vol * ws.x);
     }
-    densities[i] = f.rest_density * walls_at(xi.xyz, xi.w).w + xi.w * f.w0 + rho;
+    densities[i] = f.rest_density * walls_at(xi.xyz).w + xi.w * f.w0 + rho;
     curls[i] = vec4<f32>(curl, length(curl));
     means[i] = vec4<f32>(mean, 0.0);
 }

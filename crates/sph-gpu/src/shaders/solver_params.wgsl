@@ -27,6 +27,7 @@ struct Params {
     push_origin: vec4<f32>, // RayPush: a point on the ray, radius in w (0: none)
     push_dir: vec4<f32>,    // its unit direction
     push_accel: vec4<f32>,  // the acceleration on the ray (m/s²)
+    layers: vec4<f32>,      // the walls' layers under a clearance: spacing, thickness (walls.wgsl)
 };
 
 @group(0) @binding(0) var<uniform> f: Params;

@@ -84,15 +84,15 @@ fn plane_and_slope(d: f32) -> vec2<f32> {
 }
 
 // Under a clearance (`f.domain_min.w` > 0), a wall's fraction of ρ0 and its
-// slope at distance d from a particle of mass m, the fluid's lattice continued
-// behind the wall in layers V^⅓ apart, V = m/ρ0
-// (`WallKernel::layers_fraction_and_density`, sph-core's walls under a
-// clearance). `half_space` is returned without one.
-fn wall_term(d: f32, m: f32, half_space: vec2<f32>) -> vec2<f32> {
-    if f.domain_min.w <= 0.0 {
+// slope at distance d, the fluid's lattice continued behind the wall in the
+// layers `f.layers` (spacing, thickness: `WallKernel::lattice_layers` of the
+// lightest particle, and `WallKernel::layers_fraction_and_density`).
+// `half_space` is returned without a clearance or layers.
+fn wall_term(d: f32, half_space: vec2<f32>) -> vec2<f32> {
+    let s = f.layers.x;
+    if f.domain_min.w <= 0.0 || s <= 0.0 {
         return half_space;
     }
-    let s = pow(m / f.rest_density, 1.0 / 3.0);
     var sum = vec2<f32>(0.0);
     var z = max(d, 0.0) + 0.5 * s;
     loop {
@@ -102,5 +102,5 @@ fn wall_term(d: f32, m: f32, half_space: vec2<f32>) -> vec2<f32> {
         sum += plane_and_slope(z);
         z += s;
     }
-    return s * sum;
+    return f.layers.y * sum;
 }
