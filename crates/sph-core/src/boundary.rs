@@ -31,8 +31,8 @@
 //! term, and measured small: in the settled tank of the solver test
 //! `hydrostatic_tank` (`cargo test --release -p sph-core --test solver
 //! hydrostatic -- --nocapture`), a 2h × h channel along the floor–wall edge
-//! holds 144 particles at mean ρ 1009.9 kg/m³, one on the floor away from
-//! the walls 132 at 1008.9 kg/m³: no void, 0.1 % denser.
+//! holds 153 particles at mean ρ 1007.3 kg/m³, one on the floor away from
+//! the walls 139 at 1007.1 kg/m³: no void, 0.02 % denser.
 
 use glam::Vec3;
 

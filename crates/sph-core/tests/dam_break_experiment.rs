@@ -105,10 +105,11 @@ fn report(kinds: &[SolverKind], spacing: f32) -> Vec<(SolverKind, f32, usize)> {
 
 /// The demo's resolution (1,200 particles), the flume lengthened to 16a so
 /// that the front stays clear of its end over the experiment's whole range
-/// (T ≤ 9.2). Measured (this test's output): mean relative error 6.2 %
-/// for DFSPH, 2.1 % for PBF, 6.8 % for WCSPH. Each is asserted at the
-/// measured error plus about 1.2 points, within the 10 % goal, so that it
-/// gets no worse unnoticed. (Without the scenes' clearance WCSPH's front
+/// (T ≤ 9.2). Measured (this test's output): mean relative error 6.0 %
+/// for DFSPH, 2.2 % for PBF, 5.0 % for WCSPH (6.2, 2.1 and 6.8 % while the
+/// walls' layers were V^⅓ apart). Each is asserted at the measured error
+/// plus about 1.2 points, within the 10 % goal, so that it gets no worse
+/// unnoticed. (Without the scenes' clearance WCSPH's front
 /// ran 40–65 % ahead up to T = 3.3, 26.7 % in all: its first step kicked
 /// the column's over-dense wall and corner particles; DFSPH read 6.8 % and
 /// PBF 1.8 %.)
@@ -121,9 +122,9 @@ fn surge_front_against_martin_and_moyce() {
     for (kind, error, points) in errors {
         assert_eq!(points, MARTIN_MOYCE.len(), "{kind}");
         let bound = match kind {
-            SolverKind::Dfsph => 0.08,
-            SolverKind::Pbf => 0.03,
-            SolverKind::Wcsph => 0.08,
+            SolverKind::Dfsph => 0.072,
+            SolverKind::Pbf => 0.034,
+            SolverKind::Wcsph => 0.062,
         };
         assert!(error <= bound, "{kind}: mean relative error {error}");
     }
@@ -133,7 +134,7 @@ fn surge_front_against_martin_and_moyce() {
 /// and PBF (about 10 s on 2 cores):
 /// `cargo test --release -p sph-core --test dam_break_experiment -- --nocapture`.
 ///
-/// Measured: DFSPH 11.2 %, PBF 7.7 % (11.8 and 7.8 % without the scenes'
+/// Measured: DFSPH 11.1 %, PBF 7.6 % (11.8 and 7.8 % without the scenes'
 /// clearance), asserted at 12.5 and 9 %. DFSPH
 /// misses the 10 % goal here:
 /// its front runs 9–18 % ahead from the first point on, more than at the

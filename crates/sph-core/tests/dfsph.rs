@@ -175,9 +175,9 @@ fn dam_break_errors(
 /// DFSPH against WCSPH on the dam break's first second: the densities each
 /// step starts from (after the last step's motion), every step.
 ///
-/// Measured (this test's output): DFSPH at most 1.156 % in a single
-/// particle and 0.056 % on average, in 568 steps; WCSPH 9.98 % and 0.17 %,
-/// in 3,020 (without the scenes' default clearance: DFSPH 1.06 % and
+/// Measured (this test's output): DFSPH at most 0.867 % in a single
+/// particle and 0.0561 % on average, in 594 steps; WCSPH 8.79 % and 0.127 %,
+/// in 3,021 (without the scenes' default clearance: DFSPH 1.06 % and
 /// 0.073 %, WCSPH 16.5 % and 0.45 %). Asserted: at most 1.25 % and 0.085 %, at most half WCSPH's
 /// largest, in under a third of its steps. At the default density
 /// tolerance, a mean compression of 0.05 %, single particles are left
@@ -216,9 +216,9 @@ fn dam_break_compression() {
 /// The 1 % for the single particle, met with the density solve's
 /// tolerance at 0.01 % instead of the default 0.05 %, at the same steps.
 ///
-/// Measured (this test's output): at most 0.814 % in a single particle
-/// and 0.019 % on average, in 574 steps, 16.3 density iterations per step
-/// against 4.7 at the default; asserted at most 0.9 % and 0.045 %. (Before
+/// Measured (this test's output): at most 0.573 % in a single particle
+/// and 0.0193 % on average, in 589 steps, 15.8 density iterations per step
+/// against 4.3 at the default; asserted at most 0.9 % and 0.045 %. (Before
 /// the scenes' default clearance of half a spacing, 0.66 % and 0.035 %. At
 /// 1 cm spacing, 10,000 particles, a throwaway copy of this test measured
 /// 0.64 % in 1,148 steps, 21.8 iterations per step against 5.2, 1.8 times

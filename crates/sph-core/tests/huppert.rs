@@ -76,7 +76,7 @@ fn spread(mu: f32, times: &[f64]) -> Vec<(f64, f64, f64)> {
 /// At low Reynolds number r depends on t and μ through t/μ alone (the
 /// law's r ∝ (t/μ)^{1/8} is the late-time form of that), so the current
 /// at 1,000 Pa·s at t is the current at 100 Pa·s at t/10: measured
-/// within 1.4 %, asserted within 2.5 % from 2 to 8 s (where the currents
+/// within 1.94 %, asserted within 2.5 % from 2 to 8 s (where the currents
 /// are still 12–15 % short of the similarity solution). A viscosity solve
 /// that did nothing would let the 1,000 Pa·s current run far ahead.
 #[test]

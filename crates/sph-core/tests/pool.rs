@@ -121,7 +121,7 @@ fn a_pool_without_gravity_stays_still() {
 /// pool comes to rest. After 1 s, each 2 cm band's mean density (more
 /// than 2h from the side walls, below the top 4 cm) within 0.2 % of ρ0
 /// and the rms speed below 30 mm/s. Measured: at most 0.081 % and
-/// 19.5 mm/s; with the contacts switched off (a throwaway edit) a band
+/// 18.3 mm/s; with the contacts switched off (a throwaway edit) a band
 /// was 4.45 % compressed and the pool moved at 63.5 mm/s.
 #[test]
 fn dfsph_with_a_clearance_compresses_no_layer() {

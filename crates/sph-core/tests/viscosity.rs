@@ -207,8 +207,8 @@ fn a_thousand_pascal_seconds_runs_at_the_flow_step() {
 /// surge does) with every CG solve converged, and until the front first
 /// reaches the far wall its fastest particle runs at 0.6 to 1 times
 /// Ritter's dry-bed front 2√(gH) = 4.4 m/s for the 0.5 m column (measured
-/// 3.47 m/s for DFSPH, 3.29 for PBF; the impact's spray then reaches 6.3
-/// and 4.5 m/s). The
+/// 3.35 m/s for DFSPH, 3.26 for PBF; the impact's spray then reaches 5.6
+/// and 4.2 m/s). The
 /// solves take no CG iterations here: water's ν Δt/h² ≈ 3·10⁻⁷ leaves the
 /// velocities within the solve's tolerance of its solution before the
 /// first iteration.
