@@ -62,8 +62,9 @@ fn front(positions: &[Vec3], h: f32) -> f32 {
 /// wide and 0.5 m high, 1,200 particles, a flume 4 m long): the
 /// GPU's surge front at 0.25 s and 0.5 s within 3 % of the CPU's, and its
 /// average density error over the half second within 0.2 percentage points.
-/// Measured on lavapipe (2026-11-26): fronts 0.6602 / 0.6603 m and
-/// 1.4602 / 1.4594 m, errors 0.675 % / 0.674 %.
+/// Measured on lavapipe (2026-11-28, after the walls' layers took the
+/// lattice's spacing): fronts 0.6577 / 0.6577 m and 1.4800 / 1.4789 m,
+/// errors 0.695 % / 0.696 %.
 #[test]
 fn gpu_surge_front_and_density_error_follow_the_cpu() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
@@ -108,7 +109,8 @@ fn gpu_surge_front_and_density_error_follow_the_cpu() {
 /// A tank 10 particles deep, PBF's defaults (3 substeps × 3 iterations):
 /// over the third second the average density error stays ≤ 1 %, nothing
 /// is clamped and nothing leaves the tank (sph-core's `hydrostatic_tank`).
-/// Measured on lavapipe: 0.613 % over the second, 0.651 % at most.
+/// Measured on lavapipe: 0.695 % over the second, 0.719 % at most (0.613
+/// and 0.651 % while the walls' layers were V^⅓ apart).
 #[test]
 fn gpu_hydrostatic_tank() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
@@ -144,7 +146,7 @@ fn gpu_hydrostatic_tank() {
 /// No gravity, no walls within reach, no vorticity confinement: the
 /// antisymmetric corrections and XSPH keep a squeezed cluster's momentum
 /// to 1e-5 of its scale (total mass × 0.1 m/s), while the solve pushes it
-/// apart. Measured on lavapipe: drifts of 3.1e-7 of the scale, kinetic
+/// apart. Measured on lavapipe: drifts of 1.9e-7 and 1.6e-7 of the scale, kinetic
 /// energy ×133 (ω = 1) and ×201 (1.25), as on the CPU.
 #[test]
 fn gpu_free_cluster_keeps_its_momentum() {
@@ -238,9 +240,8 @@ fn gpu_free_cluster_keeps_its_momentum() {
 /// applies them): the `drops` scene's two weightless cubes of water merge
 /// into one round drop, its radius of gyration after 3 s within 10 % of a
 /// sphere's of the same volume and within 5 % of the CPU's; without σ at
-/// least 1.5 times a sphere's. Measured on lavapipe before the cohesion
-/// weight (`surface_tension::COHESION_WEIGHT`): 1.033 on the GPU and 1.032
-/// on the CPU; 2.303 and 2.302 without σ. The CPU reads 1.042 with it.
+/// least 1.5 times a sphere's. Measured on lavapipe: 1.042 on the GPU and
+/// on the CPU; 2.294 and 2.293 without σ.
 #[test]
 fn gpu_surface_tension_merges_the_drops() {
     let Some(ctx) = GpuContext::headless_or_skip() else {
