@@ -94,7 +94,7 @@ use glam::Vec3;
 use super::params::FluidParams;
 use super::stations::{Boundaries, BuildGrid};
 use crate::NeighbourLists;
-use crate::boundary::{Boundary, Layers, WallKernel};
+use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
 use crate::kernels::{Poly6, Spiky};
 use crate::particles::Particles;
@@ -600,24 +600,24 @@ struct Model {
     w0: f32,
     /// Under a clearance, the layers of the fluid's lattice that the walls
     /// continue behind them ([`Walls::at_layers`]): the lightest
-    /// particle's lattice, set by each station's pass
-    /// ([`Model::set_layers`]), with the mass they were found for.
-    layers: Option<Layers>,
-    layers_cache: LayersCache,
+    /// particle's lattice, with the mass they were found for, set by each
+    /// station's pass ([`Model::set_layers`]).
+    layers: LayersCache,
 }
 
 impl Model {
     /// The walls' density term and its gradient over ρ0 at `x` ([`Walls`]).
     #[inline(always)]
     fn walls_at(&self, x: Vec3) -> (f32, Vec3) {
-        self.walls.at_either(x, self.layers)
+        self.walls
+            .at_either(x, self.layers.map(|(_, layers)| layers))
     }
 
     /// Under a clearance, the walls' layers of the lattice of the lightest
     /// of `masses` ([`crate::boundary::WallKernel::lattice_layers`]).
     fn set_layers(&mut self, masses: &[f32]) {
         if self.walls.boundary().clearance > 0.0 {
-            self.layers = self.walls.layers(masses, &mut self.layers_cache);
+            self.walls.layers(masses, &mut self.layers);
         }
     }
 
@@ -638,7 +638,6 @@ impl Model {
             lanes: LaneKernels::new(&poly6, &spiky, h),
             w0: poly6.value_r2(0.0),
             layers: None,
-            layers_cache: None,
         })
     }
 

@@ -83,14 +83,14 @@ fn plane_and_slope(d: f32) -> vec2<f32> {
     return vec2<f32>(c * f.inv_h * w3 * w, 8.0 * c * f.inv_h * f.inv_h * u * w3);
 }
 
-// Under a clearance (`f.domain_min.w` > 0), a wall's fraction of ρ0 and its
-// slope at distance d, the fluid's lattice continued behind the wall in the
-// layers `f.layers` (spacing, thickness: `WallKernel::lattice_layers` of the
-// lightest particle, and `WallKernel::layers_fraction_and_density`).
-// `half_space` is returned without a clearance or layers.
+// Under a clearance, a wall's fraction of ρ0 and its slope at distance d,
+// the fluid's lattice continued behind the wall in the layers `f.layers`
+// (spacing, thickness: `WallKernel::lattice_layers` of the lightest
+// particle, and `WallKernel::layers_fraction_and_density`). The host writes
+// layers only under a clearance; `half_space` is returned without them.
 fn wall_term(d: f32, half_space: vec2<f32>) -> vec2<f32> {
     let s = f.layers.x;
-    if f.domain_min.w <= 0.0 || s <= 0.0 {
+    if s <= 0.0 {
         return half_space;
     }
     var sum = vec2<f32>(0.0);
