@@ -42,7 +42,7 @@
 //! ```text
 //! cargo run --release -p sph-core --example rayleigh_drop [-- SOLVER [SECONDS] \
 //!     [--shape box|ellipsoid|cube|l4] [--eps E] [--profile] [--spacing S] [--across N] [--sigma N_PER_M] \
-//!     [--model colour-field|akinci] [--mu PA_S] [--akinci GAMMA] \
+//!     [--model colour-field|akinci] [--mu PA_S] [--kick M_PER_S] [--akinci GAMMA] \
 //!     [--solver-toml 'viscosity = "implicit"']]
 //! ```
 //!
@@ -60,6 +60,12 @@
 //! default: the shapes above are for 16); `--mu` the viscosity (0.01 Pa·s by default). WCSPH applies
 //! σ by the thesis's colour-field force, PBF and DFSPH by Akinci et al.'s
 //! forces (`sph_core::solver::surface_tension`).
+//!
+//! `--kick K` adds to every particle's velocity, after each step, a random
+//! vector uniform in a cube of side K √(Δt / 5 ms) (m/s; a hash of the
+//! particle and the step, the same for any thread count): particle-scale
+//! noise put in by hand, for `docs/benchmark-notes.md`, "The slow swing at
+//! water's viscosity is the noise's".
 //!
 //! `--akinci GAMMA` adds a prototype of Akinci et al. 2013's cohesion and
 //! curvature forces with coefficient γ (the cohesion term weighted by
@@ -102,6 +108,43 @@ impl Processor for Measured {
         let mut virial = self.virial.lock().unwrap_or_else(|e| e.into_inner());
         virial.clear();
         virial.extend(self.inner.virial());
+        Ok(())
+    }
+}
+
+/// `--kick`'s noise: after each step, every velocity gains a random vector
+/// uniform in a cube of side `speed` √(Δt / 5 ms), from a hash of the
+/// particle's index and the step's count.
+struct Kick {
+    speed: f32,
+    step: u64,
+}
+
+impl Kick {
+    /// A number in [−½, ½) from particle `i`, axis `axis` and the step.
+    fn unit(&self, i: u64, axis: u64) -> f32 {
+        // SplitMix64's finaliser over the three inputs.
+        let mut z = i.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ self.step.wrapping_mul(0xBF58_476D_1CE4_E5B9)
+            ^ axis.wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^= z >> 31;
+        z = z.wrapping_mul(0xD6E8_FEB8_6659_FD93);
+        z ^= z >> 29;
+        (z >> 40) as f32 / (1u64 << 24) as f32 - 0.5
+    }
+}
+
+impl Processor for Kick {
+    fn name(&self) -> &str {
+        "kick"
+    }
+    fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> sph_core::Result<()> {
+        let side = self.speed * (ctx.dt / 0.005).sqrt();
+        for (i, v) in particles.fields_mut().velocities.iter_mut().enumerate() {
+            let i = i as u64;
+            *v += side * Vec3::new(self.unit(i, 1), self.unit(i, 2), self.unit(i, 3));
+        }
+        self.step += 1;
         Ok(())
     }
 }
@@ -185,6 +228,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut spacing, mut sigma, mut table) = (0.005f32, 0.0728f32, String::new());
     let (mut across, mut profile) = (16u32, false);
     let (mut mu, mut akinci, mut model) = (0.01f32, None, None);
+    let mut kick = 0.0f32;
     let mut args = std::env::args().skip(1);
     let mut positional = 0;
     while let Some(arg) = args.next() {
@@ -203,6 +247,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--sigma" => sigma = value("--sigma")?.parse()?,
             "--solver-toml" => table = value("--solver-toml")?,
             "--mu" => mu = value("--mu")?.parse()?,
+            "--kick" => kick = value("--kick")?.parse()?,
             "--akinci" => akinci = Some(value("--akinci")?.parse::<f32>()?),
             "--model" => {
                 model = Some(match value("--model")?.as_str() {
@@ -300,6 +345,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let boundary = Boundary::new(Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)));
     let mut world =
         World::with_solver(particles, params, boundary, TimeStepping::default(), solver)?;
+    if !(kick.is_finite() && kick >= 0.0) {
+        return Err(format!("--kick {kick}: must be a speed ≥ 0 (m/s)").into());
+    }
+    if kick > 0.0 {
+        world.program_mut().push(Kick {
+            speed: kick,
+            step: 0,
+        });
+    }
     if akinci.is_some() && kind == SolverKind::Wcsph {
         return Err(
             "--akinci needs PBF or DFSPH (their neighbour lists); WCSPH applies σ itself".into(),
