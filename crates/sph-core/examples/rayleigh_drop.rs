@@ -272,6 +272,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )
         .into());
     }
+    if !(kick.is_finite() && kick >= 0.0) {
+        return Err(format!("--kick {kick}: must be a speed ≥ 0 (m/s)").into());
+    }
     let params = FluidParams {
         gravity: Vec3::ZERO,
         // `--akinci` replaces PBF's and DFSPH's own σ.
@@ -345,9 +348,6 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let boundary = Boundary::new(Aabb::new(Vec3::splat(-1.0), Vec3::splat(1.0)));
     let mut world =
         World::with_solver(particles, params, boundary, TimeStepping::default(), solver)?;
-    if !(kick.is_finite() && kick >= 0.0) {
-        return Err(format!("--kick {kick}: must be a speed ≥ 0 (m/s)").into());
-    }
     if kick > 0.0 {
         world.program_mut().push(Kick {
             speed: kick,

@@ -112,10 +112,10 @@
 //! drop at R = 7 h swings at 1.32 of Rayleigh's period, against 1.04 at
 //! 0.01. Its particles at rest move at 7–15 mm/s there, and that noise is
 //! what slows the swing: random kicks that give the μ = 0.01 drop as much
-//! motion slow it to 1.36 (`rayleigh_drop --kick 0.01`), and damping the noise by XSPH restores 1.04 at
-//! μ = 0.001 (at μ = 0.01's damping). How the noise slows it is not known
-//! (`docs/benchmark-notes.md`, "The slow swing at water's viscosity is the
-//! noise's"). PBF's XSPH does not read μ.
+//! motion slow it to 1.36 (`rayleigh_drop --kick 0.01`), and damping the
+//! noise by XSPH restores 1.04 at μ = 0.001 (at μ = 0.01's damping). How
+//! the noise slows it is not known (`docs/benchmark-notes.md`, "The slow
+//! swing at water's viscosity is the noise's"). PBF's XSPH does not read μ.
 //!
 //! One drop's period moves by several per cent with rounding-level
 //! changes (moving these sums into lanes moved the PBF test's three drops
