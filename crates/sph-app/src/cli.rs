@@ -11,7 +11,7 @@ use clap::{Parser, ValueEnum};
 #[command(version, about)]
 pub struct Args {
     /// A built-in scene name (see --list-scenes) or a scene file (.toml).
-    /// The default, `drop` (5,400 particles), is the largest built-in scene
+    /// The default, `drop` (5,500 particles), is the largest built-in scene
     /// that PBF simulates and extracts in real time on two cores.
     #[arg(long, default_value = crate::scenes::DEFAULT)]
     pub scene: String,

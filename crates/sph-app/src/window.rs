@@ -625,11 +625,11 @@ impl App {
                     {
                         extract.surface = if smooth { Surface::anisotropic() } else { Surface::Isotropic };
                     }
-                    ui.add(egui::Slider::new(&mut extract.iterations, 1..=3).text("iterations"));
-                    ui.add(egui::Slider::new(&mut extract.iso, 0.2..=0.8).text("iso value"));
-                    ui.add(egui::Slider::new(&mut extract.radius, 0.2..=1.0).text("initial radius (h)"));
-                    ui.add(egui::Slider::new(&mut extract.interior_step, 0.3..=1.5).text("interior step (h)"));
-                    ui.add(egui::Slider::new(&mut extract.discard_step, 0.05..=0.5).text("discard step (h)"));
+                    ui.add(slider(&mut extract.iterations, 1..=3).text("iterations"));
+                    ui.add(slider(&mut extract.iso, 0.2..=0.8).text("iso value"));
+                    ui.add(slider(&mut extract.radius, 0.2..=1.0).text("initial radius (h)"));
+                    ui.add(slider(&mut extract.interior_step, 0.3..=1.5).text("interior step (h)"));
+                    ui.add(slider(&mut extract.discard_step, 0.05..=0.5).text("discard step (h)"));
                     let mut nine = extract.first_split == Split::ThreeByThree;
                     if ui.checkbox(&mut nine, "3×3 first split (the thesis: 2×2)").changed() {
                         extract.first_split = if nine { Split::ThreeByThree } else { Split::TwoByTwo };
@@ -639,12 +639,12 @@ impl App {
                     ui.checkbox(&mut settings.scenery, "tank, obstacles and ground (--no-scenery)");
                     let mut sigma = settings.shading.absorption.to_array();
                     for (value, channel) in sigma.iter_mut().zip(["red", "green", "blue"]) {
-                        ui.add(egui::Slider::new(value, 0.0..=20.0).text(format!("absorption {channel} (1/m)")));
+                        ui.add(slider(value, 0.0..=20.0).text(format!("absorption {channel} (1/m)")));
                     }
                     settings.shading.absorption = Vec3::from(sigma);
-                    ui.add(egui::Slider::new(&mut settings.shading.reflectivity, 0.0..=2.0).text("reflectivity (Fresnel ×)"));
-                    ui.add(egui::Slider::new(&mut settings.shading.refraction, 0.0..=0.2).text("refraction μ"));
-                    ui.add(egui::Slider::new(&mut settings.shading.depth_epsilon, 0.0..=0.1).text("depth ε (m)"));
+                    ui.add(slider(&mut settings.shading.reflectivity, 0.0..=2.0).text("reflectivity (Fresnel ×)"));
+                    ui.add(slider(&mut settings.shading.refraction, 0.0..=0.2).text("refraction μ"));
+                    ui.add(slider(&mut settings.shading.depth_epsilon, 0.0..=0.1).text("depth ε (m)"));
                     let mut c = settings.shading.fluid_colour.to_array();
                     if ui.color_edit_button_rgb(&mut c).changed() {
                         settings.shading.fluid_colour = Vec3::from(c);
@@ -842,6 +842,17 @@ fn surface_size(ctx: &GpuContext, size: winit::dpi::PhysicalSize<u32>) -> (u32, 
     (size.width.clamp(1, max), size.height.clamp(1, max))
 }
 
+/// A slider over `range` that clamps what the user enters to it but leaves a
+/// value already outside it alone. egui's default clamps every value a
+/// slider draws, so opening the panel on honey (μ = 50 Pa·s, the slider
+/// reaching 5) would set μ to 5 and rebuild the world, unasked.
+fn slider<N: egui::emath::Numeric>(
+    value: &mut N,
+    range: std::ops::RangeInclusive<N>,
+) -> egui::Slider<'_> {
+    egui::Slider::new(value, range).clamping(egui::SliderClamping::Edits)
+}
+
 /// The panel's sliders for what the scene's solver applies: WCSPH's
 /// stiffness, the μ of the solvers that have one (PBF's XSPH blend in its
 /// place), σ and gravity. Returns whether any moved.
@@ -850,7 +861,7 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     let kind = scene.solver.kind;
     if kind == SolverKind::Wcsph {
         let mut wcsph = scene.wcsph_params();
-        let k = egui::Slider::new(&mut wcsph.stiffness, 100.0..=20_000.0).logarithmic(true);
+        let k = slider(&mut wcsph.stiffness, 100.0..=20_000.0).logarithmic(true);
         if ui.add(k.text("k (m²/s²)")).changed() {
             scene.solver.wcsph = Some(wcsph);
             changed = true;
@@ -859,7 +870,7 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     if kind == SolverKind::Pbf && scene.pbf_params().viscosity == PbfViscosity::Xsph {
         let mut pbf = scene.pbf_params();
         if ui
-            .add(egui::Slider::new(&mut pbf.xsph, 0.0..=1.0).text("XSPH blend (no unit)"))
+            .add(slider(&mut pbf.xsph, 0.0..=1.0).text("XSPH blend (no unit)"))
             .changed()
         {
             scene.solver.pbf = Some(pbf);
@@ -868,7 +879,7 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     } else {
         let mut mu = scene.fluid.viscosity();
         if ui
-            .add(egui::Slider::new(&mut mu, 0.0..=5.0).text("μ (Pa·s)"))
+            .add(slider(&mut mu, 0.0..=5.0).text("μ (Pa·s)"))
             .changed()
         {
             scene.fluid.viscosity = Some(mu);
@@ -877,16 +888,47 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     }
     let fluid = &mut scene.fluid;
     changed |= ui
-        .add(egui::Slider::new(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)"))
+        .add(slider(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)"))
         .changed();
     changed |= ui
-        .add(egui::Slider::new(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)"))
+        .add(slider(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)"))
         .changed();
     changed
 }
 
 #[cfg(test)]
 mod tests {
+    /// Drawing the fluid's sliders changes nothing, even where a scene's
+    /// value lies outside a slider's range (honey's μ, a strong gravity, a
+    /// large σ or stiffness), under every solver.
+    #[test]
+    fn sliders_leave_values_outside_their_range_alone() {
+        use sph_core::{Scene, SolverKind};
+        let honey = Scene::built_in("honey").unwrap();
+        assert!(honey.fluid.viscosity() > 5.0, "{}", honey.fluid.viscosity());
+        let mut strong = Scene::built_in("dam-break").unwrap();
+        strong.fluid.gravity[1] = -40.0;
+        strong.fluid.surface_tension = 3.0;
+        let mut scenes = vec![honey.with_solver(SolverKind::Pbf), strong.clone()];
+        for kind in [SolverKind::Dfsph, SolverKind::Wcsph] {
+            scenes.push(Scene::built_in("honey").unwrap().with_solver(kind));
+            scenes.push(strong.clone().with_solver(kind));
+        }
+        let mut wcsph = scenes[5].wcsph_params();
+        wcsph.stiffness = 50_000.0;
+        scenes[5].solver.wcsph = Some(wcsph);
+        let ctx = egui::Context::default();
+        for mut scene in scenes {
+            let before = scene.clone();
+            let mut changed = true;
+            let _ = ctx.run_ui(egui::RawInput::default(), |ui| {
+                changed = super::fluid_sliders(ui, &mut scene);
+            });
+            assert!(!changed, "{}", before.name);
+            assert_eq!(scene, before);
+        }
+    }
+
     /// The panel's labels can be drawn: egui 0.37 bundles no font unless its
     /// `default_fonts` feature is on, and without one every label was blank
     /// ("No font provider has any font"). The characters are the panel's own,

@@ -160,7 +160,7 @@ fn list_scenes_names_the_built_ins() {
     // Each with its solver, the default marked.
     assert_eq!(text.matches(" particles, pbf").count(), 6, "{text}");
     assert!(
-        text.contains("5400 particles, pbf (the default)\n"),
+        text.contains("5500 particles, pbf (the default)\n"),
         "{text}"
     );
 }

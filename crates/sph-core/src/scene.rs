@@ -406,8 +406,14 @@ fn positive(field: &str, v: f32) -> Result<()> {
     }
 }
 
+/// Lattice points per axis of a block: its extent over the spacing, rounded
+/// down, except that a quotient within 10⁻³ below a whole number counts as
+/// that number. In f32, `0.1 / 0.02` is 4.9999981, and the floor alone
+/// would drop a whole layer of an extent that the scene file wrote as a
+/// whole number of spacings. (The extra layer's centres stay half a spacing
+/// inside the block's faces, less the 10⁻³ spacing.)
 fn lattice_count(min: Vec3, max: Vec3, spacing: f32) -> [usize; 3] {
-    let n = ((max - min) / spacing).floor();
+    let n = ((max - min) / spacing + 1e-3).floor();
     [n.x as usize, n.y as usize, n.z as usize]
 }
 
@@ -516,6 +522,17 @@ impl Scene {
                 ));
             }
             let n = lattice_count(min, max, self.spacing);
+            if let Some(axis) = n.iter().position(|&n| n == 0) {
+                return Err(invalid(
+                    &field,
+                    format!(
+                        "is {} m thick along {}, less than one spacing ({} m): it would hold no particle",
+                        (max - min)[axis],
+                        ["x", "y", "z"][axis],
+                        self.spacing
+                    ),
+                ));
+            }
             count = count.saturating_add(n[0].saturating_mul(n[1]).saturating_mul(n[2]));
             // Overlapping blocks would put two particles on one lattice point
             // (or nearly), which pressure cannot separate.
@@ -1034,9 +1051,10 @@ impl Scene {
         let mut s = Self::base("weightless drops", Vec3::new(w, d, d), spacing);
         s.fluid.gravity = [0.0; 3];
         s.fluid.surface_tension = 0.0728;
-        // 13 lattice points a side: the extent a quarter spacing over, as
-        // the lattice fills ⌊extent / spacing⌋ (13 × 0.005 is 12.999998
-        // spacings in f32).
+        // 13 lattice points a side. The extent is a quarter spacing over
+        // 13 from when the lattice rounded 12.999998 spacings (13 × 0.005
+        // in f32) down to 12; it is kept so the scene's particles stay
+        // where its measurements put them.
         let side = 13.25 * spacing;
         let offset = side / 3.0;
         for (cx, cy, vx) in [

@@ -163,7 +163,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 33] = [
+    let cases: [(&str, &str, &[&str]); 34] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -310,6 +310,12 @@ fn malformed_scenes_name_the_field_and_reason() {
             "[[blocks]]\nmin = [0.2, 0.4, 0.0]\nmax = [0.4, 0.6, 0.08]\nvelocity = [0.0, 0.0, 0.0]\n\n[time_step]",
             &["blocks[1]", "overlaps blocks[0]"],
         ),
+        // A block thinner than a spacing would hold no particle.
+        (
+            "[time_step]",
+            "[[blocks]]\nmin = [0.5, 0.0, 0.0]\nmax = [0.51, 0.1, 0.08]\nvelocity = [0.0, 0.0, 0.0]\n\n[time_step]",
+            &["blocks[1]", "along x", "no particle"],
+        ),
     ];
     for (find, replace, words) in cases {
         let msg = message(&with(find, replace));
@@ -329,6 +335,13 @@ fn malformed_scenes_name_the_field_and_reason() {
     // Blocks that touch without overlapping are accepted.
     let touching = "[[blocks]]\nmin = [0.25, 0.0, 0.0]\nmax = [0.4, 0.2, 0.08]\nvelocity = [0.0, 0.0, 0.0]\n\n[time_step]";
     Scene::from_toml(&with("[time_step]", touching)).unwrap();
+    // A block a whole number of spacings wide holds that many lattice
+    // points, though in f32 0.1 / 0.02 is 4.9999981.
+    let round = "[[blocks]]\nmin = [0.6, 0.0, 0.0]\nmax = [0.7, 0.1, 0.08]\nvelocity = [0.0, 0.0, 0.0]\n\n[time_step]";
+    let one = Scene::from_toml(&with("[time_step]", "[time_step]")).unwrap();
+    let two = Scene::from_toml(&with("[time_step]", round)).unwrap();
+    let count = |s: &Scene| s.particles().unwrap().len();
+    assert_eq!(count(&two) - count(&one), 5 * 5 * 4);
     // A nozzle layer larger than the particle budget (checked before walking
     // its points, whose number is the layer's).
     let wide =
