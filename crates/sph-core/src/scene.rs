@@ -611,6 +611,16 @@ impl Scene {
         }
         let t = &self.time_step;
         positive("time_step.frame_dt", t.frame_dt)?;
+        let min_dt = self.time_stepping().min_dt;
+        if t.frame_dt < min_dt {
+            return Err(invalid(
+                "time_step.frame_dt",
+                format!(
+                    "{:e} s is shorter than {min_dt:e} s, the shortest step a run takes",
+                    t.frame_dt
+                ),
+            ));
+        }
         if t.frame_dt > MAX_FRAME_DT {
             return Err(invalid(
                 "time_step.frame_dt",
@@ -623,7 +633,21 @@ impl Scene {
         self.validate_wcsph()?;
         // Every solver's parameters, chosen or not: switching must not find
         // bad ones.
-        (self.pbf_params().validate()).map_err(in_table("solver"))?;
+        let pbf = self.pbf_params();
+        (pbf.validate()).map_err(|e| match self.solver.pbf {
+            Some(_) => in_table("solver")(e),
+            // Derived from the scene: name what they were derived from.
+            None => invalid(
+                "solver.pbf",
+                format!(
+                    "is not given, and the defaults derived from this scene ({} substeps of {:e} s a frame, \
+                     so that fluid falling from its highest block or emitter under fluid.gravity moves \
+                     at most {} h a substep at time_step.frame_dt = {} s) fail: {}; \
+                     give [solver.pbf] substeps and max_dt",
+                    pbf.substeps, pbf.max_dt, crate::solver::pbf::FALL_CFL, t.frame_dt, in_table("solver")(e)
+                ),
+            ),
+        })?;
         (self.dfsph_params().validate()).map_err(in_table("solver"))?;
         // Sleeping thresholds that this scene's own steps at rest could not
         // apply: PBF's substep, and DFSPH's shortest step at rest (a

@@ -163,7 +163,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 34] = [
+    let cases: [(&str, &str, &[&str]); 35] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -230,6 +230,11 @@ fn malformed_scenes_name_the_field_and_reason() {
             "frame_dt = 0.016666668",
             "frame_dt = 10000.0",
             &["time_step.frame_dt", "longer than 1 s"],
+        ),
+        (
+            "frame_dt = 0.016666668",
+            "frame_dt = 1e-30",
+            &["time_step.frame_dt", "shortest step"],
         ),
         (
             "max_dt = 0.002",
@@ -361,6 +366,20 @@ fn malformed_scenes_name_the_field_and_reason() {
         .build_world()
         .unwrap_err();
     assert!(e.to_string().contains("no fluid"), "{e}");
+    // PBF's substeps derived from a fall (no `[solver.pbf]`) that would
+    // need more than PBF takes: an error saying where they came from, not
+    // a run with every particle slowed by the displacement guard.
+    let mut heavy = Scene::built_in("dam-break").unwrap();
+    assert!(heavy.solver.pbf.is_none());
+    heavy.fluid.gravity = [0.0, -1e9, 0.0];
+    let msg = heavy.validate().unwrap_err().to_string();
+    for w in ["solver.pbf", "is not given", "fluid.gravity", "substeps"] {
+        assert!(msg.contains(w), "`{msg}` lacks `{w}`");
+    }
+    // A frame shorter than the shortest step would not move the clock.
+    let mut world = Scene::built_in("dam-break").unwrap().build_world().unwrap();
+    let e = world.advance(1e-9).unwrap_err().to_string();
+    assert!(e.contains("frame_dt") && e.contains("min_dt"), "{e}");
     let e = Scene::load("/nonexistent/scene.toml").unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
 }

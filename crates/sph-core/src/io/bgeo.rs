@@ -37,6 +37,54 @@ pub(super) fn write_bgeo(bytes: &mut Vec<u8>, positions: &[Vec3]) -> Result<(), 
     write_bgeo_file(&bgeo, bytes, false).map_err(|e| format!("{e:#}"))
 }
 
+/// Whether the points a BGEO file's header claims fit in its bytes
+/// (`bytes`, unzipped). splashsurf_lib's parser allocates every attribute
+/// for the claimed count before reading a point, so a header of 2³¹ − 1
+/// points in a 69-byte file aborted the process (no panic to catch). Each
+/// point holds its position and weight (four f32) and each named
+/// attribute's `size` values of four bytes. A file that is not BGEO 5 as
+/// far as this reads is left to splashsurf_lib to refuse.
+#[cfg(feature = "readers")]
+pub(super) fn check_bgeo_counts(bytes: &[u8]) -> Result<(), String> {
+    let i32_at = |at: usize| -> Option<i32> {
+        Some(i32::from_be_bytes(bytes.get(at..at + 4)?.try_into().ok()?))
+    };
+    let u16_at = |at: usize| -> Option<usize> {
+        Some(u16::from_be_bytes(bytes.get(at..at + 2)?.try_into().ok()?).into())
+    };
+    if !bytes.starts_with(b"Bgeo") || i32_at(5) != Some(5) {
+        return Ok(());
+    }
+    let (Some(points), Some(attributes)) = (i32_at(9), i32_at(25)) else {
+        return Ok(());
+    };
+    if points < 0 || attributes < 0 {
+        return Err(format!(
+            "its header claims {points} points and {attributes} point attributes"
+        ));
+    }
+    // The attribute definitions: a name, a size, a type and `size` defaults.
+    let (mut at, mut record) = (41usize, 16u64);
+    for _ in 0..attributes {
+        let Some(name) = u16_at(at) else {
+            return Ok(());
+        };
+        let Some(size) = u16_at(at + 2 + name) else {
+            return Ok(());
+        };
+        at += 2 + name + 2 + 4 + 4 * size;
+        record += 4 * size as u64;
+    }
+    let body = bytes.len().saturating_sub(at) as u64;
+    let claimed = points as u64 * record;
+    if claimed > body {
+        return Err(format!(
+            "its header claims {points} points of {record} bytes, {claimed} bytes, but {body} follow"
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(not(feature = "readers"))]
 pub(super) fn write_bgeo(_: &mut Vec<u8>, _: &[Vec3]) -> Result<(), String> {
     Err(".bgeo files need sph-core's `readers` feature".into())

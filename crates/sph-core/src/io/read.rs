@@ -68,7 +68,7 @@ pub fn read_particles(path: impl AsRef<Path>) -> Result<ParticleFile> {
         }
         None => None,
     };
-    let positions = foreign(path).map_err(|reason| match &own_error {
+    let positions = foreign(path, &extension).map_err(|reason| match &own_error {
         Some(own) => fail(format!(
             "{reason}; as this project's own {extension}: {own}"
         )),
@@ -96,7 +96,8 @@ fn finite(file: ParticleFile) -> std::result::Result<ParticleFile, String> {
 /// malformed file (BGEO's parser on a truncated one, some readers' asserts)
 /// is reported as an error, without the panic's message.
 #[cfg(feature = "readers")]
-fn foreign(path: &Path) -> std::result::Result<Vec<Vec3>, String> {
+fn foreign(path: &Path, extension: &str) -> std::result::Result<Vec<Vec3>, String> {
+    sizes_fit(path, extension)?;
     let read = || splashsurf_lib::io::particles_from_file::<f32, _>(path);
     match quietly(read) {
         Ok(Ok(points)) => Ok(points.iter().map(|p| Vec3::new(p.x, p.y, p.z)).collect()),
@@ -107,6 +108,38 @@ fn foreign(path: &Path) -> std::result::Result<Vec<Vec3>, String> {
             .join(" ")),
         Err(_) => Err("the reader failed on a malformed or truncated file".to_string()),
     }
+}
+
+/// What splashsurf_lib's readers would take on trust, checked first: an XYZ
+/// file's length is a whole number of points (its reader stops silently at
+/// the first short read, dropping a ragged tail), and a BGEO file's header
+/// claims no more points than its bytes hold ([`super::bgeo`]).
+#[cfg(feature = "readers")]
+fn sizes_fit(path: &Path, extension: &str) -> std::result::Result<(), String> {
+    use std::io::Read;
+    match extension {
+        "xyz" => {
+            let len = std::fs::metadata(path).map_err(|e| e.to_string())?.len();
+            if len % 12 != 0 {
+                return Err(format!(
+                    "{len} bytes are not whole points of three f32 (12 bytes each)"
+                ));
+            }
+        }
+        "bgeo" => {
+            let mut bytes = std::fs::read(path).map_err(|e| e.to_string())?;
+            if bytes.starts_with(&[0x1f, 0x8b]) {
+                let mut unzipped = Vec::new();
+                flate2::read::GzDecoder::new(&bytes[..])
+                    .read_to_end(&mut unzipped)
+                    .map_err(|e| format!("gzip: {e}"))?;
+                bytes = unzipped;
+            }
+            super::bgeo::check_bgeo_counts(&bytes)?;
+        }
+        _ => {}
+    }
+    Ok(())
 }
 
 /// `f`, its panic caught and not printed. The panic hook is wrapped once,
@@ -134,6 +167,65 @@ fn quietly<T>(f: impl FnOnce() -> T + std::panic::UnwindSafe) -> std::thread::Re
 }
 
 #[cfg(not(feature = "readers"))]
-fn foreign(_: &Path) -> std::result::Result<Vec<Vec3>, String> {
+fn foreign(_: &Path, _: &str) -> std::result::Result<Vec<Vec3>, String> {
     Err("other simulators' files need sph-core's `readers` feature".to_string())
+}
+
+#[cfg(all(test, feature = "readers"))]
+mod tests {
+    use super::*;
+    use crate::io::{PointCloud, write_particles};
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("sph-core-read-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        dir.join(name)
+    }
+
+    fn refused(path: &Path, words: &[&str]) {
+        let e = read_particles(path).unwrap_err().to_string();
+        for w in words {
+            assert!(e.contains(w), "`{e}` lacks `{w}`");
+        }
+    }
+
+    /// A BGEO header claiming more points than its file holds (plain or
+    /// gzipped, or a negative count) is an error, where splashsurf_lib's
+    /// parser allocated the claim and aborted the process; an XYZ file of a
+    /// ragged length is an error, where its reader dropped the tail.
+    #[test]
+    fn files_whose_sizes_lie_are_errors_not_aborts() {
+        use std::io::Write;
+        let positions = vec![Vec3::new(0.1, 0.2, 0.3); 3];
+        let cloud = PointCloud {
+            positions: &positions,
+            ..Default::default()
+        };
+        let good = scratch("good.bgeo");
+        write_particles(&good, &cloud, 0.0).unwrap();
+        assert_eq!(read_particles(&good).unwrap().positions, positions);
+        let bytes = std::fs::read(&good).unwrap();
+        assert_eq!(i32::from_be_bytes(bytes[9..13].try_into().unwrap()), 3);
+        for (name, points) in [("huge.bgeo", i32::MAX), ("negative.bgeo", -1)] {
+            let mut lying = bytes.clone();
+            lying[9..13].copy_from_slice(&points.to_be_bytes());
+            let path = scratch(name);
+            std::fs::write(&path, &lying).unwrap();
+            refused(&path, &[name, "claims", &points.to_string()]);
+            let mut zipped = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::fast());
+            zipped.write_all(&lying).unwrap();
+            let path = scratch(&format!("zipped-{name}"));
+            std::fs::write(&path, zipped.finish().unwrap()).unwrap();
+            refused(&path, &["claims"]);
+        }
+        let ragged = scratch("ragged.xyz");
+        std::fs::write(&ragged, [0u8; 14]).unwrap();
+        refused(&ragged, &["ragged.xyz", "14 bytes", "12 bytes"]);
+        let whole = scratch("whole.xyz");
+        std::fs::write(&whole, [0u8; 24]).unwrap();
+        assert_eq!(
+            read_particles(&whole).unwrap().positions,
+            vec![Vec3::ZERO; 2]
+        );
+    }
 }

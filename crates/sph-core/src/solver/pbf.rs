@@ -270,13 +270,17 @@ impl PbfParams {
     /// the default 3, and `max_dt` the frame over them) that a particle
     /// falling freely from `height` above the floor, at √(2 g height),
     /// moves at most [`FALL_CFL`] × h per substep: what a scene without a
-    /// `[solver.pbf]` table runs ([`crate::Scene::pbf_params`]).
+    /// `[solver.pbf]` table runs ([`crate::Scene::pbf_params`]). The count
+    /// is not capped: one above [`MAX_PBF_COUNT`] fails
+    /// [`PbfParams::validate`] rather than letting every particle be
+    /// slowed by the displacement guard.
     pub fn for_fall(height: f32, gravity: f32, h: f32, frame_dt: f32) -> Self {
         let d = Self::default();
         let speed = (2.0 * gravity.abs() * height.max(0.0)).sqrt();
         let needed = (speed * frame_dt / (FALL_CFL * h)).ceil();
         let substeps = if needed.is_finite() {
-            needed.clamp(d.substeps as f32, MAX_PBF_COUNT as f32) as u32
+            // `as` saturates: 1e12 substeps become u32::MAX, still refused.
+            needed.max(d.substeps as f32) as u32
         } else {
             d.substeps
         };

@@ -331,8 +331,22 @@ impl World {
     /// shortened to land on the frame time; PBF takes
     /// [`super::PbfParams::substeps`] equal substeps, more only where they
     /// would be longer than its `max_dt`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `frame_dt` where it is not finite
+    /// and at least [`TimeStepping::min_dt`]: a shorter frame counts as no
+    /// step, and added to a clock of seconds in f64 it could leave the
+    /// clock where it was, so a loop to a time would never end. Otherwise
+    /// what a step returns ([`Error::Unstable`], ...).
     pub fn advance(&mut self, frame_dt: f32) -> Result<FrameReport> {
         positive("frame_dt", frame_dt)?;
+        if frame_dt < self.stepping.min_dt {
+            return Err(Error::InvalidParameter {
+                name: "frame_dt",
+                value: format!("{frame_dt:e}"),
+                reason: "is shorter than time_step's min_dt, the shortest step a run takes",
+            });
+        }
         self.on_pool(|world| world.advance_by(frame_dt))
     }
 
