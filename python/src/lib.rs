@@ -75,6 +75,8 @@ fn solver_kind(name: &str) -> PyResult<SolverKind> {
 #[pyclass(name = "World", module = "sph_splat", unsendable)]
 struct PyWorld {
     world: World,
+    /// Where fluid may be: new positions are checked against it.
+    boundary: sph_core::Boundary,
     /// Where `render` looks from.
     view: sph_core::scene::RenderSpec,
 }
@@ -110,6 +112,7 @@ impl PyWorld {
         }
         Ok(Self {
             world: scene.build_world().map_err(error)?,
+            boundary: scene.boundary(),
             view: scene.render,
         })
     }
@@ -142,6 +145,11 @@ impl PyWorld {
             )));
         }
         let (min, max) = (Vec3::from(domain_min), Vec3::from(domain_max));
+        if !(min.is_finite() && max.is_finite() && min.cmplt(max).all()) {
+            return Err(PyValueError::new_err(format!(
+                "domain_min: {min} must be finite and below domain_max: {max} on every axis"
+            )));
+        }
         let scene = Scene::empty("arrays", min, max, spacing).with_solver(solver_kind(solver)?);
         let params = scene.fluid_params();
         let solver: Solver = scene.solver();
@@ -155,6 +163,7 @@ impl PyWorld {
             .map_err(error)?;
         Ok(Self {
             world,
+            boundary: scene.boundary(),
             view: scene.render,
         })
     }
@@ -228,6 +237,12 @@ impl PyWorld {
     #[setter]
     fn set_positions(&mut self, positions: PyReadonlyArray2<'_, f32>) -> PyResult<()> {
         let x = points("positions", &positions)?;
+        if let Some(i) = x.iter().position(|&x| !self.boundary.admits(x)) {
+            return Err(PyValueError::new_err(format!(
+                "positions: row {i} ({}) lies outside the domain or inside an obstacle",
+                x[i]
+            )));
+        }
         self.set("positions", &x, |p| p.positions_mut())
     }
 

@@ -127,6 +127,23 @@ def test_bad_input_raises_naming_the_argument(tmp_path):
     bad[5, 1] = np.nan
     with pytest.raises(ValueError, match="positions: row 5"):
         world.positions = bad
+    outside = world.positions
+    outside[7, 0] = -1.0
+    with pytest.raises(ValueError, match="positions: row 7.*outside the domain"):
+        world.positions = outside
+    lattice = world.positions[:50]
+    with pytest.raises(ValueError, match="domain_min"):
+        ss.World.from_arrays(lattice, 0.02, [1.0, 1.0, 1.0], [0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="particle 0 has position"):
+        ss.World.from_arrays(lattice + 5.0, 0.02, [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
+    with pytest.raises(ValueError, match="frame_dt"):
+        world.advance(0.01, frame_dt=1e-40)
+    with pytest.raises(ValueError, match="density"):
+        ss.write_particles(
+            tmp_path / "nan.ply",
+            np.zeros((2, 3), np.float32),
+            densities=np.array([1000.0, np.nan], np.float32),
+        )
     with pytest.raises(ValueError, match="seconds"):
         world.advance(float("nan"))
     with pytest.raises(ValueError, match="surface"):

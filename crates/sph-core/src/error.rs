@@ -23,13 +23,13 @@ pub enum Error {
         /// The offending position.
         position: [f32; 3],
     },
-    /// A particle's mass is not finite and positive, or its velocity is not
-    /// finite.
+    /// A particle's mass is not finite and positive, its velocity is not
+    /// finite, or its position lies where the boundary admits no fluid.
     #[error("particle {index} has {what} {value}: {reason}")]
     InvalidParticle {
         /// Index of the particle.
         index: usize,
-        /// What is wrong with it: "mass" or "velocity".
+        /// What is wrong with it: "mass", "velocity" or "position".
         what: &'static str,
         /// The offending value, formatted.
         value: String,

@@ -342,6 +342,17 @@ mod tests {
             read_ply(b.as_slice()).map(|c| c.positions.len())
         };
         assert_eq!(ply("2").unwrap(), 2);
+        // A time that is not a finite number.
+        for t in ["nan", "inf", "-inf", "soon"] {
+            let b = format!(
+                "ply\nformat binary_little_endian 1.0\ncomment time {t}\nelement vertex 0\nend_header\n"
+            );
+            let e = read_ply(b.as_bytes()).unwrap_err().to_string();
+            assert!(e.contains("bad time"), "{t}: {e}");
+            let b = format!("# vtk DataFile Version 3.0\nsph-core frame, time {t}\nBINARY\n");
+            let e = read_vtk(b.as_bytes()).unwrap_err().to_string();
+            assert!(e.contains("bad time"), "{t}: {e}");
+        }
         for count in ["4611686018427387904", "100000000000", "3", "-1"] {
             let e = ply(count).unwrap_err().to_string();
             assert!(

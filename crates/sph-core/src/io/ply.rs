@@ -67,8 +67,10 @@ pub fn read_ply(r: impl Read) -> Result<LoadedCloud> {
             ["format", ..] => return Err(bad(what, format!("unsupported `{line}`"))),
             ["comment", "time", t] => {
                 time = t
-                    .parse()
-                    .map_err(|_| bad(what, format!("bad time `{t}`")))?
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|t| t.is_finite())
+                    .ok_or_else(|| bad(what, format!("bad time `{t}`")))?
             }
             ["comment", ..] => {}
             ["element", "vertex", c] => {

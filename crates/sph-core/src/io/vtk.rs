@@ -96,8 +96,10 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
     if let Some(t) = title.strip_prefix(VTK_TITLE) {
         cloud.time = t
             .trim()
-            .parse()
-            .map_err(|_| bad(what, format!("bad time in the title `{title}`")))?;
+            .parse::<f64>()
+            .ok()
+            .filter(|t| t.is_finite())
+            .ok_or_else(|| bad(what, format!("bad time in the title `{title}`")))?;
     }
     // The point count, once POINTS has been read: the attributes need it.
     let mut points = None;

@@ -25,7 +25,8 @@ pub const WRITE_EXTENSIONS: [&str; 5] = ["ply", "vtk", "xyz", "vtu", "bgeo"];
 /// [`Error::InvalidParameter`] naming the file: an extension not among
 /// those (`format`), attributes for a format that holds positions only,
 /// rather than dropping them (`format`), a non-finite position
-/// (`positions`); [`Error::Io`] naming the file: a format that needs the
+/// (`positions`) or attribute value (the attribute's name), a non-finite
+/// `time` (`time`); [`Error::Io`] naming the file: a format that needs the
 /// `readers` feature without it, or a write that failed.
 pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) -> Result<()> {
     let path = path.as_ref();
@@ -45,6 +46,30 @@ pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) ->
             name: "positions",
             value: format!("{} at row {i} for {name}", cloud.positions[i]),
             reason: "every position must be finite",
+        });
+    }
+    let vectors = cloud.vectors.iter().map(|(n, v)| {
+        let bad = v.iter().position(|x| !x.is_finite());
+        (*n, bad.map(|i| (i, v[i].to_string())))
+    });
+    let scalars = cloud.scalars.iter().map(|(n, s)| {
+        let bad = s.iter().position(|x| !x.is_finite());
+        (*n, bad.map(|i| (i, s[i].to_string())))
+    });
+    for (attribute, bad) in vectors.chain(scalars) {
+        if let Some((i, value)) = bad {
+            return Err(Error::InvalidParameter {
+                name: "point attribute",
+                value: format!("{attribute} {value} at row {i} for {name}"),
+                reason: "every value must be finite",
+            });
+        }
+    }
+    if !time.is_finite() {
+        return Err(Error::InvalidParameter {
+            name: "time",
+            value: format!("{time} for {name}"),
+            reason: "must be finite",
         });
     }
     let positions_only = !matches!(extension.as_str(), "ply" | "vtk");
@@ -150,6 +175,28 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("nan.ply") && e.contains("finite"), "{e}");
+        // NaN in an attribute or the time, as in a position.
+        let nan_density = vec![1000.0, f32::NAN, 1000.0];
+        let mut dense = PointCloud {
+            positions: &positions,
+            ..Default::default()
+        };
+        dense.scalars.push(("density", &nan_density));
+        let e = write_particles(scratch("d.ply"), &dense, 0.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("density") && e.contains("row 1") && e.contains("finite"),
+            "{e}"
+        );
+        let plain = PointCloud {
+            positions: &positions,
+            ..Default::default()
+        };
+        let e = write_particles(scratch("t.ply"), &plain, f64::NAN)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("time") && e.contains("finite"), "{e}");
         if std::path::Path::new("/dev/full").exists() {
             // /dev/full takes no extension: a link to it that has one.
             let link = scratch("full.xyz");

@@ -154,7 +154,9 @@ impl World {
     /// # Errors
     /// Invalid parameters (the fluid's, the time stepping's or the
     /// solver's), boundary ([`Boundary::validate`]) or particles
-    /// ([`Particles::validate`]).
+    /// ([`Particles::validate`]), or a particle the boundary does not admit
+    /// (outside the domain or inside an obstacle, [`Boundary::admits`]):
+    /// the first step would move it onto a wall, on top of its neighbours.
     pub fn with_solver(
         particles: Particles,
         params: FluidParams,
@@ -169,6 +171,7 @@ impl World {
             check_viscous_dt(&params, &stepping)?;
         }
         particles.validate()?;
+        check_admitted(&particles, &boundary)?;
         let program = solver.program(params, boundary)?;
         Ok(Self {
             particles,
@@ -498,5 +501,22 @@ impl std::fmt::Debug for World {
             .field("solver", &self.solver)
             .field("program", &self.program)
             .finish()
+    }
+}
+
+/// Every particle lies where `boundary` admits fluid.
+fn check_admitted(particles: &Particles, boundary: &Boundary) -> Result<()> {
+    match particles
+        .positions()
+        .iter()
+        .position(|&x| !boundary.admits(x))
+    {
+        Some(index) => Err(Error::InvalidParticle {
+            index,
+            what: "position",
+            value: format!("{}", particles.positions()[index]),
+            reason: "lies outside the domain or inside an obstacle",
+        }),
+        None => Ok(()),
     }
 }
