@@ -42,7 +42,8 @@ pub struct Args {
     /// The smoothing length of --input's particles in multiples of
     /// --particle-radius, as splashsurf takes it: the extraction's kernel
     /// support h is twice it, 2 × 2 × r = 4r by default (h = 2 particle
-    /// diameters, as the built-in scenes have).
+    /// diameters, as the built-in scenes have). h must span from one to
+    /// ten particle diameters.
     #[arg(long, value_name = "L", default_value_t = 2.0, value_parser = parse_length)]
     pub smoothing_length: f32,
 
@@ -79,7 +80,8 @@ pub struct Args {
     pub out: PathBuf,
 
     /// Also write the frames as an animated GIF at PATH (looping, one frame
-    /// per --fps of simulated time; headless, needs a GPU adapter). The file
+    /// per --fps of simulated time, each shown for 1/fps s in GIF's whole
+    /// hundredths, so --fps at most 100; headless, needs a GPU adapter). The file
     /// is created before the run starts, so a path that cannot be written is
     /// an error at once.
     #[arg(long, value_name = "PATH")]

@@ -80,6 +80,15 @@ fn run(args: &Args) -> Result<(), AppError> {
     };
     pipeline.extract.surface = args.surface_field().into();
     pipeline.extract.iso = args.iso;
+    if let (Some(path), true) = (&args.gif, args.fps > 100.0) {
+        return Err(AppError::output(
+            path,
+            format!(
+                "--gif at --fps {}: a GIF frame lasts at least 1/100 s, so a clip plays at most 100 fps",
+                args.fps
+            ),
+        ));
+    }
     if args.headless {
         return headless::run(args, pipeline);
     }

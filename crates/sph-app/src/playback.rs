@@ -166,6 +166,15 @@ fn scene_around(positions: &[Vec3], spacing: f32, h: f32, name: &str) -> Result<
     let mut scene = Scene::empty(name, min, max, spacing);
     scene.fluid.h = h;
     let ratio = h / spacing;
+    if ratio < 1.0 {
+        return Err(AppError::Input {
+            input: name.to_string(),
+            reason: format!(
+                "--smoothing-length gives h = {ratio} particle diameters, less than 1: \
+                 particles on their lattice would not reach their neighbours"
+            ),
+        });
+    }
     if ratio > sph_core::solver::MAX_H_OVER_SPACING {
         return Err(AppError::Input {
             input: name.to_string(),

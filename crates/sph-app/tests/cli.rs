@@ -670,6 +670,18 @@ fn gif_clip_decodes_and_a_bad_path_fails_first() {
         // 30 fps: 33 ms, stored in whole hundredths.
         assert_eq!(f.delay().numer_denom_ms(), (30, 1));
     }
+    // Above 100 fps a GIF cannot show each frame for 1/fps s.
+    let o = app(&[
+        "--headless",
+        "--frames",
+        "2",
+        "--fps",
+        "200",
+        "--gif",
+        gif.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("at most 100 fps"), "{}", stderr(&o));
     let bad = scratch("gif-bad");
     let o = app(&[
         "--headless",

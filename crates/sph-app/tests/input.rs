@@ -307,6 +307,18 @@ fn bad_inputs_are_clear_errors() {
         !o.status.success() && err.contains("thousands of neighbours"),
         "{err}"
     );
+    // One under which no particle reaches its neighbours.
+    let o = app(&[
+        "--headless",
+        "--input",
+        &data("fluid_encoded_250_particles.vtu"),
+        "--particle-radius",
+        "0.025",
+        "--smoothing-length",
+        "0.3",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("less than 1"), "{err}");
 }
 
 /// XYZ files (binary f32 triples, as splashsurf reads them) play too.
