@@ -591,6 +591,18 @@ impl Scene {
                     ),
                 ));
             }
+            // An emitter adds whole layers only: one must fit beside the
+            // blocks (their lattice points, counted before obstacles).
+            if count as u64 + layer > self.max_particles as u64 {
+                return Err(invalid(
+                    format!("{field}.width"),
+                    format!(
+                        "the blocks hold up to {count} particles, so the nozzle's layer of {layer} \
+                         does not fit under max_particles = {}: the emitter would add nothing",
+                        self.max_particles
+                    ),
+                ));
+            }
             // The whole nozzle, not only its centre, must lie in free space:
             // particles emitted into a wall or an obstacle would be projected
             // onto each other.

@@ -356,6 +356,26 @@ fn malformed_scenes_name_the_field_and_reason() {
         msg.contains("emitters[0].width") && msg.contains("max_particles"),
         "{msg}"
     );
+    // The blocks' 1,200 particles leave no room for a layer of 9: an error,
+    // where the emitter used to add nothing. Room for one layer and a
+    // half: it adds one whole layer and stops.
+    let budget = |max: usize| {
+        with("[time_step]", fits).replacen(
+            "max_particles = 2000000",
+            &format!("max_particles = {max}"),
+            1,
+        )
+    };
+    let msg = message(&budget(1205));
+    assert!(msg.contains("emitters[0].width") && msg.contains("1200"), "{msg}");
+    let mut world = Scene::from_toml(&budget(1213))
+        .unwrap()
+        .build_world()
+        .unwrap();
+    for _ in 0..6 {
+        world.advance(1.0 / 60.0).unwrap();
+    }
+    assert_eq!(world.particles.len(), 1209);
     // Obstacles over the whole block leave no fluid: an error, not an empty run.
     let buried = with(
         "[time_step]",

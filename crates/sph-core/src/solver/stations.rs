@@ -205,7 +205,8 @@ impl Processor for Boundaries {
 
 /// Adds particles at a rate: square layers of `n × n` particles at `spacing`
 /// around `centre`, in the plane normal to `velocity`, one layer each time the
-/// previous one has moved `spacing` on.
+/// previous one has moved `spacing` on. Only whole layers: it stops at the
+/// first that would take the count past `max_particles`.
 #[derive(Debug, Clone)]
 pub struct Emitter {
     centre: Vec3,
@@ -252,12 +253,13 @@ impl Processor for Emitter {
         while self.travelled >= self.spacing {
             self.travelled -= self.spacing;
             let offset = dir * self.travelled; // where this layer is now
+            let layer_len = (self.n as usize).pow(2);
+            if particles.len() + layer_len > self.max_particles {
+                return Ok(());
+            }
             let layer = nozzle_points(self.centre + offset, self.velocity, self.n, self.spacing);
             ctx.invalidate_neighbours();
             for x in layer {
-                if particles.len() >= self.max_particles {
-                    return Ok(());
-                }
                 particles.push(x, self.velocity, self.mass);
             }
         }
