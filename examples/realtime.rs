@@ -176,7 +176,7 @@ fn salva_density_error(
     let all: Vec<Vec3> = fluid.iter().chain(walls).copied().collect();
     let volume: Vec<f32> = volumes.iter().chain(wall_volumes).copied().collect();
     let grid = NeighbourGrid::build(&all, h).unwrap();
-    let lists = NeighbourLists::build(&grid);
+    let lists = NeighbourLists::build(&grid).unwrap();
     let (mut sum, mut max) = (0.0f64, f32::MIN);
     for i in 0..fluid.len() {
         let mut rho = volume[i] * kernel.value(Vec3::ZERO);

@@ -58,6 +58,16 @@ pub enum Error {
         /// The largest number supported.
         limit: usize,
     },
+    /// More neighbour pairs than the 32-bit offsets of the neighbour lists
+    /// can address.
+    #[error(
+        "{pairs} neighbour pairs exceed the neighbour lists' limit of 2³² − 1: \
+         fewer particles, or a smaller h over the spacing"
+    )]
+    TooManyPairs {
+        /// The pairs counted when the limit was passed.
+        pairs: u64,
+    },
     /// A named particle attribute does not exist.
     #[error("particle attribute `{0}` does not exist")]
     MissingAttribute(String),

@@ -39,7 +39,7 @@ const A: f32 = 0.25;
 /// within h, so that a lone droplet ahead of the flow does not count.
 fn front(positions: &[Vec3], h: f32) -> f32 {
     let grid = NeighbourGrid::build(positions, h).unwrap();
-    let lists = NeighbourLists::build(&grid);
+    let lists = NeighbourLists::build(&grid).unwrap();
     (0..positions.len())
         .filter(|&i| lists.of(i).len() >= 5)
         .map(|i| positions[i].x)

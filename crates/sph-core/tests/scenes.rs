@@ -367,7 +367,10 @@ fn malformed_scenes_name_the_field_and_reason() {
         )
     };
     let msg = message(&budget(1205));
-    assert!(msg.contains("emitters[0].width") && msg.contains("1200"), "{msg}");
+    assert!(
+        msg.contains("emitters[0].width") && msg.contains("1200"),
+        "{msg}"
+    );
     let mut world = Scene::from_toml(&budget(1213))
         .unwrap()
         .build_world()

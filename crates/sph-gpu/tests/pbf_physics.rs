@@ -51,7 +51,7 @@ fn positions(ctx: &GpuContext, gpu: &GpuPbf) -> Vec<Vec3> {
 /// neighbours within h (`tests/dam_break_experiment.rs` in sph-core).
 fn front(positions: &[Vec3], h: f32) -> f32 {
     let grid = NeighbourGrid::build(positions, h).unwrap();
-    let lists = NeighbourLists::build(&grid);
+    let lists = NeighbourLists::build(&grid).unwrap();
     (0..positions.len())
         .filter(|&i| lists.of(i).len() >= 5)
         .map(|i| positions[i].x)

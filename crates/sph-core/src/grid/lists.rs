@@ -7,6 +7,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use super::{NeighbourGrid, scan};
+use crate::error::{Error, Result};
 use crate::region::{self, Blocks};
 
 /// Particles per block when building lists (each block fills its own
@@ -27,7 +28,7 @@ pub(crate) const LANES: usize = 8;
 /// use sph_core::{NeighbourGrid, NeighbourLists, glam::Vec3};
 /// let positions = [Vec3::ZERO, Vec3::new(0.5, 0.0, 0.0), Vec3::new(3.0, 0.0, 0.0)];
 /// let grid = NeighbourGrid::build(&positions, 1.0).unwrap();
-/// let lists = NeighbourLists::build(&grid);
+/// let lists = NeighbourLists::build(&grid).unwrap();
 /// assert_eq!(lists.of(0), [1]);
 /// assert_eq!(lists.of(2), [] as [u32; 0]);
 /// assert_eq!(lists.pairs(), 2);
@@ -65,18 +66,23 @@ impl std::fmt::Debug for BuildMemory {
 
 impl NeighbourLists {
     /// The lists of every particle of `grid`.
-    pub fn build(grid: &NeighbourGrid) -> Self {
+    ///
+    /// # Errors
+    /// [`Error::TooManyPairs`], as [`Self::rebuild`].
+    pub fn build(grid: &NeighbourGrid) -> Result<Self> {
         let mut lists = Self::default();
-        lists.rebuild(grid);
-        lists
+        lists.rebuild(grid)?;
+        Ok(lists)
     }
 
     /// Rebuilds the lists for `grid` in this memory.
     ///
-    /// # Panics
-    /// If the grid holds 2³² neighbour pairs or more (about 10⁸ particles
-    /// at usual neighbour counts); the indices are 32-bit.
-    pub fn rebuild(&mut self, grid: &NeighbourGrid) {
+    /// # Errors
+    /// [`Error::TooManyPairs`] where the grid holds 2³² neighbour pairs or
+    /// more (about 10⁸ particles at usual neighbour counts, 10⁶ at ten
+    /// spacings' h): the lists' offsets are 32-bit. The lists are then
+    /// empty.
+    pub fn rebuild(&mut self, grid: &NeighbourGrid) -> Result<()> {
         let n = grid.len();
         // Room for as many neighbours per particle as last time and a few
         // more, so that a block's buffer rarely grows.
@@ -132,7 +138,12 @@ impl NeighbourLists {
         let mut total = 0u64;
         for &c in blocks.iter().flat_map(|(counts, _)| counts) {
             total += u64::from(c);
-            let end = u32::try_from(total).expect("fewer than 2³² neighbour pairs");
+            let Ok(end) = u32::try_from(total) else {
+                self.start.clear();
+                self.start.push(0);
+                self.neighbours.clear();
+                return Err(Error::TooManyPairs { pairs: total });
+            };
             self.start.push(end);
         }
         // The blocks' rows copied into place in parallel, then the padding.
@@ -148,6 +159,7 @@ impl NeighbourLists {
             unsafe { out.block(piece) }.copy_from_slice(&blocks[c].1);
         };
         region::run_by(n, CHUNK, &[&copy]);
+        Ok(())
     }
 
     /// Sets `out[i] = f(i, neighbours of i, row i of pairs)` for every
@@ -307,7 +319,7 @@ mod tests {
             .collect();
         let h = 0.04;
         let grid = NeighbourGrid::build(&positions, h).unwrap();
-        let lists = NeighbourLists::build(&grid);
+        let lists = NeighbourLists::build(&grid).unwrap();
         assert_eq!(lists.len(), positions.len());
         for (i, &x) in positions.iter().enumerate() {
             let mut brute: Vec<u32> = (0..positions.len() as u32)

@@ -1149,7 +1149,7 @@ mod tests {
         let model = Model::new(params, DfsphParams::default(), boundary).unwrap();
         let (x, m, _) = jittered_block();
         let grid = NeighbourGrid::build(&x, h).unwrap();
-        let lists = NeighbourLists::build(&grid);
+        let lists = NeighbourLists::build(&grid).unwrap();
         let mut rows = Vec::new();
         rows_of(&x, &m, &mut rows);
         let pass = FactorPass {

@@ -1263,7 +1263,7 @@ mod tests {
         let (x, m, v) = jittered_block();
         let n = x.len();
         let grid = NeighbourGrid::build(&x, h).unwrap();
-        let lists = NeighbourLists::build(&grid);
+        let lists = NeighbourLists::build(&grid).unwrap();
         let (mut rows, mut vrows) = (Vec::new(), Vec::new());
         rows_of(&x, &m, &mut rows);
         rows_of(&v, &m, &mut vrows);

@@ -418,7 +418,7 @@ impl Processor for FindNeighbours {
     }
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let mut lists = ctx.take_lists_memory().unwrap_or_default();
-        lists.rebuild(grid(ctx, particles, self.h, "neighbours")?);
+        lists.rebuild(grid(ctx, particles, self.h, "neighbours")?)?;
         ctx.neighbours = Some(lists);
         Ok(())
     }

@@ -481,7 +481,7 @@ mod tests {
             }
         }
         let grid = NeighbourGrid::build(particles.positions(), params.h).unwrap();
-        let lists = NeighbourLists::build(&grid);
+        let lists = NeighbourLists::build(&grid).unwrap();
         let rho: Vec<f32> = (0..particles.len())
             .map(|i| {
                 let mut r = 0.0;

@@ -638,7 +638,7 @@ pub fn current_radius(
     use std::f32::consts::{PI, TAU};
     const SECTORS: usize = 32;
     let grid = sph_core::NeighbourGrid::build(positions, h).unwrap();
-    let lists = sph_core::NeighbourLists::build(&grid);
+    let lists = sph_core::NeighbourLists::build(&grid).unwrap();
     let mut far = [0.0f32; SECTORS];
     for i in (0..positions.len()).filter(|&i| lists.of(i).len() >= 5) {
         let d = positions[i] - centre;
