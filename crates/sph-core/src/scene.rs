@@ -846,6 +846,7 @@ impl Scene {
         )?;
         for e in &self.emitters {
             let emitter = Emitter::new(
+                self.boundary(),
                 e.centre.into(),
                 e.velocity.into(),
                 e.width,

@@ -379,6 +379,19 @@ fn malformed_scenes_name_the_field_and_reason() {
         world.advance(1.0 / 60.0).unwrap();
     }
     assert_eq!(world.particles.len(), 1209);
+    // A speed that carries layers beyond the far wall within one step: an
+    // error, where they were pressed onto the wall on top of each other.
+    let fast = with("[time_step]", fits).replacen(
+        "velocity = [1.0, 0.0, 0.0]",
+        "velocity = [1000.0, 0.0, 0.0]",
+        1,
+    );
+    let mut world = Scene::from_toml(&fast).unwrap().build_world().unwrap();
+    let e = world.advance(1.0 / 60.0).unwrap_err().to_string();
+    assert!(
+        e.contains("emitter.velocity") && e.contains("out of the domain"),
+        "{e}"
+    );
     // Obstacles over the whole block leave no fluid: an error, not an empty run.
     let buried = with(
         "[time_step]",

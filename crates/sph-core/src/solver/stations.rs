@@ -206,9 +206,13 @@ impl Processor for Boundaries {
 /// Adds particles at a rate: square layers of `n × n` particles at `spacing`
 /// around `centre`, in the plane normal to `velocity`, one layer each time the
 /// previous one has moved `spacing` on. Only whole layers: it stops at the
-/// first that would take the count past `max_particles`.
+/// first that would take the count past `max_particles`. A step long enough
+/// at the emitter's speed to carry a layer out of the free space (beyond a
+/// wall or into an obstacle) is an error: the boundary would press the
+/// layer onto the wall, particles on top of each other.
 #[derive(Debug, Clone)]
 pub struct Emitter {
+    free: Boundary,
     centre: Vec3,
     velocity: Vec3,
     n: u32,
@@ -219,8 +223,10 @@ pub struct Emitter {
 }
 
 impl Emitter {
-    /// An emitter; it stops adding particles once the container holds `max_particles`.
+    /// An emitter in `free` (the scene's boundary); it stops adding
+    /// particles once the container holds `max_particles`.
     pub fn new(
+        free: Boundary,
         centre: Vec3,
         velocity: Vec3,
         n: u32,
@@ -232,6 +238,7 @@ impl Emitter {
         positive("emitter.speed", velocity.length())?;
         positive("emitter.mass", mass)?;
         Ok(Self {
+            free,
             centre,
             velocity,
             n,
@@ -257,9 +264,22 @@ impl Processor for Emitter {
             if particles.len() + layer_len > self.max_particles {
                 return Ok(());
             }
-            let layer = nozzle_points(self.centre + offset, self.velocity, self.n, self.spacing);
+            let at = self.centre + offset;
+            if !nozzle_points(at, self.velocity, self.n, self.spacing).all(|x| self.free.admits(x))
+            {
+                return Err(Error::InvalidParameter {
+                    name: "emitter.velocity",
+                    value: format!(
+                        "{} m/s over a step of {:e} s",
+                        self.velocity.length(),
+                        ctx.dt
+                    ),
+                    reason: "carries a layer out of the domain or into an obstacle within one step: \
+                             lower the speed or shorten the step",
+                });
+            }
             ctx.invalidate_neighbours();
-            for x in layer {
+            for x in nozzle_points(at, self.velocity, self.n, self.spacing) {
                 particles.push(x, self.velocity, self.mass);
             }
         }
