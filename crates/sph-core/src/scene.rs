@@ -58,7 +58,8 @@ pub struct Scene {
     /// Upper bound on the particle count (blocks and emitters together).
     #[serde(default = "default_max_particles")]
     pub max_particles: usize,
-    /// Rendering hints.
+    /// Rendering hints. A scene file without a `[render]` table frames its
+    /// domain ([`RenderSpec::framing`] at 45°), wherever the domain lies.
     #[serde(default)]
     pub render: RenderSpec,
 }
@@ -420,7 +421,7 @@ fn lattice_count(min: Vec3, max: Vec3, spacing: f32) -> [usize; 3] {
 impl Scene {
     /// Parses and validates a scene from TOML text.
     pub fn from_toml(text: &str) -> Result<Self> {
-        let scene: Scene = toml::from_str(text).map_err(|e| {
+        let mut scene: Scene = toml::from_str(text).map_err(|e| {
             let mut message = e.to_string();
             // Only where the fields were: [fluid] lists `rest_density`
             // among the fields it expects, [time_step] only `frame_dt`.
@@ -435,6 +436,14 @@ impl Scene {
             }
             Error::SceneSyntax(message)
         })?;
+        // No [render]: a camera on the domain, not a fixed one that a
+        // domain elsewhere would leave out of the picture.
+        let table: toml::Table =
+            toml::from_str(text).map_err(|e| Error::SceneSyntax(e.to_string()))?;
+        if !table.contains_key("render") {
+            let d = &scene.domain;
+            scene.render = RenderSpec::framing(d.min.into(), d.max.into(), 45.0);
+        }
         scene.validate()?;
         Ok(scene)
     }

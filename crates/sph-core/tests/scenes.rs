@@ -334,6 +334,26 @@ fn malformed_scenes_name_the_field_and_reason() {
     // The hint that a field moved to [solver.wcsph] only where it was.
     let pbf_cfl = message(&with("scorr_n = 4\n", "scorr_n = 4\ncfl = 0.4\n"));
     assert!(!pbf_cfl.contains("[solver.wcsph]"), "{pbf_cfl}");
+    // Without [render], the camera frames the domain, wherever it lies.
+    let text = with("[domain]", "[domain]");
+    let start = text.find("[render]").unwrap();
+    let end = start + text[start..].find("\n\n").unwrap();
+    let far = format!("{}{}", &text[..start], &text[end..])
+        .replace(
+            "min = [0.0, 0.0, 0.0]\nmax = [1.0, 0.625, 0.08]",
+            "min = [10.0, 0.0, 10.0]\nmax = [11.0, 0.625, 10.08]",
+        )
+        .replace(
+            "min = [0.0, 0.0, 0.0]\nmax = [0.25, 0.5, 0.08]",
+            "min = [10.0, 0.0, 10.0]\nmax = [10.25, 0.5, 10.08]",
+        );
+    let scene = Scene::from_toml(&far).unwrap();
+    let framing = sph_core::scene::RenderSpec::framing(
+        sph_core::glam::Vec3::new(10.0, 0.0, 10.0),
+        sph_core::glam::Vec3::new(11.0, 0.625, 10.08),
+        45.0,
+    );
+    assert_eq!(scene.render, framing);
     // A nozzle that fits and is inside no obstacle is accepted.
     let fits = "[[emitters]]\ncentre = [0.5, 0.3, 0.04]\nvelocity = [1.0, 0.0, 0.0]\nwidth = 3\n\n[time_step]";
     Scene::from_toml(&with("[time_step]", fits)).unwrap();
