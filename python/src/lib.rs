@@ -307,7 +307,8 @@ impl PyWorld {
             let camera = Camera {
                 fov_y: view.fov_y.to_radians(),
                 ..Camera::looking_at(Vec3::from(view.camera), Vec3::from(view.look_at))
-            };
+            }
+            .with_planes_for_distance();
             (renderer.render(&ctx, &camera, &Shading::water(h))).map_err(|e| e.to_string())?;
             let image = renderer.read_image(&ctx).map_err(|e| e.to_string())?;
             let weights = renderer

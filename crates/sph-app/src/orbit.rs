@@ -39,10 +39,9 @@ impl Orbit {
         let eye = self.target + self.distance * Vec3::new(sy * cp, sp, cy * cp);
         Camera {
             fov_y: self.fov_y,
-            near: (self.distance * 0.01).max(1e-4),
-            far: self.distance * 100.0,
             ..Camera::looking_at(eye, self.target)
         }
+        .with_planes_for_distance()
     }
 
     /// Rotates by a mouse drag of `delta` pixels.

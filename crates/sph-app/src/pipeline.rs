@@ -496,6 +496,7 @@ impl Pipeline {
             fov_y: r.fov_y.to_radians(),
             ..Camera::looking_at(Vec3::from(r.camera), Vec3::from(r.look_at))
         }
+        .with_planes_for_distance()
     }
 
     /// The demo's water scaled to the scene ([`Shading::water`]).

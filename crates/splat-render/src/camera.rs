@@ -38,6 +38,19 @@ impl Camera {
         }
     }
 
+    /// This camera with clip planes scaled to its distance d from the
+    /// target: d/100 (at least 10⁻⁴) and 100 d, so a scene's camera 300 m
+    /// out or a tank in millimetres is drawn as one 1 m out is (the fixed
+    /// planes of [`Camera::looking_at`] clip beyond 100 m).
+    pub fn with_planes_for_distance(self) -> Self {
+        let distance = (self.eye - self.target).length();
+        Self {
+            near: (distance * 0.01).max(1e-4),
+            far: distance * 100.0,
+            ..self
+        }
+    }
+
     /// Checks that the camera can be projected.
     ///
     /// # Errors
