@@ -110,7 +110,14 @@ fn run(args: &Args) -> Result<(), AppError> {
 pub fn environment() -> Environment {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../assets/textures");
     Environment::load(&dir).unwrap_or_else(|e| {
-        log::info!("{e}; using the procedural environment");
+        // Without the folder (an installed binary) the procedural images
+        // are the plan; a folder whose images do not load is a mistake to
+        // show.
+        if dir.exists() {
+            log::warn!("{e}; using the procedural environment");
+        } else {
+            log::info!("{e}; using the procedural environment");
+        }
         Environment::procedural()
     })
 }

@@ -54,9 +54,9 @@ impl Simd {
 }
 
 /// The level every SIMD path uses: [`Simd::detect`], lowered to `SPH_SIMD` when that
-/// is set to `baseline`, `avx2` or `avx512` (a level above the CPU's is not
-/// taken). Read once per process; an unknown value is reported on stderr once
-/// and ignored.
+/// is set to `baseline`, `avx2` or `avx512`. Read once per process; an
+/// unknown value, or a level above the CPU's (not taken), is reported on
+/// stderr once and ignored.
 pub fn simd_level() -> Simd {
     static LEVEL: OnceLock<Simd> = OnceLock::new();
     *LEVEL.get_or_init(|| {
@@ -69,7 +69,14 @@ pub fn simd_level() -> Simd {
             .into_iter()
             .find(|l| name.as_deref() == Some(l.name()))
         {
-            Some(asked) => asked.min(best),
+            Some(asked) if asked > best => {
+                eprintln!(
+                    "sph-core: SPH_SIMD={value:?} is above this CPU's best; using {}",
+                    best.name()
+                );
+                best
+            }
+            Some(asked) => asked,
             None => {
                 eprintln!(
                     "sph-core: SPH_SIMD={value:?} is not baseline, avx2 or avx512; using {}",
