@@ -65,7 +65,7 @@ fn vtk_frames_load_in_splashsurf_with_their_attributes() {
     }
     // The frame time stays readable: in the title line, and our reader.
     let ours = sph_core::io::read_vtk(std::fs::File::open(&path).unwrap()).unwrap();
-    assert_eq!(ours.time, 0.25);
+    assert_eq!(ours.time, Some(0.25));
     assert_eq!(ours.positions, positions);
 }
 

@@ -344,6 +344,36 @@ fn xyz_files_play() {
     assert!(surfels > 100, "{:?}", rows[0]);
 }
 
+/// Another program's PLY files, which record no time, play 1/--fps apart
+/// (they played at t = 0 each: the reader took the missing time for 0).
+#[test]
+fn ply_files_without_a_time_play_at_the_frame_rate() {
+    let dir = scratch("input-ply");
+    std::fs::create_dir_all(&dir).unwrap();
+    for f in 0..3 {
+        let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 216\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+        for i in 0..6 {
+            for j in 0..6 {
+                for k in 0..6 {
+                    for v in [i, j + f, k] {
+                        bytes.extend((0.02 * v as f32).to_le_bytes());
+                    }
+                }
+            }
+        }
+        std::fs::write(dir.join(format!("cloud_{f}.ply")), bytes).unwrap();
+    }
+    let glob = dir.join("cloud_*.ply");
+    let rows = play(
+        glob.to_str().unwrap(),
+        "0.01",
+        &dir.join("out"),
+        &["--fps", "10"],
+    );
+    let times: Vec<&str> = rows.iter().map(|r| r[1].as_str()).collect();
+    assert_eq!(times, ["0.000000", "0.100000", "0.200000"]);
+}
+
 /// `--iso` reaches the extraction: the BGEO dam break's surface at
 /// k = 0.3 is another surface than at the default 0.5 (18,389 surfels
 /// against 26,671 measured).

@@ -160,8 +160,9 @@ fn components(name: &str) -> [String; 3] {
 /// A point cloud read back from a file: owned attributes and the frame time.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct LoadedCloud {
-    /// Simulated time of the frame.
-    pub time: f64,
+    /// The simulated time the file records: this project's frames carry
+    /// it, other programs' files may not (`None`, not 0).
+    pub time: Option<f64>,
     /// Positions.
     pub positions: Vec<Vec3>,
     /// Named vectors, in file order.
@@ -275,7 +276,7 @@ mod tests {
                 Format::Vtk => read_vtk(bytes.as_slice()),
             }
             .unwrap();
-            assert_eq!(back.time, 0.125);
+            assert_eq!(back.time, Some(0.125));
             assert_eq!(back.positions, x);
             let names: Vec<&str> = back.vectors.iter().map(|(n, _)| n.as_str()).collect();
             assert_eq!(names, ["velocity", "normal", "spin"], "{format:?}");
@@ -342,6 +343,9 @@ mod tests {
             read_ply(b.as_slice()).map(|c| c.positions.len())
         };
         assert_eq!(ply("2").unwrap(), 2);
+        // Another program's PLY records no time: none, not 0.
+        let b = b"ply\nformat binary_little_endian 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+        assert_eq!(read_ply(&b[..]).unwrap().time, None);
         // A time that is not a finite number.
         for t in ["nan", "inf", "-inf", "soon"] {
             let b = format!(
@@ -404,7 +408,7 @@ mod tests {
         let second = w.write(&cloud, 1.0 / 30.0).unwrap();
         assert_eq!(second, dir.join("particles_00001.vtk"));
         let back = read_vtk(File::open(&second).unwrap()).unwrap();
-        assert_eq!(back.time, 1.0 / 30.0);
+        assert_eq!(back.time, Some(1.0 / 30.0));
         let index = std::fs::read_to_string(dir.join("particles_index.csv")).unwrap();
         let lines: Vec<&str> = index.lines().collect();
         assert_eq!(

@@ -58,7 +58,7 @@ pub fn read_ply(r: impl Read) -> Result<LoadedCloud> {
     if header_line(&mut r, what)? != "ply" {
         return Err(bad(what, "missing `ply` magic"));
     }
-    let (mut n, mut props, mut time) = (None, Vec::new(), 0.0);
+    let (mut n, mut props, mut time) = (None, Vec::new(), None);
     loop {
         let line = header_line(&mut r, what)?;
         let words: Vec<&str> = line.split_whitespace().collect();
@@ -66,11 +66,8 @@ pub fn read_ply(r: impl Read) -> Result<LoadedCloud> {
             ["format", "binary_little_endian", "1.0"] => {}
             ["format", ..] => return Err(bad(what, format!("unsupported `{line}`"))),
             ["comment", "time", t] => {
-                time = t
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|t| t.is_finite())
-                    .ok_or_else(|| bad(what, format!("bad time `{t}`")))?
+                let finite = t.parse::<f64>().ok().filter(|t| t.is_finite());
+                time = Some(finite.ok_or_else(|| bad(what, format!("bad time `{t}`")))?);
             }
             ["comment", ..] => {}
             ["element", "vertex", c] => {

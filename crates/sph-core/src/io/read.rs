@@ -59,7 +59,7 @@ pub fn read_particles(path: impl AsRef<Path>) -> Result<ParticleFile> {
                 Ok(cloud) => {
                     return finite(ParticleFile {
                         positions: cloud.positions,
-                        time: Some(cloud.time),
+                        time: cloud.time,
                     })
                     .map_err(fail);
                 }

@@ -94,12 +94,9 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
     // The frame time, from the title `write_vtk` writes (files of earlier
     // versions carry a TIME field as well, read below).
     if let Some(t) = title.strip_prefix(VTK_TITLE) {
-        cloud.time = t
-            .trim()
-            .parse::<f64>()
-            .ok()
-            .filter(|t| t.is_finite())
-            .ok_or_else(|| bad(what, format!("bad time in the title `{title}`")))?;
+        let finite = t.trim().parse::<f64>().ok().filter(|t| t.is_finite());
+        let time = finite.ok_or_else(|| bad(what, format!("bad time in the title `{title}`")))?;
+        cloud.time = Some(time);
     }
     // The point count, once POINTS has been read: the attributes need it.
     let mut points = None;
@@ -120,7 +117,11 @@ pub fn read_vtk(r: impl Read) -> Result<LoadedCloud> {
             ["TIME", "1", "1", "double"] => {
                 let mut b = [0u8; 8];
                 r.read_exact(&mut b).map_err(|e| io_err(what, e))?;
-                cloud.time = f64::from_be_bytes(b);
+                let time = f64::from_be_bytes(b);
+                if !time.is_finite() {
+                    return Err(bad(what, format!("TIME {time} is not finite")));
+                }
+                cloud.time = Some(time);
             }
             ["POINTS", c, "float"] => {
                 if points.is_some() {
