@@ -446,16 +446,16 @@ fn read_particles<'py>(
 }
 
 /// Writes points to `path`, its format by its extension: binary PLY or
-/// legacy VTK at simulated `time` with optional `velocities` ((N, 3)) and
-/// `densities` ((N,)), or positions alone as XYZ, VTU or BGEO (what
-/// `read_particles` reads back). Attributes for a positions-only format are
-/// a `ValueError`, not dropped.
+/// legacy VTK at simulated `time` (0 when left out) with optional
+/// `velocities` ((N, 3)) and `densities` ((N,)), or positions alone as XYZ,
+/// VTU or BGEO (what `read_particles` reads back). Attributes or a time for
+/// a positions-only format are a `ValueError`, not dropped.
 #[pyfunction]
-#[pyo3(signature = (path, positions, time = 0.0, velocities = None, densities = None))]
+#[pyo3(signature = (path, positions, time = None, velocities = None, densities = None))]
 fn write_particles(
     path: PathBuf,
     positions: PyReadonlyArray2<'_, f32>,
-    time: f64,
+    time: Option<f64>,
     velocities: Option<PyReadonlyArray2<'_, f32>>,
     densities: Option<numpy::PyReadonlyArray1<'_, f32>>,
 ) -> PyResult<()> {
@@ -472,7 +472,15 @@ fn write_particles(
     if let Some(rho) = &rho {
         cloud.scalars.push(("density", rho));
     }
-    sph_core::io::write_particles(&path, &cloud, time).map_err(error)
+    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let timed = matches!(extension.as_deref(), Some("ply" | "vtk"));
+    if let (Some(t), false) = (time, timed) {
+        return Err(PyValueError::new_err(format!(
+            "time: {t} given for {}, whose format records no time (.ply and .vtk do)",
+            path.display()
+        )));
+    }
+    sph_core::io::write_particles(&path, &cloud, time.unwrap_or(0.0)).map_err(error)
 }
 
 /// The built-in scenes' names.

@@ -84,7 +84,7 @@ def test_particle_files_round_trip_through_numpy(tmp_path):
         assert time is None, ext
         np.testing.assert_array_equal(read, positions, err_msg=ext)
         with pytest.raises(ValueError, match="positions only"):
-            ss.write_particles(path, positions, 0.0, velocities)
+            ss.write_particles(path, positions, velocities=velocities)
     # XYZ is binary f32 triples, as splashsurf reads them.
     np.testing.assert_array_equal(
         np.fromfile(tmp_path / "points.xyz", np.float32).reshape(-1, 3), positions
@@ -138,6 +138,8 @@ def test_bad_input_raises_naming_the_argument(tmp_path):
         ss.World.from_arrays(lattice + 5.0, 0.02, [0.0, 0.0, 0.0], [1.0, 1.0, 1.0])
     with pytest.raises(ValueError, match="frame_dt"):
         world.advance(0.01, frame_dt=1e-40)
+    with pytest.raises(ValueError, match="time"):
+        ss.write_particles(tmp_path / "t.xyz", np.zeros((2, 3), np.float32), time=0.5)
     with pytest.raises(ValueError, match="density"):
         ss.write_particles(
             tmp_path / "nan.ply",

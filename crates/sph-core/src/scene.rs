@@ -367,6 +367,10 @@ impl RenderSpec {
     }
 }
 
+/// Why an obstacle that misses the domain is refused.
+const OBSTACLE_OUTSIDE: &str =
+    "lies wholly outside the domain: it would hold back no fluid (a typo in its corners?)";
+
 /// The longest simulated time per frame a scene accepts (s).
 pub const MAX_FRAME_DT: f32 = 1.0;
 
@@ -566,10 +570,16 @@ impl Scene {
                     if !min.cmplt(max).all() {
                         return Err(invalid(&field, "min must be below max on every axis"));
                     }
+                    if !(min.cmplt(domain.max).all() && domain.min.cmplt(max).all()) {
+                        return Err(invalid(&field, OBSTACLE_OUTSIDE));
+                    }
                 }
                 ObstacleSpec::Sphere { centre, radius } => {
-                    finite3(&format!("{field}.centre"), centre)?;
+                    let c = finite3(&format!("{field}.centre"), centre)?;
                     positive(&format!("{field}.radius"), radius)?;
+                    if c.clamp(domain.min, domain.max).distance(c) >= radius {
+                        return Err(invalid(&field, OBSTACLE_OUTSIDE));
+                    }
                 }
             }
         }

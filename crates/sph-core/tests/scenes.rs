@@ -482,6 +482,19 @@ fn degenerate_obstacles_name_the_field() {
             "`{obstacle}` gave `{msg}`, which lacks `{field}`"
         );
     }
+    // Obstacles that miss the domain (1 × 0.625 × 0.08 m) hold nothing back.
+    for obstacle in [
+        cuboid("[5.0, 0.0, 0.0]", "[6.0, 0.2, 0.08]"),
+        sphere("[0.5, 0.3, 0.5]", "0.3"),
+    ] {
+        let msg = message(&with("[time_step]", &obstacle));
+        assert!(
+            msg.contains("obstacles[0]") && msg.contains("wholly outside"),
+            "{msg}"
+        );
+    }
+    // Ones that reach into it are accepted.
+    Scene::from_toml(&with("[time_step]", &sphere("[0.5, 0.3, 0.5]", "0.5"))).unwrap();
     // The same box with room inside is accepted.
     Scene::from_toml(&with(
         "[time_step]",
