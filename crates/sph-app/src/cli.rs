@@ -36,7 +36,7 @@ pub struct Args {
 
     /// The radius r (m) of the particles read with --input: each stands for
     /// a cube 2r wide.
-    #[arg(long, value_name = "R", value_parser = parse_length)]
+    #[arg(long, value_name = "R", value_parser = parse_length, requires = "input")]
     pub particle_radius: Option<f32>,
 
     /// The smoothing length of --input's particles in multiples of
@@ -44,7 +44,7 @@ pub struct Args {
     /// support h is twice it, 2 × 2 × r = 4r by default (h = 2 particle
     /// diameters, as the built-in scenes have). h must span from one to
     /// ten particle diameters.
-    #[arg(long, value_name = "L", default_value_t = 2.0, value_parser = parse_length)]
+    #[arg(long, value_name = "L", default_value_t = 2.0, value_parser = parse_length, requires = "input")]
     pub smoothing_length: f32,
 
     /// The iso value of the surface the surfels lie on, c = k_iso (thesis
@@ -129,7 +129,7 @@ pub struct Args {
 
     /// Window: take a screenshot (as the S key does) into --out after this many
     /// drawn frames, then quit. For smoke tests under Xvfb.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..), conflicts_with = "headless")]
     pub screenshot_after: Option<u64>,
 
     /// Run the scene's solver on the GPU (wgpu compute, `sph-gpu`) instead of
@@ -338,6 +338,16 @@ mod tests {
         // Frames of more than 1 s of simulation would run for hours.
         assert!(Args::try_parse_from(["sph-app", "--fps", "0.0001"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--fps", "1"]).is_ok());
+        // Flags of another mode are refused, not ignored.
+        for args in [
+            &["sph-app", "--particle-radius", "0.01"][..],
+            &["sph-app", "--smoothing-length", "3"],
+            &["sph-app", "--headless", "--screenshot-after", "3"],
+        ] {
+            assert!(Args::try_parse_from(args).is_err(), "{args:?}");
+        }
+        let input = ["sph-app", "--input", "f.vtk", "--particle-radius", "0.01"];
+        assert!(Args::try_parse_from(input).is_ok());
         assert!(Args::try_parse_from(["sph-app", "--frames", "3", "--seconds", "1"]).is_err());
         assert!(Args::try_parse_from(["sph-app", "--threads", "0"]).is_err());
         let a = Args::try_parse_from(["sph-app", "--solver", "wcsph"]).unwrap();
