@@ -288,6 +288,23 @@ fn parse_fps(s: &str) -> Result<f64, String> {
 }
 
 impl Args {
+    /// Checks that --seconds makes whole frames at --fps: the run renders
+    /// whole frames, and rounding 0.05 s at 30 fps to 2 frames would
+    /// simulate 0.067 s without a word.
+    pub fn check_seconds(&self) -> Result<(), String> {
+        let Some(s) = self.seconds.filter(|_| self.frames.is_none()) else {
+            return Ok(());
+        };
+        let frames = s * self.fps;
+        if frames < 0.999 || (frames - frames.round()).abs() > 1e-3 {
+            return Err(format!(
+                "--seconds {s} at --fps {} is {frames:.3} frames: give a duration of whole frames (or --frames)",
+                self.fps
+            ));
+        }
+        Ok(())
+    }
+
     /// Frames to render headless; `files` where --input plays that many
     /// and neither --frames nor --seconds is given.
     pub fn frame_count(&self, files: Option<usize>) -> u32 {
@@ -346,6 +363,16 @@ mod tests {
         ] {
             assert!(Args::try_parse_from(args).is_err(), "{args:?}");
         }
+        // A duration of whole frames, or an error saying how many it is.
+        let timed = |s: &str, fps: &str| {
+            let args = ["sph-app", "--headless", "--seconds", s, "--fps", fps];
+            Args::try_parse_from(args).unwrap().check_seconds()
+        };
+        assert_eq!(timed("3", "15"), Ok(()));
+        assert_eq!(timed("0.1", "30"), Ok(()));
+        let e = timed("0.05", "30").unwrap_err();
+        assert!(e.contains("1.500 frames"), "{e}");
+        assert!(timed("0.01", "30").is_err());
         let input = ["sph-app", "--input", "f.vtk", "--particle-radius", "0.01"];
         assert!(Args::try_parse_from(input).is_ok());
         assert!(Args::try_parse_from(["sph-app", "--frames", "3", "--seconds", "1"]).is_err());

@@ -31,6 +31,12 @@ use crate::playback::Playback;
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Err(message) = args.check_seconds() {
+        use clap::CommandFactory;
+        Args::command()
+            .error(clap::error::ErrorKind::ValueValidation, message)
+            .exit();
+    }
     let level = match args.verbose {
         0 => "warn",
         1 => "info",
