@@ -75,8 +75,6 @@ fn solver_kind(name: &str) -> PyResult<SolverKind> {
 #[pyclass(name = "World", module = "sph_splat", unsendable)]
 struct PyWorld {
     world: World,
-    /// Where fluid may be: new positions are checked against it.
-    boundary: sph_core::Boundary,
     /// Where `render` looks from.
     view: sph_core::scene::RenderSpec,
 }
@@ -112,7 +110,6 @@ impl PyWorld {
         }
         Ok(Self {
             world: scene.build_world().map_err(error)?,
-            boundary: scene.boundary(),
             view: scene.render,
         })
     }
@@ -163,7 +160,6 @@ impl PyWorld {
             .map_err(error)?;
         Ok(Self {
             world,
-            boundary: scene.boundary(),
             view: scene.render,
         })
     }
@@ -237,7 +233,7 @@ impl PyWorld {
     #[setter]
     fn set_positions(&mut self, positions: PyReadonlyArray2<'_, f32>) -> PyResult<()> {
         let x = points("positions", &positions)?;
-        if let Some(i) = x.iter().position(|&x| !self.boundary.admits(x)) {
+        if let Some(i) = x.iter().position(|&x| !self.world.boundary().admits(x)) {
             return Err(PyValueError::new_err(format!(
                 "positions: row {i} ({}) lies outside the domain or inside an obstacle",
                 x[i]
@@ -472,15 +468,7 @@ fn write_particles(
     if let Some(rho) = &rho {
         cloud.scalars.push(("density", rho));
     }
-    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase());
-    let timed = matches!(extension.as_deref(), Some("ply" | "vtk"));
-    if let (Some(t), false) = (time, timed) {
-        return Err(PyValueError::new_err(format!(
-            "time: {t} given for {}, whose format records no time (.ply and .vtk do)",
-            path.display()
-        )));
-    }
-    sph_core::io::write_particles(&path, &cloud, time.unwrap_or(0.0)).map_err(error)
+    sph_core::io::write_particles(&path, &cloud, time).map_err(error)
 }
 
 /// The built-in scenes' names.

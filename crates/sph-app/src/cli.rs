@@ -288,10 +288,18 @@ fn parse_fps(s: &str) -> Result<f64, String> {
 }
 
 impl Args {
-    /// Checks that --seconds makes whole frames at --fps: the run renders
-    /// whole frames, and rounding 0.05 s at 30 fps to 2 frames would
-    /// simulate 0.067 s without a word.
-    pub fn check_seconds(&self) -> Result<(), String> {
+    /// Checks what one flag's parser cannot: --seconds makes whole frames
+    /// at --fps (the run renders whole frames, and rounding 0.05 s at 30
+    /// fps to 2 frames would simulate 0.067 s without a word), and --gif's
+    /// --fps is at most 100 (a GIF frame lasts whole hundredths of a
+    /// second).
+    pub fn check(&self) -> Result<(), String> {
+        if self.gif.is_some() && self.fps > 100.0 {
+            return Err(format!(
+                "--gif at --fps {}: a GIF frame lasts at least 1/100 s, so a clip plays at most 100 fps",
+                self.fps
+            ));
+        }
         let Some(s) = self.seconds.filter(|_| self.frames.is_none()) else {
             return Ok(());
         };
@@ -366,7 +374,7 @@ mod tests {
         // A duration of whole frames, or an error saying how many it is.
         let timed = |s: &str, fps: &str| {
             let args = ["sph-app", "--headless", "--seconds", s, "--fps", fps];
-            Args::try_parse_from(args).unwrap().check_seconds()
+            Args::try_parse_from(args).unwrap().check()
         };
         assert_eq!(timed("3", "15"), Ok(()));
         assert_eq!(timed("0.1", "30"), Ok(()));

@@ -406,7 +406,7 @@ impl GifWriter {
             .set_repeat(Repeat::Infinite)
             .map_err(|e| AppError::output(path, e))?;
         // GIF delays are whole hundredths of a second.
-        // (`main` refuses --gif above 100 fps.)
+        // (`Args::check` refuses --gif above 100 fps.)
         let delay = Delay::from_numer_denom_ms((1000.0 / fps).round() as u32, 1);
         Ok(Self {
             path: path.to_path_buf(),

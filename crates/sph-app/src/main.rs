@@ -31,7 +31,7 @@ use crate::playback::Playback;
 
 fn main() -> ExitCode {
     let args = Args::parse();
-    if let Err(message) = args.check_seconds() {
+    if let Err(message) = args.check() {
         use clap::CommandFactory;
         Args::command()
             .error(clap::error::ErrorKind::ValueValidation, message)
@@ -86,15 +86,6 @@ fn run(args: &Args) -> Result<(), AppError> {
     };
     pipeline.extract.surface = args.surface_field().into();
     pipeline.extract.iso = args.iso;
-    if let (Some(path), true) = (&args.gif, args.fps > 100.0) {
-        return Err(AppError::output(
-            path,
-            format!(
-                "--gif at --fps {}: a GIF frame lasts at least 1/100 s, so a clip plays at most 100 fps",
-                args.fps
-            ),
-        ));
-    }
     if args.headless {
         return headless::run(args, pipeline);
     }

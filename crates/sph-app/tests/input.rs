@@ -240,7 +240,7 @@ fn bad_inputs_are_clear_errors() {
             positions: &marked,
             ..Default::default()
         },
-        0.0,
+        None,
     )
     .unwrap();
     let mut bytes = std::fs::read(&bgeo).unwrap();

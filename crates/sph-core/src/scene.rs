@@ -865,7 +865,7 @@ impl Scene {
         )?;
         for e in &self.emitters {
             let emitter = Emitter::new(
-                self.boundary(),
+                world.boundary().clone(),
                 e.centre.into(),
                 e.velocity.into(),
                 e.width,

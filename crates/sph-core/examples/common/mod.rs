@@ -6,7 +6,7 @@ use sph_core::{NeighbourGrid, NeighbourLists};
 /// linking particles within h (union–find over the neighbour lists).
 pub fn cluster_sizes(positions: &[sph_core::glam::Vec3], h: f32) -> sph_core::Result<Vec<usize>> {
     let grid = NeighbourGrid::build(positions, h)?;
-    let lists = NeighbourLists::build(&grid).unwrap();
+    let lists = NeighbourLists::build(&grid)?;
     let mut parent: Vec<usize> = (0..positions.len()).collect();
     fn root(parent: &mut [usize], mut i: usize) -> usize {
         while parent[i] != i {

@@ -202,7 +202,7 @@ mod tests {
             ..Default::default()
         };
         let good = scratch("good.bgeo");
-        write_particles(&good, &cloud, 0.0).unwrap();
+        write_particles(&good, &cloud, None).unwrap();
         assert_eq!(read_particles(&good).unwrap().positions, positions);
         let bytes = std::fs::read(&good).unwrap();
         assert_eq!(i32::from_be_bytes(bytes[9..13].try_into().unwrap()), 3);

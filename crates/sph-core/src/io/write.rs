@@ -19,16 +19,22 @@ pub const WRITE_EXTENSIONS: [&str; 5] = ["ply", "vtk", "xyz", "vtu", "bgeo"];
 
 /// Writes `cloud` to the file at `path`, its format from its extension (any
 /// of [`WRITE_EXTENSIONS`], in any case): PLY and VTK with every attribute
-/// and the simulated `time`, XYZ, VTU and BGEO with the positions alone.
+/// and the simulated `time` (0 when `None`), XYZ, VTU and BGEO with the
+/// positions alone.
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] naming the file: an extension not among
 /// those (`format`), attributes for a format that holds positions only,
 /// rather than dropping them (`format`), a non-finite position
 /// (`positions`) or attribute value (the attribute's name), a non-finite
-/// `time` (`time`); [`Error::Io`] naming the file: a format that needs the
+/// `time`, or a time for a format that holds none (`time`); [`Error::Io`]
+/// naming the file: a format that needs the
 /// `readers` feature without it, or a write that failed.
-pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) -> Result<()> {
+pub fn write_particles(
+    path: impl AsRef<Path>,
+    cloud: &PointCloud,
+    time: Option<f64>,
+) -> Result<()> {
     let path = path.as_ref();
     let name = path.display().to_string();
     let fail = |reason: String| Error::Io {
@@ -65,14 +71,23 @@ pub fn write_particles(path: impl AsRef<Path>, cloud: &PointCloud, time: f64) ->
             });
         }
     }
-    if !time.is_finite() {
-        return Err(Error::InvalidParameter {
-            name: "time",
-            value: format!("{time} for {name}"),
-            reason: "must be finite",
-        });
-    }
     let positions_only = !matches!(extension.as_str(), "ply" | "vtk");
+    let bad_time = |t: f64, reason| Error::InvalidParameter {
+        name: "time",
+        value: format!("{t} for {name}"),
+        reason,
+    };
+    match time {
+        Some(t) if !t.is_finite() => return Err(bad_time(t, "must be finite")),
+        Some(t) if positions_only => {
+            return Err(bad_time(
+                t,
+                "a .xyz, .vtu or .bgeo file records no time: write it to .ply or .vtk",
+            ));
+        }
+        _ => {}
+    }
+    let time = time.unwrap_or(0.0);
     if positions_only && !(cloud.vectors.is_empty() && cloud.scalars.is_empty()) {
         let names: Vec<&str> = (cloud.vectors.iter().map(|(n, _)| *n))
             .chain(cloud.scalars.iter().map(|(n, _)| *n))
@@ -133,7 +148,7 @@ mod tests {
         };
         for ext in formats {
             let path = scratch(&format!("round.{ext}"));
-            write_particles(&path, &cloud, 0.25).unwrap();
+            write_particles(&path, &cloud, matches!(*ext, "ply" | "vtk").then_some(0.25)).unwrap();
             let back = super::super::read_particles(&path).unwrap();
             assert_eq!(back.positions, positions, "{ext}");
             let time = matches!(*ext, "ply" | "vtk").then_some(0.25);
@@ -152,14 +167,14 @@ mod tests {
             ..Default::default()
         };
         cloud.vectors.push(("velocity", &velocities));
-        let e = write_particles(scratch("v.xyz"), &cloud, 0.0)
+        let e = write_particles(scratch("v.xyz"), &cloud, None)
             .unwrap_err()
             .to_string();
         assert!(
             e.contains("v.xyz") && e.contains("velocity") && e.contains("positions only"),
             "{e}"
         );
-        let e = write_particles(scratch("v.obj"), &cloud, 0.0)
+        let e = write_particles(scratch("v.obj"), &cloud, None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("v.obj") && e.contains(".ply"), "{e}");
@@ -170,7 +185,7 @@ mod tests {
                 positions: &nan,
                 ..Default::default()
             },
-            0.0,
+            None,
         )
         .unwrap_err()
         .to_string();
@@ -182,7 +197,7 @@ mod tests {
             ..Default::default()
         };
         dense.scalars.push(("density", &nan_density));
-        let e = write_particles(scratch("d.ply"), &dense, 0.0)
+        let e = write_particles(scratch("d.ply"), &dense, None)
             .unwrap_err()
             .to_string();
         assert!(
@@ -193,10 +208,14 @@ mod tests {
             positions: &positions,
             ..Default::default()
         };
-        let e = write_particles(scratch("t.ply"), &plain, f64::NAN)
+        let e = write_particles(scratch("t.ply"), &plain, Some(f64::NAN))
             .unwrap_err()
             .to_string();
         assert!(e.contains("time") && e.contains("finite"), "{e}");
+        let e = write_particles(scratch("t.xyz"), &plain, Some(0.5))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("time") && e.contains("records no time"), "{e}");
         if std::path::Path::new("/dev/full").exists() {
             // /dev/full takes no extension: a link to it that has one.
             let link = scratch("full.xyz");
@@ -206,7 +225,9 @@ mod tests {
                 positions: &positions,
                 ..Default::default()
             };
-            let e = write_particles(&link, &plain, 0.0).unwrap_err().to_string();
+            let e = write_particles(&link, &plain, None)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("full.xyz"), "{e}");
         }
     }

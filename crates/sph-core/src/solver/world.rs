@@ -15,6 +15,8 @@ pub struct World {
     /// The particles.
     pub particles: Particles,
     params: FluidParams,
+    /// Where fluid may be (the program's stations hold their own copies).
+    boundary: Boundary,
     stepping: TimeStepping,
     solver: Solver,
     program: Program,
@@ -172,10 +174,11 @@ impl World {
         }
         particles.validate()?;
         check_admitted(&particles, &boundary)?;
-        let program = solver.program(params, boundary)?;
+        let program = solver.program(params, boundary.clone())?;
         Ok(Self {
             particles,
             params,
+            boundary,
             stepping,
             solver,
             program,
@@ -196,6 +199,11 @@ impl World {
     /// The fluid parameters.
     pub fn params(&self) -> &FluidParams {
         &self.params
+    }
+
+    /// The walls and obstacles: where fluid may be ([`Boundary::admits`]).
+    pub fn boundary(&self) -> &Boundary {
+        &self.boundary
     }
 
     /// The solver and its parameters.
