@@ -71,7 +71,10 @@ pub struct Args {
     #[arg(long, value_parser = parse_seconds)]
     pub seconds: Option<f64>,
 
-    /// Frames per second of simulated time (headless), 1 to 1000.
+    /// Frames per second of simulated time (headless), 1 to 1000: how
+    /// often a frame is rendered and exported. The scene's
+    /// `time_step.frame_dt` still sets the solvers' steps (PBF's substep
+    /// length); a frame longer than it takes more of them.
     #[arg(long, default_value_t = 30.0, value_parser = parse_fps)]
     pub fps: f64,
 
@@ -313,6 +316,29 @@ impl Args {
         Ok(())
     }
 
+    /// The flags among those `given` (clap's ids: given on the command
+    /// line) that only a headless run reads: what a window would otherwise
+    /// ignore. --fps counts only without --input, whose files a window
+    /// plays 1/fps apart (a window steps by the scene's frame); --out is
+    /// read by both (a window's screenshots).
+    pub fn headless_only(&self, given: impl Fn(&str) -> bool) -> Vec<&'static str> {
+        let mut flags = vec![
+            ("frames", "frames"),
+            ("seconds", "seconds"),
+            ("gif", "gif"),
+            ("export_particles", "export-particles"),
+            ("export_surfels", "export-surfels"),
+        ];
+        if self.input.is_none() {
+            flags.push(("fps", "fps"));
+        }
+        flags
+            .into_iter()
+            .filter(|(id, _)| given(id))
+            .map(|(_, flag)| flag)
+            .collect()
+    }
+
     /// Frames to render headless; `files` where --input plays that many
     /// and neither --frames nor --seconds is given.
     pub fn frame_count(&self, files: Option<usize>) -> u32 {
@@ -328,6 +354,33 @@ impl Args {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The flags a window would ignore are named, as given on the command
+    /// line (not their defaults); --fps only where no --input plays.
+    #[test]
+    fn headless_only_flags_are_named() {
+        use clap::{CommandFactory, FromArgMatches};
+        let named = |line: &[&str]| {
+            let matches = Args::command().try_get_matches_from(line).unwrap();
+            let args = Args::from_arg_matches(&matches).unwrap();
+            args.headless_only(|id| {
+                matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine)
+            })
+        };
+        assert!(named(&["sph-app"]).is_empty());
+        assert!(named(&["sph-app", "--out", "shots", "--width", "640"]).is_empty());
+        assert_eq!(
+            named(&["sph-app", "--seconds", "2", "--fps", "10", "--gif", "a.gif"]),
+            ["seconds", "gif", "fps"]
+        );
+        assert_eq!(
+            named(&["sph-app", "--frames", "3", "--export-particles", "ply"]),
+            ["frames", "export-particles"]
+        );
+        assert_eq!(named(&["sph-app", "--export-surfels", "vtk"]), ["export-surfels"]);
+        let input = ["sph-app", "--input", "f_*.ply", "--particle-radius", "0.01"];
+        assert!(named(&[&input[..], &["--fps", "24"]].concat()).is_empty());
+    }
 
     #[test]
     fn arguments_parse_and_bad_ones_are_rejected() {

@@ -57,6 +57,9 @@ pub enum AppError {
         /// What is wrong.
         reason: String,
     },
+    /// A flag that only headless runs read, given to a window.
+    #[error("--{0} applies to headless runs only: add --headless, or leave it out")]
+    HeadlessOnly(&'static str),
     /// The thread pool could not be built.
     #[error("--threads: {0}")]
     Threads(String),

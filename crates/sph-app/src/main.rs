@@ -30,9 +30,13 @@ use crate::pipeline::Pipeline;
 use crate::playback::Playback;
 
 fn main() -> ExitCode {
-    let args = Args::parse();
+    use clap::{CommandFactory, FromArgMatches};
+    let matches = Args::command().get_matches();
+    let args = Args::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    let headless_flags = args.headless_only(|id| {
+        matches.value_source(id) == Some(clap::parser::ValueSource::CommandLine)
+    });
     if let Err(message) = args.check() {
-        use clap::CommandFactory;
         Args::command()
             .error(clap::error::ErrorKind::ValueValidation, message)
             .exit();
@@ -44,7 +48,7 @@ fn main() -> ExitCode {
         _ => "trace",
     };
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level)).init();
-    match run(&args) {
+    match run(&args, &headless_flags) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
@@ -53,7 +57,10 @@ fn main() -> ExitCode {
     }
 }
 
-fn run(args: &Args) -> Result<(), AppError> {
+/// Runs the demo: a window where a display exists, else headless.
+/// `headless_flags` are the flags given that only a headless run reads,
+/// which a window refuses.
+fn run(args: &Args, headless_flags: &[&'static str]) -> Result<(), AppError> {
     if args.list_scenes {
         print!("{}", scenes::listing());
         return Ok(());
@@ -93,11 +100,8 @@ fn run(args: &Args) -> Result<(), AppError> {
         println!("no display found (DISPLAY and WAYLAND_DISPLAY are unset): rendering headless");
         return headless::run(args, pipeline);
     }
-    if let Some(path) = &args.gif {
-        return Err(AppError::output(
-            path,
-            "--gif records headless runs: add --headless",
-        ));
+    if let Some(flag) = headless_flags.first() {
+        return Err(AppError::HeadlessOnly(flag));
     }
     window::run(args, pipeline)
 }

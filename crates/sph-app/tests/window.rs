@@ -63,10 +63,30 @@ fn window_plays_input_files_under_xvfb() {
     assert!(blue > (w * h) as usize / 50, "{blue} blue pixels: {log}");
 }
 
-/// `sph-app ARGS` in a window under Xvfb for 5 frames and its screenshot,
-/// with the run's output; `None` (skipped) without xvfb-run unless
-/// `SPH_REQUIRE_GPU=1`.
-fn window(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
+/// A window refuses the flags only a headless run reads, naming the
+/// first, rather than ignore them.
+#[test]
+fn a_window_refuses_headless_flags() {
+    if !xvfb_available() {
+        return;
+    }
+    let output = Command::new("xvfb-run")
+        .args(["-a", env!("CARGO_BIN_EXE_sph-app")])
+        .args(["--scene", "dam-break", "--frames", "3", "--export-surfels", "ply"])
+        .env("XDG_RUNTIME_DIR", std::env::temp_dir())
+        .output()
+        .expect("xvfb-run starts");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("--frames applies to headless runs only"),
+        "{stderr}"
+    );
+}
+
+/// Whether `xvfb-run` is installed; without it a skip, unless
+/// `SPH_REQUIRE_GPU=1` (CI), where it is a failure.
+fn xvfb_available() -> bool {
     let has_xvfb = Command::new("sh")
         .args(["-c", "command -v xvfb-run"])
         .output()
@@ -77,6 +97,15 @@ fn window(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
             "SPH_REQUIRE_GPU=1 but xvfb-run is missing (apt-get install -y xvfb xauth)"
         );
         eprintln!("skipped: xvfb-run not installed");
+    }
+    has_xvfb
+}
+
+/// `sph-app ARGS` in a window under Xvfb for 5 frames and its screenshot,
+/// with the run's output; `None` (skipped) without xvfb-run unless
+/// `SPH_REQUIRE_GPU=1`.
+fn window(name: &str, args: &[&str]) -> Option<(image::RgbaImage, String)> {
+    if !xvfb_available() {
         return None;
     }
     let out = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);

@@ -998,8 +998,14 @@ impl Scene {
             && let Some(mu) = fluid.viscosity
             && self.pbf_params().viscosity == PbfViscosity::Xsph
         {
+            let blend = self.pbf_params().xsph;
+            let dropped = if blend == PbfParams::default().xsph {
+                String::new()
+            } else {
+                format!(" in place of its XSPH blend of {blend}")
+            };
             notes.push(format!(
-                "PBF's XSPH viscosity has no μ: PBF solves the scene's μ = {mu} Pa·s implicitly"
+                "PBF's XSPH viscosity has no μ: PBF solves the scene's μ = {mu} Pa·s implicitly{dropped}"
             ));
             self.solve_viscosity_implicitly();
         }
@@ -1017,10 +1023,12 @@ impl Scene {
     }
 
     /// PBF's parameters as now, with the implicit viscosity of μ in place
-    /// of the XSPH blend.
+    /// of the XSPH blend (back at its default, which the implicit
+    /// viscosity does not read).
     fn solve_viscosity_implicitly(&mut self) {
         self.solver.pbf = Some(PbfParams {
             viscosity: PbfViscosity::Implicit,
+            xsph: PbfParams::default().xsph,
             ..self.pbf_params()
         });
     }

@@ -618,6 +618,34 @@ fn bad_parameters_are_errors_naming_the_field() {
             },
         ),
         ("pbf.scorr_k", PbfParams { scorr_k: -0.1, ..d }),
+        // Fields the other settings leave unread, given away from their
+        // defaults: s_corr's n and Δq while it is off, XSPH's blend under
+        // the implicit viscosity and the implicit solve's settings under
+        // XSPH.
+        ("pbf.scorr_n", PbfParams { scorr_n: 2, ..d }),
+        ("pbf.scorr_dq", PbfParams { scorr_dq: 0.3, ..d }),
+        (
+            "pbf.xsph",
+            PbfParams {
+                viscosity: PbfViscosity::Implicit,
+                xsph: 0.1,
+                ..d
+            },
+        ),
+        (
+            "pbf.viscosity_tolerance",
+            PbfParams {
+                viscosity_tolerance: 1e-4,
+                ..d
+            },
+        ),
+        (
+            "pbf.viscosity_max_iterations",
+            PbfParams {
+                viscosity_max_iterations: 20,
+                ..d
+            },
+        ),
         (
             "pbf.scorr_k",
             PbfParams {

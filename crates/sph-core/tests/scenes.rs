@@ -72,6 +72,21 @@ fn switching_solver_gives_way_with_a_note() {
     assert!(notes[0].contains("implicitly"), "{notes:?}");
     assert_eq!(water.pbf_params().viscosity, PbfViscosity::Implicit);
     water.validate().unwrap();
+    // An XSPH blend the implicit viscosity would not read goes back to its
+    // default, and the note names it.
+    let mut blended = Scene::built_in("dam-break-water").unwrap();
+    blended.solver.kind = SolverKind::Dfsph;
+    blended.solver.pbf = Some(sph_core::PbfParams {
+        xsph: 0.1,
+        ..sph_core::PbfParams::default()
+    });
+    let notes = blended.switch_solver(SolverKind::Pbf);
+    assert!(
+        notes.len() == 1 && notes[0].contains("XSPH blend of 0.1"),
+        "{notes:?}"
+    );
+    assert_eq!(blended.pbf_params().xsph, sph_core::PbfParams::default().xsph);
+    blended.validate().unwrap();
     // The colour field is WCSPH's.
     let mut colour = Scene::dam_break(0.25, 0.08, 0.02);
     colour.fluid.surface_tension = 0.07;

@@ -170,7 +170,9 @@ pub struct PbfParams {
     /// substeps of 0.1 ms (`tests/pbf.rs`, free fall). Scenes with the
     /// paper's tensile problem can turn it on (the paper: 0.1 in its units).
     pub scorr_k: f32,
-    /// s_corr's exponent n. Default 4 (the paper's).
+    /// s_corr's exponent n. Default 4 (the paper's). Like
+    /// [`Self::scorr_dq`], read only where [`Self::scorr_k`] > 0: a value
+    /// away from the default at k = 0 is refused by [`Self::validate`].
     pub scorr_n: u32,
     /// s_corr's Δq as a fraction of h. Default 0.2 (the paper: 0.1 to 0.3).
     /// With [`Self::scorr_n`] it must keep (W(0)/W(Δq h))ⁿ = (1 − Δq²)^(−3n)
@@ -185,7 +187,8 @@ pub struct PbfParams {
     /// by c towards its neighbours' kernel-weighted mean,
     /// v_i += c Σ_j (m_j/ρ0)(v_j − v_i) W_ij. Default 0.01 (the paper's).
     /// Read only under [`PbfViscosity::Xsph`]: the implicit viscosity
-    /// replaces the blend.
+    /// replaces the blend, and a value away from the default under it is
+    /// refused by [`Self::validate`].
     pub xsph: f32,
     /// The guard: the predicted displacement of one substep, |v| Δt, is at
     /// most this fraction of h; faster particles are slowed to it and
@@ -197,7 +200,8 @@ pub struct PbfParams {
     pub viscosity: PbfViscosity,
     /// The implicit viscosity's tolerance: the conjugate gradients stop at
     /// this residual relative to the velocities' norm. Default 1e-3. Read
-    /// only under [`PbfViscosity::Implicit`], as the next.
+    /// only under [`PbfViscosity::Implicit`], as the next: a value away
+    /// from the default under XSPH is refused by [`Self::validate`].
     pub viscosity_tolerance: f32,
     /// The implicit viscosity's most conjugate-gradient iterations per
     /// substep. Default 100.
@@ -356,7 +360,8 @@ pub const MAX_PBF_COUNT: u32 = 1000;
 pub const MAX_DENSITY_ERROR: f32 = 1.0;
 
 impl PbfParams {
-    /// Checks every parameter is finite and in range; the error names it
+    /// Checks every parameter is finite and in range, and that none is
+    /// given where the others leave it unread; the error names it
     /// (`pbf.iterations`, ...).
     pub fn validate(&self) -> Result<()> {
         let check = |name: &'static str, value: f64, ok: bool, reason: &'static str| {
@@ -472,7 +477,59 @@ impl PbfParams {
             s.is_finite() && s >= 0.0,
             "must be finite and ≥ 0 m/s (0 turns sleeping off)",
         )?;
-        Ok(())
+        self.check_read()
+    }
+
+    /// Refuses a field the other settings leave unread, set away from its
+    /// default: nothing a scene gives is silently dropped. XSPH's blend is
+    /// read only under [`PbfViscosity::Xsph`], the implicit viscosity's
+    /// tolerance and iterations only under [`PbfViscosity::Implicit`], and
+    /// s_corr's n and Δq only where its k is above 0. A field written out
+    /// at its default (as the shipped scene files do) is accepted.
+    fn check_read(&self) -> Result<()> {
+        let d = Self::default();
+        let unread = |name, value: f64, reason| Error::InvalidParameter {
+            name,
+            value: value.to_string(),
+            reason,
+        };
+        match self.viscosity {
+            PbfViscosity::Implicit if self.xsph != d.xsph => Err(unread(
+                "pbf.xsph",
+                self.xsph.into(),
+                "is not read under viscosity = \"implicit\", which replaces XSPH's blend: \
+                 leave it out, or set viscosity = \"xsph\"",
+            )),
+            PbfViscosity::Xsph if self.viscosity_tolerance != d.viscosity_tolerance => {
+                Err(unread(
+                    "pbf.viscosity_tolerance",
+                    self.viscosity_tolerance.into(),
+                    "is read only under viscosity = \"implicit\", and this is \"xsph\": \
+                     leave it out, or set viscosity = \"implicit\" (with fluid.viscosity)",
+                ))
+            }
+            PbfViscosity::Xsph if self.viscosity_max_iterations != d.viscosity_max_iterations => {
+                Err(unread(
+                    "pbf.viscosity_max_iterations",
+                    self.viscosity_max_iterations.into(),
+                    "is read only under viscosity = \"implicit\", and this is \"xsph\": \
+                     leave it out, or set viscosity = \"implicit\" (with fluid.viscosity)",
+                ))
+            }
+            _ if self.scorr_k == 0.0 && self.scorr_n != d.scorr_n => Err(unread(
+                "pbf.scorr_n",
+                self.scorr_n.into(),
+                "is read only where scorr_k > 0, and scorr_k = 0 turns s_corr off: \
+                 leave it out, or give scorr_k",
+            )),
+            _ if self.scorr_k == 0.0 && self.scorr_dq != d.scorr_dq => Err(unread(
+                "pbf.scorr_dq",
+                self.scorr_dq.into(),
+                "is read only where scorr_k > 0, and scorr_k = 0 turns s_corr off: \
+                 leave it out, or give scorr_k",
+            )),
+            _ => Ok(()),
+        }
     }
 }
 
