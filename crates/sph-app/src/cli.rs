@@ -377,7 +377,10 @@ mod tests {
             named(&["sph-app", "--frames", "3", "--export-particles", "ply"]),
             ["frames", "export-particles"]
         );
-        assert_eq!(named(&["sph-app", "--export-surfels", "vtk"]), ["export-surfels"]);
+        assert_eq!(
+            named(&["sph-app", "--export-surfels", "vtk"]),
+            ["export-surfels"]
+        );
         let input = ["sph-app", "--input", "f_*.ply", "--particle-radius", "0.01"];
         assert!(named(&[&input[..], &["--fps", "24"]].concat()).is_empty());
     }

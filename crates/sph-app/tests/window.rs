@@ -72,7 +72,14 @@ fn a_window_refuses_headless_flags() {
     }
     let output = Command::new("xvfb-run")
         .args(["-a", env!("CARGO_BIN_EXE_sph-app")])
-        .args(["--scene", "dam-break", "--frames", "3", "--export-surfels", "ply"])
+        .args([
+            "--scene",
+            "dam-break",
+            "--frames",
+            "3",
+            "--export-surfels",
+            "ply",
+        ])
         .env("XDG_RUNTIME_DIR", std::env::temp_dir())
         .output()
         .expect("xvfb-run starts");

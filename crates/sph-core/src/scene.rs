@@ -411,6 +411,36 @@ fn positive(field: &str, v: f32) -> Result<()> {
     }
 }
 
+/// Refuses a number of a scene file that f32, which every field is, does
+/// not hold: a non-zero value that rounds to 0 (`surface_tension = 1e-50`)
+/// or beyond f32's range (`1e39`, infinite) would otherwise be read as 0 or
+/// infinity without a word. `path` names the value (`fluid.h`,
+/// `blocks[0].min[1]`).
+fn check_f32_range(path: String, value: &toml::Value) -> Result<()> {
+    match value {
+        toml::Value::Float(x) => {
+            let single = *x as f32;
+            if (*x != 0.0 && single == 0.0) || (x.is_finite() && !single.is_finite()) {
+                return Err(invalid(
+                    path,
+                    format!(
+                        "{x:e} lies outside f32's range (about 1e-45 to 3.4e38 in magnitude), \
+                         which every scene value is read as: it would become {single}"
+                    ),
+                ));
+            }
+            Ok(())
+        }
+        toml::Value::Table(t) => t
+            .iter()
+            .try_for_each(|(k, v)| check_f32_range(format!("{path}.{k}"), v)),
+        toml::Value::Array(a) => {
+            (a.iter().enumerate()).try_for_each(|(i, v)| check_f32_range(format!("{path}[{i}]"), v))
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Lattice points per axis of a block: its extent over the spacing, rounded
 /// down, except that a quotient within 10⁻³ below a whole number counts as
 /// that number. In f32, `0.1 / 0.02` is 4.9999981, and the floor alone
@@ -444,6 +474,9 @@ impl Scene {
         // domain elsewhere would leave out of the picture.
         let table: toml::Table =
             toml::from_str(text).map_err(|e| Error::SceneSyntax(e.to_string()))?;
+        for (key, value) in &table {
+            check_f32_range(key.clone(), value)?;
+        }
         if !table.contains_key("render") {
             let d = &scene.domain;
             scene.render = RenderSpec::framing(d.min.into(), d.max.into(), 45.0);

@@ -85,7 +85,10 @@ fn switching_solver_gives_way_with_a_note() {
         notes.len() == 1 && notes[0].contains("XSPH blend of 0.1"),
         "{notes:?}"
     );
-    assert_eq!(blended.pbf_params().xsph, sph_core::PbfParams::default().xsph);
+    assert_eq!(
+        blended.pbf_params().xsph,
+        sph_core::PbfParams::default().xsph
+    );
     blended.validate().unwrap();
     // The colour field is WCSPH's.
     let mut colour = Scene::dam_break(0.25, 0.08, 0.02);
@@ -178,7 +181,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 35] = [
+    let cases: [(&str, &str, &[&str]); 38] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -203,6 +206,22 @@ fn malformed_scenes_name_the_field_and_reason() {
         ("spacing = 0.02\n", "", &["missing field", "spacing"]),
         ("h = 0.04", "h = -0.04", &["fluid.h", "> 0"]),
         ("h = 0.04", "h = nan", &["fluid.h", "finite"]),
+        // Numbers that f32 would read as 0 or infinity.
+        (
+            "surface_tension = 0.0",
+            "surface_tension = 1e-50",
+            &["fluid.surface_tension", "f32's range", "become 0"],
+        ),
+        (
+            "rest_density = 1000.0",
+            "rest_density = 1e39",
+            &["fluid.rest_density", "f32's range", "become inf"],
+        ),
+        (
+            "max = [0.25, 0.5, 0.08]",
+            "max = [0.25, 0.5, -1e-46]",
+            &["blocks[0].max[2]", "f32's range"],
+        ),
         (
             "surface_tension = 0.0",
             "surface_tension = -0.07",

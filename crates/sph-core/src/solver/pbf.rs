@@ -500,14 +500,12 @@ impl PbfParams {
                 "is not read under viscosity = \"implicit\", which replaces XSPH's blend: \
                  leave it out, or set viscosity = \"xsph\"",
             )),
-            PbfViscosity::Xsph if self.viscosity_tolerance != d.viscosity_tolerance => {
-                Err(unread(
-                    "pbf.viscosity_tolerance",
-                    self.viscosity_tolerance.into(),
-                    "is read only under viscosity = \"implicit\", and this is \"xsph\": \
+            PbfViscosity::Xsph if self.viscosity_tolerance != d.viscosity_tolerance => Err(unread(
+                "pbf.viscosity_tolerance",
+                self.viscosity_tolerance.into(),
+                "is read only under viscosity = \"implicit\", and this is \"xsph\": \
                      leave it out, or set viscosity = \"implicit\" (with fluid.viscosity)",
-                ))
-            }
+            )),
             PbfViscosity::Xsph if self.viscosity_max_iterations != d.viscosity_max_iterations => {
                 Err(unread(
                     "pbf.viscosity_max_iterations",
