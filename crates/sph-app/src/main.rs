@@ -21,7 +21,6 @@ mod window;
 use std::path::Path;
 use std::process::ExitCode;
 
-use clap::Parser;
 use splat_render::Environment;
 
 use crate::cli::Args;
