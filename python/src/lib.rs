@@ -77,6 +77,9 @@ struct PyWorld {
     world: World,
     /// Where `render` looks from.
     view: sph_core::scene::RenderSpec,
+    /// The scene's frame (`time_step.frame_dt`, s): what `advance` steps
+    /// by unless given another.
+    frame_dt: f32,
 }
 
 #[pymethods]
@@ -111,6 +114,7 @@ impl PyWorld {
         Ok(Self {
             world: scene.build_world().map_err(error)?,
             view: scene.render,
+            frame_dt: scene.time_step.frame_dt,
         })
     }
 
@@ -161,19 +165,23 @@ impl PyWorld {
         Ok(Self {
             world,
             view: scene.render,
+            frame_dt: scene.time_step.frame_dt,
         })
     }
 
     /// Advances by `seconds` of simulated time in frames of `frame_dt` (the
     /// GIL released); returns the last frame's report as a dict (solver,
     /// substeps, iterations, density_error_avg, density_error_max, time).
-    #[pyo3(signature = (seconds, frame_dt = 1.0 / 60.0))]
+    /// `frame_dt` defaults to the scene's `time_step.frame_dt` (1/60 s for
+    /// the built-in scenes and `from_arrays`).
+    #[pyo3(signature = (seconds, frame_dt = None))]
     fn advance<'py>(
         &mut self,
         py: Python<'py>,
         seconds: f64,
-        frame_dt: f32,
+        frame_dt: Option<f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let frame_dt = frame_dt.unwrap_or(self.frame_dt);
         if !(seconds.is_finite() && seconds >= 0.0) {
             return Err(PyValueError::new_err(format!(
                 "seconds: {seconds} must be finite and ≥ 0"

@@ -38,6 +38,21 @@ def test_solvers_and_scene_files_choose_the_world():
     assert world.solver == "pbf" and len(world) > 1000
 
 
+def test_advance_steps_by_the_scenes_frame(tmp_path):
+    # A scene whose frame is 1/20 s: one frame of 9 substeps of its PBF's
+    # longest substep, 1/180 s, where frames of 1/60 s would end on 3.
+    text = (ROOT / "assets" / "scenes" / "dam_break_slab.toml").read_text()
+    text = text.replace("frame_dt = 0.016666668", "frame_dt = 0.05", 1)
+    path = tmp_path / "slow_frames.toml"
+    path.write_text(text)
+    world = ss.World(str(path))
+    report = world.advance(0.05)
+    assert report["substeps"] == 9
+    assert abs(report["time"] - 0.05) < 1e-6
+    # Given, frame_dt wins.
+    assert world.advance(0.05, frame_dt=1.0 / 60.0)["substeps"] == 3
+
+
 def test_a_switch_that_gives_way_warns(tmp_path):
     # A DFSPH scene with a viscosity, run by PBF: its XSPH blend, which has
     # no viscosity, gives way to the implicit one, with a warning.
