@@ -148,7 +148,7 @@ fn cases() -> Vec<Case> {
 
 /// Ray-cast reference: per pixel the iso-surface normal where a ray hits.
 fn reference_normals(field: &ColourField, camera: &Camera) -> Vec<Option<Vec3>> {
-    let caster = Raycaster::new(field, 0.5, field.h() / 8.0);
+    let caster = Raycaster::new(field, 0.5, field.h() / 8.0).expect("the reference's settings");
     (0..W * H_PX)
         .into_par_iter()
         .map(|i| {

@@ -73,7 +73,7 @@ pub struct Anisotropy {
     /// 8 times as many particles as the h of this field holds.
     pub min_neighbours: u32,
     /// k_n: an isolated particle's kernel radius as a fraction of h, in
-    /// (0, 1]. Default 0.5 (the paper's).
+    /// [0.05, 1]. Default 0.5 (the paper's).
     pub isolated_scale: f32,
     /// The radius r of the neighbourhoods whose mean and covariance shape
     /// the kernels, in units of h, in [1, 4]. Default 1.5. The paper's 2h
@@ -164,11 +164,12 @@ impl Anisotropy {
             );
         }
         positive("anisotropy.isolated_scale", self.isolated_scale)?;
-        if self.isolated_scale > 1.0 {
+        if !(0.05..=1.0).contains(&self.isolated_scale) {
             return bad(
                 "anisotropy.isolated_scale",
                 self.isolated_scale,
-                "must lie in (0, 1] (a fraction of h)",
+                "must lie in [0.05, 1] (a fraction of h): below, the sphere's det G = 1/k_n³ \
+                 leaves f32's range at the field's sums",
             );
         }
         Ok(())
@@ -812,6 +813,14 @@ mod tests {
                 "anisotropy.isolated_scale",
                 Anisotropy {
                     isolated_scale: 2.0,
+                    ..d
+                },
+            ),
+            // det G = 1e39: every sample of the field would be NaN.
+            (
+                "anisotropy.isolated_scale",
+                Anisotropy {
+                    isolated_scale: 1e-13,
                     ..d
                 },
             ),

@@ -16,9 +16,11 @@ use crate::ldc::lattice_size;
 /// Points on c = `iso`: along rays parallel to x, y and z through a square
 /// lattice of `spacing` over the particles' bounding box (grown by h), every sign
 /// change of c − iso found by marching in steps of `spacing` and located by 40
-/// bisections. Errors for a `spacing` that is not finite and positive or
-/// that gives more than [`crate::ldc::MAX_GRID_POINTS`] lattice points.
+/// bisections. Errors for an `iso` outside (0, 1) ([`crate::check_iso`]),
+/// and a `spacing` that is not finite and positive or that gives more than
+/// [`crate::ldc::MAX_GRID_POINTS`] lattice points.
 pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Result<Vec<Vec3>> {
+    crate::check_iso(iso)?;
     if !(spacing.is_finite() && spacing > 0.0) {
         return Err(Error::InvalidParameter {
             name: "spacing",
@@ -77,14 +79,22 @@ pub fn iso_points(field: &ColourField, iso: f32, spacing: f32) -> Result<Vec<Vec
 
 /// The fraction of `points` lying on some surfel's disc (within `thickness` of
 /// its plane). Errors for no points (a fraction of nothing would read as
-/// full coverage of a surface that was never found) and for surfels with
-/// non-finite positions.
+/// full coverage of a surface that was never found), for surfels with
+/// non-finite positions, and for normals that are not unit vectors (a zero
+/// normal would make its disc a ball, covering whatever lies near it).
 pub fn covered_fraction(surfels: &[Surfel], points: &[Vec3], thickness: f32) -> Result<f64> {
     if points.is_empty() {
         return Err(Error::InvalidParameter {
             name: "points",
             value: "[]".into(),
             reason: "no points to cover: the fraction of none is undefined",
+        });
+    }
+    if let Some(s) = (surfels.iter()).find(|s| !((s.normal.length() - 1.0).abs() <= 1e-3)) {
+        return Err(Error::InvalidParameter {
+            name: "surfel normal",
+            value: s.normal.to_string(),
+            reason: "must be a unit vector",
         });
     }
     let index = SurfelIndex::build(surfels, thickness)?;
@@ -97,9 +107,11 @@ pub fn covered_fraction(surfels: &[Surfel], points: &[Vec3], thickness: f32) -> 
 
 /// The volume where c > `iso` (m³), counted in cubes of side `step` over
 /// the field's support (each cube inside when c at its centre is). Errors
-/// for a `step` that is not finite and positive or that gives more than
+/// for an `iso` outside (0, 1) ([`crate::check_iso`]), and a `step` that is
+/// not finite and positive or that gives more than
 /// [`crate::ldc::MAX_GRID_POINTS`] cubes.
 pub fn enclosed_volume(field: &ColourField, iso: f32, step: f32) -> Result<f64> {
+    crate::check_iso(iso)?;
     if !(step.is_finite() && step > 0.0) {
         return Err(Error::InvalidParameter {
             name: "step",
@@ -182,6 +194,41 @@ mod tests {
         for spacing in [0.0, -1.0, f32::NAN, f32::INFINITY, 1e-9] {
             assert!(iso_points(&field, 0.5, spacing).is_err(), "{spacing}");
             assert!(enclosed_volume(&field, 0.5, spacing).is_err(), "{spacing}");
+        }
+        // An iso outside (0, 1): below 0 the whole support box would count
+        // as inside, NaN would find nothing.
+        let iso_of = |e: Error| match e {
+            Error::InvalidParameter { name, .. } => name,
+            e => panic!("{e}"),
+        };
+        for iso in [-1.0, 0.0, 1.0, f32::NAN] {
+            assert_eq!(iso_of(iso_points(&field, iso, 0.01).unwrap_err()), "iso");
+            assert_eq!(
+                iso_of(enclosed_volume(&field, iso, 0.01).unwrap_err()),
+                "iso"
+            );
+        }
+    }
+
+    /// Surfels whose normals are not unit vectors are refused: a zero
+    /// normal's disc would be a ball covering every point near it.
+    #[test]
+    fn covered_fraction_refuses_bad_normals() {
+        let points = [Vec3::ZERO, Vec3::X];
+        let surfel = |normal| Surfel {
+            position: Vec3::ZERO,
+            normal,
+            radius: 0.1,
+        };
+        assert_eq!(
+            covered_fraction(&[surfel(Vec3::Y)], &points, 0.01).unwrap(),
+            0.5
+        );
+        for normal in [Vec3::ZERO, Vec3::NAN, 2.0 * Vec3::Y] {
+            match covered_fraction(&[surfel(Vec3::Y), surfel(normal)], &points, 0.01) {
+                Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "surfel normal"),
+                other => panic!("{normal}: {other:?}"),
+            }
         }
     }
 }

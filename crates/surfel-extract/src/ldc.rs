@@ -32,9 +32,16 @@ pub(crate) fn lattice_size(lo: Vec3, hi: Vec3, spacing: f32) -> Result<[usize; 3
 }
 
 /// LDC surfels at grid `spacing` (m); radius 0.75 × spacing so neighbouring
-/// intersections overlap. `params` gives the iso value and the camera (culling).
+/// intersections overlap. `params` gives the iso value and the camera
+/// (culling), and is validated as [`crate::extract_field`] validates it
+/// (with the field's h).
 pub fn extract_ldc(field: &ColourField, params: &ExtractParams, spacing: f32) -> Result<Surfels> {
     sph_core::error::positive("spacing", spacing)?;
+    ExtractParams {
+        h: field.h(),
+        ..*params
+    }
+    .validate()?;
     let mut stats = Stats {
         particles: field.len(),
         ..Default::default()

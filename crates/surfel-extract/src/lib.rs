@@ -113,6 +113,28 @@ pub enum Mode {
 /// 4 rounds and 966,644 in 20 (4.8 s), growing with every round.
 pub const RADIUS_RANGE: std::ops::RangeInclusive<f32> = 0.05..=4.0;
 
+/// The range of [`ExtractParams::interior_step`] and
+/// [`ExtractParams::discard_step`] (× h).
+pub const STEP_RANGE: std::ops::RangeInclusive<f32> = 0.01..=4.0;
+
+/// Checks an iso value k_iso: finite and in (0, 1), where a colour field
+/// that sums the particles' volumes crosses it (c is 0 outside the fluid
+/// and about 1 inside). Every function that takes one checks it so.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `iso`.
+pub fn check_iso(iso: f32) -> Result<()> {
+    if iso.is_finite() && iso > 0.0 && iso < 1.0 {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name: "iso",
+            value: iso.to_string(),
+            reason: "must be in (0, 1)",
+        })
+    }
+}
+
 /// The most rounds of hole closing [`ExtractParams::fill_rounds`] accepts.
 pub const MAX_FILL_ROUNDS: u32 = 64;
 
@@ -203,8 +225,19 @@ impl ExtractParams {
     /// Checks every field; the error names it.
     pub fn validate(&self) -> Result<()> {
         positive("h", self.h)?;
-        positive("interior_step", self.interior_step)?;
-        positive("discard_step", self.discard_step)?;
+        for (name, step) in [
+            ("interior_step", self.interior_step),
+            ("discard_step", self.discard_step),
+        ] {
+            if !STEP_RANGE.contains(&step) {
+                return Err(Error::InvalidParameter {
+                    name,
+                    value: step.to_string(),
+                    reason: "must be in [0.01, 4] (× h): below, f32's Newton steps never \
+                             come that short and every surfel is discarded or interior",
+                });
+            }
+        }
         positive("split_laplacian", self.split_laplacian)?;
         if !RADIUS_RANGE.contains(&self.radius) {
             return Err(Error::InvalidParameter {
@@ -227,13 +260,7 @@ impl ExtractParams {
                 reason: "radius · h, the surfels' radius, must be finite",
             });
         }
-        if !(self.iso.is_finite() && self.iso > 0.0 && self.iso < 1.0) {
-            return Err(Error::InvalidParameter {
-                name: "iso",
-                value: self.iso.to_string(),
-                reason: "must be in (0, 1)",
-            });
-        }
+        check_iso(self.iso)?;
         if !(1..=3).contains(&self.iterations) {
             return Err(Error::InvalidParameter {
                 name: "iterations",

@@ -3,8 +3,15 @@
 //! (silhouette, normals, shading).
 
 use glam::Vec3;
+use sph_core::{Error, Result};
 
 use crate::field::ColourField;
+
+/// The most steps a ray may take across the field's support box: a
+/// [`Raycaster`] whose step would need more is refused rather than left to
+/// march for minutes (two particles 3 km apart at h/8 = 5 mm would take
+/// 10⁶ per ray).
+pub const MAX_RAY_STEPS: f32 = 1e6;
 
 /// Where a ray first meets the iso-surface.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,21 +39,43 @@ pub struct Raycaster<'a> {
 }
 
 impl<'a> Raycaster<'a> {
-    /// A ray caster for `field` at `iso` marching in steps of `step` (clamped to
-    /// at least h/1000; h/8 if not finite and positive).
-    pub fn new(field: &'a ColourField, iso: f32, step: f32) -> Self {
+    /// A ray caster for `field` at `iso` marching in steps of `step` (m).
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `iso` outside (0, 1)
+    /// ([`crate::check_iso`]), or `step` outside [h/1000, h] or so short
+    /// that a ray across the field's support box would take more than
+    /// [`MAX_RAY_STEPS`].
+    pub fn new(field: &'a ColourField, iso: f32, step: f32) -> Result<Self> {
+        crate::check_iso(iso)?;
         let h = field.h();
-        let step = if step.is_finite() && step > 0.0 {
-            step.max(h * 1e-3)
-        } else {
-            h / 8.0
-        };
-        Self {
+        if !(step.is_finite() && step >= h * 1e-3 && step <= h) {
+            return Err(Error::InvalidParameter {
+                name: "step",
+                value: step.to_string(),
+                reason: "must lie in [h/1000, h] (h/8 resolves every feature the poly6 field can form)",
+            });
+        }
+        let bounds = field.support_bounds();
+        if let Some((lo, hi)) = bounds
+            && !((hi - lo).length() / step <= MAX_RAY_STEPS)
+        {
+            return Err(Error::InvalidParameter {
+                name: "step",
+                value: format!(
+                    "{step} m across a support box {} m wide",
+                    (hi - lo).length()
+                ),
+                reason: "would take more than 10^6 steps per ray: take a longer step, or \
+                         cast against the particles near the view only",
+            });
+        }
+        Ok(Self {
             field,
             iso,
             step,
-            bounds: field.support_bounds(),
-        }
+            bounds,
+        })
     }
 
     /// The first crossing into the fluid (c rising through `iso`) along
@@ -115,7 +144,7 @@ mod tests {
         let radius = field
             .lone_iso_radius(0.5e-3, 0.5)
             .expect("iso-sphere exists");
-        let caster = Raycaster::new(&field, 0.5, h / 8.0);
+        let caster = Raycaster::new(&field, 0.5, h / 8.0).unwrap();
         let origin = Vec3::new(0.02, 0.01, 1.0);
         let hit = caster.cast(origin, -Vec3::Z).expect("hits");
         let expected_z = (radius * radius - 0.02f32.powi(2) - 0.01f32.powi(2)).sqrt();
@@ -138,16 +167,36 @@ mod tests {
         let h = 0.04;
         let centre = Vec3::new(0.0, 0.0, -2e3);
         let field = ColourField::with_volumes(&[centre], &[0.5 * h * h * h], h).unwrap();
-        let caster = Raycaster::new(&field, 0.5, 0.0);
-        let coarse = Raycaster::new(&field, 0.5, h / 8.0);
+        let coarse = Raycaster::new(&field, 0.5, h / 8.0).unwrap();
         // t ≈ 2 km: an f32 ulp of t is 1.2e-4 m, above h/1000 = 4e-5 m.
-        let fine = Raycaster {
-            step: h * 1e-3,
-            ..coarse
-        };
-        assert!(caster.cast(Vec3::ZERO, -Vec3::Z).is_some());
+        let fine = Raycaster::new(&field, 0.5, h * 1e-3).unwrap();
+        assert!(coarse.cast(Vec3::ZERO, -Vec3::Z).is_some());
         let hit = fine.cast(Vec3::ZERO, -Vec3::Z).expect("hits");
         assert!((hit.position - centre).length() < h, "{hit:?}");
         assert!(fine.cast(Vec3::new(1.0, 0.0, 0.0), -Vec3::Z).is_none());
+    }
+
+    /// Bad settings are errors naming them, not clamped: an iso outside
+    /// (0, 1), a step outside [h/1000, h], and a step that would march a
+    /// ray across a support box 3.5 km wide (two particles far apart)
+    /// for minutes.
+    #[test]
+    fn bad_settings_are_refused() {
+        let h = 0.01;
+        let near = ColourField::with_volumes(&[Vec3::ZERO], &[h * h * h], h).unwrap();
+        let name = |r: Result<Raycaster<'_>>| match r {
+            Err(Error::InvalidParameter { name, .. }) => name,
+            other => panic!("{other:?}"),
+        };
+        for iso in [0.0, -1.0, 1.0, f32::NAN] {
+            assert_eq!(name(Raycaster::new(&near, iso, h / 8.0)), "iso");
+        }
+        for step in [0.0, h * 1e-4, 2.0 * h, f32::NAN, f32::INFINITY] {
+            assert_eq!(name(Raycaster::new(&near, 0.5, step)), "step");
+        }
+        let far = [Vec3::splat(-1e3), Vec3::splat(1e3)];
+        let far = ColourField::with_volumes(&far, &[h * h * h; 2], h).unwrap();
+        assert_eq!(name(Raycaster::new(&far, 0.5, h / 8.0)), "step");
+        assert!(Raycaster::new(&far, 0.5, h).is_ok(), "3.5e5 steps a ray");
     }
 }

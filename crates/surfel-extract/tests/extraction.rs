@@ -209,6 +209,24 @@ fn iterations_and_ldc_stay_on_the_surface() {
     );
     assert!(r.median < 0.01 && r.median_angle_deg < 5.0, "{r:?}");
     assert!(coverage > 0.99, "LDC coverage {coverage}");
+    // The LDC validates its parameters as the extractor does: an iso
+    // outside (0, 1) or a camera at NaN found nothing before, as `Ok`.
+    for bad in [
+        ExtractParams {
+            iso: f32::NAN,
+            ..ExtractParams::new(H)
+        },
+        ExtractParams {
+            iso: 5.0,
+            ..ExtractParams::new(H)
+        },
+        ExtractParams {
+            camera: Some(Vec3::NAN),
+            ..ExtractParams::new(H)
+        },
+    ] {
+        assert!(extract_ldc(&field, &bad, 0.25 * H).is_err(), "{bad:?}");
+    }
 }
 
 #[test]
