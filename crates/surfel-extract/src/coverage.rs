@@ -90,7 +90,7 @@ pub fn covered_fraction(surfels: &[Surfel], points: &[Vec3], thickness: f32) -> 
             reason: "no points to cover: the fraction of none is undefined",
         });
     }
-    if let Some(s) = (surfels.iter()).find(|s| !((s.normal.length() - 1.0).abs() <= 1e-3)) {
+    if let Some(s) = surfels.iter().find(|s| !s.normal.is_normalized()) {
         return Err(Error::InvalidParameter {
             name: "surfel normal",
             value: s.normal.to_string(),

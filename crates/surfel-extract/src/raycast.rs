@@ -58,7 +58,7 @@ impl<'a> Raycaster<'a> {
         }
         let bounds = field.support_bounds();
         if let Some((lo, hi)) = bounds
-            && !((hi - lo).length() / step <= MAX_RAY_STEPS)
+            && (hi - lo).length() / step > MAX_RAY_STEPS
         {
             return Err(Error::InvalidParameter {
                 name: "step",
