@@ -176,6 +176,24 @@ pub(crate) fn check_kernel_h(h: f32) -> Result<()> {
     }
 }
 
+/// How far from the origin, in units of h, a coordinate keeps f32's
+/// resolution at h/128 or finer (an ulp of x is about |x| 2⁻²³): 2¹⁶.
+/// Beyond, distances between neighbours carry errors of a percent of h and
+/// more, and the densities, forces and surfaces built on them degrade
+/// without failing (a surface extracted 2²⁰ h out lost half its surfels).
+pub const MAX_PRECISE_EXTENT: f32 = 65536.0;
+
+/// The index of the first of `points` farther than [`MAX_PRECISE_EXTENT`]
+/// × `h` from the origin on some axis, if any.
+pub fn first_imprecise(points: &[glam::Vec3], h: f32) -> Option<usize> {
+    let reach = MAX_PRECISE_EXTENT * h;
+    points.iter().position(|p| p.abs().max_element() > reach)
+}
+
+/// Why a point beyond [`MAX_PRECISE_EXTENT`] h is refused, for errors.
+pub const IMPRECISE: &str = "lies more than 65,536 h from the origin, where f32 resolves \
+    positions more coarsely than h/128: move the particles (and the scene) nearer the origin";
+
 /// `Ok` if `v` is finite and > 0, else [`Error::InvalidParameter`] naming `name`.
 pub fn positive(name: &'static str, v: f32) -> Result<()> {
     if v.is_finite() && v > 0.0 {

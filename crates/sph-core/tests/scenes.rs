@@ -181,7 +181,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 38] = [
+    let cases: [(&str, &str, &[&str]); 40] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -206,6 +206,13 @@ fn malformed_scenes_name_the_field_and_reason() {
         ("spacing = 0.02\n", "", &["missing field", "spacing"]),
         ("h = 0.04", "h = -0.04", &["fluid.h", "> 0"]),
         ("h = 0.04", "h = nan", &["fluid.h", "finite"]),
+        // A domain reaching 2.5e6 h from the origin, where f32 resolves
+        // positions to worse than h/128.
+        (
+            "min = [0.0, 0.0, 0.0]",
+            "min = [-1e5, 0.0, 0.0]",
+            &["domain.min", "65,536 h"],
+        ),
         // Numbers that f32 would read as 0 or infinity.
         (
             "surface_tension = 0.0",
@@ -320,6 +327,11 @@ fn malformed_scenes_name_the_field_and_reason() {
             "look_at = [0.5, 0.208, 0.04]",
             "look_at = [0.5, 0.208, 1.112]",
             &["render.look_at", "vertical"],
+        ),
+        (
+            "camera = [0.5, 0.744, 1.112]\nlook_at = [0.5, 0.208, 0.04]",
+            "camera = [-3e38, 0.744, 1.112]\nlook_at = [3e38, 0.208, 0.04]",
+            &["render.look_at", "overflows"],
         ),
         // A nozzle 100 particles wide is 2 m across in a 1 m domain.
         (

@@ -479,6 +479,28 @@ fn bad_particles_and_a_grid_of_another_h_are_errors() {
     );
     let e = bad(Vec3::new(f32::INFINITY, 0.0, 0.0), Vec3::ZERO, m);
     assert!(matches!(e, Error::NonFinitePosition { .. }), "{e}");
+    // A domain reaching 2^20 h from the origin, where an f32 ulp of a
+    // position is h/8: the same particles moved there are refused.
+    let offset = Vec3::new(1_048_576.0 * scene.fluid.h, 0.0, 0.0);
+    let mut far = Particles::new();
+    for (x, v) in good.positions().iter().zip(good.velocities()) {
+        far.push(*x + offset, *v, m);
+    }
+    let b = scene.boundary();
+    let boundary = Boundary::new(Aabb::new(b.domain.min + offset, b.domain.max + offset));
+    let e = World::with_solver(
+        far,
+        scene.fluid_params(),
+        boundary,
+        scene.time_stepping(),
+        scene.solver(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(e, Error::InvalidParameter { name: "domain", .. })
+            && e.to_string().contains("65,536 h"),
+        "{e}"
+    );
 
     let mut world = scene.world_with(good).unwrap();
     let h = world.params().h;

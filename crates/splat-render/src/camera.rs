@@ -39,13 +39,21 @@ impl Camera {
     }
 
     /// This camera with clip planes scaled to its distance d from the
-    /// target: d/100 (at least 10⁻⁴) and 100 d, so a scene's camera 300 m
-    /// out or a tank in millimetres is drawn as one 1 m out is (the fixed
-    /// planes of [`Camera::looking_at`] clip beyond 100 m).
+    /// target: d/100 and 100 d, so a scene's camera 300 m out or a tank in
+    /// millimetres is drawn as one 1 m out is (the fixed planes of
+    /// [`Camera::looking_at`] clip beyond 100 m), with the same depth
+    /// precision.
     pub fn with_planes_for_distance(self) -> Self {
-        let distance = (self.eye - self.target).length();
+        // Scaled first: |v|² of a vector 1e20 long overflows f32.
+        let v = self.eye - self.target;
+        let largest = v.abs().max_element();
+        let distance = if largest > 0.0 {
+            largest * (v / largest).length()
+        } else {
+            0.0 // eye on target: validation names that
+        };
         Self {
-            near: (distance * 0.01).max(1e-4),
+            near: distance * 0.01,
             far: distance * 100.0,
             ..self
         }
@@ -55,8 +63,12 @@ impl Camera {
     ///
     /// # Errors
     /// [`RenderError::InvalidCamera`] for non-finite values, an eye on the
-    /// target, an up vector along the view direction, a field of view outside
-    /// (0, π) or clip planes with `0 < near < far` violated.
+    /// target or so far from it that their difference overflows f32, an up
+    /// vector that is zero or along the view direction, a field of view
+    /// outside (0, π) or so near either end that the projection's focal
+    /// length 1/tan(fov_y/2) leaves [10⁻⁴, 10⁴] (narrower than 0.011°,
+    /// wider than 179.989°: a blank image), or clip planes with `0 < near <
+    /// far` violated.
     pub fn validate(&self) -> Result<()> {
         let finite = self.eye.is_finite()
             && self.target.is_finite()
@@ -68,16 +80,30 @@ impl Camera {
             return Err(RenderError::InvalidCamera("a field is not finite"));
         }
         let forward = self.target - self.eye;
-        if forward.length_squared() <= f32::MIN_POSITIVE {
+        if forward == Vec3::ZERO {
             return Err(RenderError::InvalidCamera("eye and target coincide"));
         }
-        if forward.normalize().cross(self.up).length_squared() < 1e-12 {
+        if !forward.is_finite() {
             return Err(RenderError::InvalidCamera(
-                "up is parallel to the view direction",
+                "eye and target are so far apart that their difference overflows f32",
+            ));
+        }
+        // Directions scaled to their largest component first, so that
+        // neither a tiny nor a huge vector under- or overflows.
+        let unit = |v: Vec3| (v / v.abs().max_element()).normalize();
+        if self.up == Vec3::ZERO || unit(forward).cross(unit(self.up)).length_squared() < 1e-12 {
+            return Err(RenderError::InvalidCamera(
+                "up is zero or parallel to the view direction",
             ));
         }
         if !(self.fov_y > 0.0 && self.fov_y < std::f32::consts::PI) {
             return Err(RenderError::InvalidCamera("fov_y must lie in (0, π)"));
+        }
+        let focal = 1.0 / (0.5 * self.fov_y).tan();
+        if !(1e-4..=1e4).contains(&focal) {
+            return Err(RenderError::InvalidCamera(
+                "fov_y is within 0.011° of 0 or 180°: the projection draws nothing",
+            ));
         }
         if !(self.near > 0.0 && self.far > self.near) {
             return Err(RenderError::InvalidCamera("need 0 < near < far"));
@@ -167,5 +193,47 @@ mod tests {
             .validate()
             .is_err()
         );
+        // Overflowing, zero or huge vectors and near-degenerate fields of
+        // view, which passed before and drew blank or black frames.
+        let far_apart = Camera::looking_at(Vec3::Z * 3e38, -Vec3::Z * 3e38);
+        let huge_up = Camera {
+            up: Vec3::Y * 1e30,
+            ..ok
+        };
+        assert!(huge_up.validate().is_ok(), "only its direction counts");
+        for (bad, what) in [
+            (far_apart, "overflows"),
+            (
+                Camera {
+                    up: Vec3::ZERO,
+                    ..ok
+                },
+                "up is zero",
+            ),
+            (Camera { fov_y: 1e-40, ..ok }, "0.011°"),
+            (
+                Camera {
+                    fov_y: std::f32::consts::PI * (1.0 - 1e-7),
+                    ..ok
+                },
+                "0.011°",
+            ),
+        ] {
+            match bad.validate() {
+                Err(RenderError::InvalidCamera(m)) => assert!(m.contains(what), "{m}"),
+                other => panic!("{bad:?}: {other:?}"),
+            }
+        }
+        // A camera a micrometre from its target still gets clip planes.
+        let close = Camera::looking_at(Vec3::Z * 1e-6, Vec3::ZERO).with_planes_for_distance();
+        assert!(close.validate().is_ok(), "{close:?}");
+        let on = Camera::looking_at(Vec3::ZERO, Vec3::ZERO).with_planes_for_distance();
+        match on.validate() {
+            Err(RenderError::InvalidCamera(m)) => assert!(m.contains("coincide"), "{m}"),
+            other => panic!("{other:?}"),
+        }
+        // And one 1e20 m out is not called vertical.
+        let distant = Camera::looking_at(Vec3::Z * 1e20, Vec3::ZERO).with_planes_for_distance();
+        assert!(distant.validate().is_ok(), "{distant:?}");
     }
 }

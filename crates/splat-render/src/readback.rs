@@ -54,7 +54,19 @@ impl Accumulation {
     /// # Panics
     /// If `(x, y)` lies outside the image.
     pub fn weight(&self, x: u32, y: u32) -> f32 {
-        self.texels[(y * self.width + x) as usize][3]
+        self.texels[self.index(x, y)][3]
+    }
+
+    /// The texel of pixel `(x, y)`, which must lie inside the image: a
+    /// column past the width would otherwise read the next row's pixel.
+    fn index(&self, x: u32, y: u32) -> usize {
+        assert!(
+            x < self.width && y < self.height,
+            "pixel ({x}, {y}) outside the {}×{} image",
+            self.width,
+            self.height
+        );
+        y as usize * self.width as usize + x as usize
     }
 
     /// The normalised attribute A = Σ wᵢ nᵢ / Σ wᵢ at `(x, y)` (not renormalised
@@ -63,7 +75,7 @@ impl Accumulation {
     /// # Panics
     /// If `(x, y)` lies outside the image.
     pub fn normalised(&self, x: u32, y: u32) -> Option<Vec3> {
-        let [a, b, c, w] = self.texels[(y * self.width + x) as usize];
+        let [a, b, c, w] = self.texels[self.index(x, y)];
         (w > 0.0).then(|| Vec3::new(a, b, c) / w)
     }
 
@@ -187,7 +199,8 @@ pub(crate) fn read_buffer(ctx: &GpuContext, source: &wgpu::Buffer) -> Result<Vec
 }
 
 /// Submits `encoder`, which copies into `buffer`, and maps `buffer` once the
-/// copy is done.
+/// copy is done; [`RenderError::Device`] where the device has reported a
+/// fault ([`GpuContext::check`]).
 fn submit_and_map(
     ctx: &GpuContext,
     encoder: wgpu::CommandEncoder,
@@ -204,6 +217,9 @@ fn submit_and_map(
     rx.recv()
         .map_err(|e| RenderError::Readback(e.to_string()))?
         .map_err(|e| RenderError::Readback(e.to_string()))?;
+    // A fault of the device since it was made (targets it could not
+    // allocate, say) means what was copied is not the render.
+    ctx.check()?;
     buffer
         .get_mapped_range(..)
         .map_err(|e| RenderError::Readback(e.to_string()))
@@ -219,5 +235,22 @@ mod tests {
         assert_eq!(f16_to_f32(0xc000), -2.0);
         assert_eq!(f16_to_f32(0x3555), 0.333_251_95);
         assert_eq!(f16_to_f32(0x0001), 2f32.powi(-24));
+    }
+
+    /// A pixel past the width panics, as documented, instead of reading
+    /// the next row's.
+    #[test]
+    fn pixels_outside_the_image_panic() {
+        let acc = Accumulation {
+            width: 2,
+            height: 2,
+            texels: vec![[0.0, 0.0, 1.0, 1.0]; 4],
+        };
+        assert_eq!(acc.weight(1, 1), 1.0);
+        for (x, y) in [(2, 0), (0, 2)] {
+            let read = std::panic::catch_unwind(|| acc.weight(x, y));
+            assert!(read.is_err(), "({x}, {y})");
+            assert!(std::panic::catch_unwind(|| acc.normalised(x, y)).is_err());
+        }
     }
 }

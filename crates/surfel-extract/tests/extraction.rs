@@ -3,7 +3,7 @@
 //! determinism.
 
 use glam::Vec3;
-use sph_core::Scene;
+use sph_core::{Error, Scene};
 use surfel_extract::coverage::{covered_fraction, iso_points, residuals};
 use surfel_extract::ldc::extract_ldc;
 use surfel_extract::samples::jittered_lattice;
@@ -299,6 +299,24 @@ fn bad_input_is_an_error() {
     .unwrap_err()
     .to_string();
     assert!(err.contains("iterations"), "{err}");
+    // Particles 2^20 h from the origin, where an f32 ulp is h/8: the surface
+    // came out with half its surfels, as Ok. Within 2^16 h it is extracted.
+    for (offset, ok) in [(65_000.0 * H, true), (1_048_576.0 * H, false)] {
+        let block: Vec<Vec3> = (0..27)
+            .map(|i| {
+                Vec3::new(offset, 0.0, 0.0)
+                    + 0.5 * H * Vec3::new((i % 3) as f32, (i / 3 % 3) as f32, (i / 9) as f32)
+            })
+            .collect();
+        match extract_points(&block, &params) {
+            Ok(out) => assert!(ok && !out.surfels.is_empty(), "{offset}"),
+            Err(e) => {
+                assert!(!ok, "{offset}: {e}");
+                assert!(matches!(e, Error::InvalidParticle { index: 0, .. }), "{e}");
+                assert!(e.to_string().contains("65,536 h"), "{e}");
+            }
+        }
+    }
     // A surfel radius r·h that overflows f32.
     let err = extract_points(
         &[Vec3::ZERO],

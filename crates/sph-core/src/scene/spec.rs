@@ -288,10 +288,19 @@ impl RenderSpec {
         let camera = finite3("render.camera", self.camera)?;
         let look_at = finite3("render.look_at", self.look_at)?;
         let dir = look_at - camera;
-        if dir.length_squared() <= 0.0 {
+        if dir == Vec3::ZERO {
             return Err(invalid("render.look_at", "must differ from render.camera"));
         }
-        if dir.normalize().cross(Vec3::Y).length_squared() < 1e-12 {
+        if !dir.is_finite() {
+            return Err(invalid(
+                "render.look_at",
+                "is so far from render.camera that their difference overflows f32",
+            ));
+        }
+        // Scaled to its largest component first: |dir|² overflows beyond
+        // about 1e19 m.
+        let unit = (dir / dir.abs().max_element()).normalize();
+        if unit.cross(Vec3::Y).length_squared() < 1e-12 {
             return Err(invalid(
                 "render.look_at",
                 "the view direction is vertical: +y is up, so the camera cannot look straight up or down",

@@ -120,6 +120,14 @@ impl Scene {
         if !dmin.cmplt(dmax).all() {
             return Err(invalid("domain", "min must be below max on every axis"));
         }
+        for (field, corner) in [("domain.min", dmin), ("domain.max", dmax)] {
+            if crate::error::first_imprecise(&[corner], f.h).is_some() {
+                return Err(invalid(
+                    field,
+                    format!("{corner} (h = {}) {}", f.h, crate::error::IMPRECISE),
+                ));
+            }
+        }
         let domain = Aabb::new(dmin, dmax);
         let c = self.wall_clearance();
         if !(c >= 0.0 && c <= self.spacing && 2.0 * c < domain.size().min_element()) {

@@ -149,7 +149,8 @@ impl SplatRenderer {
     /// # Errors
     /// [`RenderError::InvalidSize`] for a zero or oversized side,
     /// [`RenderError::InvalidTexture`] for an empty image or one larger than
-    /// the device's textures can be.
+    /// the device's textures can be; [`RenderError::Device`] where the
+    /// device reports a fault, such as targets past its memory.
     pub fn new(ctx: &GpuContext, width: u32, height: u32, env: &Environment) -> Result<Self> {
         check_size(ctx, width, height)?;
         env.validate(ctx.device.limits().max_texture_dimension_2d)?;
@@ -200,6 +201,9 @@ impl SplatRenderer {
                 Err(e) => log::info!("{e}: splats drawn by the raster path"),
             }
         }
+        // Targets the device could not allocate (16384² on lavapipe) are
+        // reported as an uncaptured error, not by `create_texture`.
+        ctx.check()?;
         Ok(renderer)
     }
 
@@ -348,7 +352,9 @@ impl SplatRenderer {
     /// # Errors
     /// [`RenderError::InvalidSize`]; [`RenderError::ComputeLimit`] on the
     /// compute splat path when its memory for that size is past the
-    /// device's storage binding limit. Nothing changes then.
+    /// device's storage binding limit (nothing changes then);
+    /// [`RenderError::Device`] where the device reports a fault, such as
+    /// targets past its memory.
     pub fn resize(&mut self, ctx: &GpuContext, width: u32, height: u32) -> Result<()> {
         check_size(ctx, width, height)?;
         if self.path == SplatPath::Compute {
@@ -360,7 +366,7 @@ impl SplatRenderer {
             self.rebind(ctx);
             self.reserve_compute(ctx);
         }
-        Ok(())
+        ctx.check()
     }
 
     /// Replaces the environment map and background.
