@@ -51,3 +51,30 @@ fn a_lost_device_is_an_error_not_a_panic() {
         other => panic!("expected a device error, got {other:?}"),
     }
 }
+
+/// After a fault the device reported on its own (here an invalid buffer;
+/// 16384² targets past lavapipe's memory do the same), a renderer is not
+/// made, and an image is not read back as if it were the render.
+#[test]
+fn a_faulted_device_makes_no_renderer_and_reads_back_nothing() {
+    use splat_render::{Environment, SplatRenderer};
+    let Some(ctx) = context() else {
+        return;
+    };
+    let env = Environment::procedural();
+    let renderer = SplatRenderer::new(&ctx, 64, 48, &env).unwrap();
+    let _bad = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("invalid usage"),
+        size: 16,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    match SplatRenderer::new(&ctx, 64, 48, &env) {
+        Err(RenderError::Device(message)) => assert!(message.contains("invalid usage")),
+        other => panic!("expected a device error, got {:?}", other.err()),
+    }
+    match renderer.read_image(&ctx) {
+        Err(RenderError::Device(message)) => assert!(message.contains("invalid usage")),
+        other => panic!("expected a device error, got {:?}", other.err()),
+    }
+}
