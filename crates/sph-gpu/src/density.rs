@@ -59,6 +59,9 @@ impl GpuDensity {
     ) -> Result<Self, GpuError> {
         params.validate().map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
+        boundary
+            .check_precision(params.h)
+            .map_err(GpuError::Params)?;
         if params.h != grid.h() {
             return Err(GpuError::Invalid(
                 "the density's h must be the grid's cell size",

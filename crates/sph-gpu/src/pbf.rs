@@ -242,6 +242,9 @@ impl GpuPbf {
         fluid.validate().map_err(GpuError::Params)?;
         pbf.validate().map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
+        boundary
+            .check_precision(fluid.h)
+            .map_err(GpuError::Params)?;
         Solver::Pbf(*pbf)
             .check_applies(fluid)
             .map_err(GpuError::Params)?;

@@ -194,6 +194,10 @@ fn overflow_is_reported_and_bad_input_rejected() {
     assert!(gpu.upload(q, &[Vec3::ZERO], &[0.0]).is_err());
     assert!(gpu.upload(q, &[Vec3::ZERO], &[1.0, 1.0]).is_err());
     assert!(gpu.upload(q, &[Vec3::ZERO; 3], &[1.0; 3]).is_err());
+    // 2^20 h from the origin, where an f32 ulp is h/8 (the CPU field
+    // refuses it too).
+    let far = Vec3::new(1_048_576.0 * H, 0.0, 0.0);
+    assert!(gpu.upload(q, &[Vec3::ZERO, far], &[1.0, 1.0]).is_err());
     let mut encoder = device.create_command_encoder(&Default::default());
     assert!(gpu.encode_attached(q, &mut encoder).is_err());
     // An empty set extracts nothing.

@@ -336,6 +336,25 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     };
     let e = new(&params, &zero, &world.particles);
     assert!(e.contains("pbf.iterations"), "{e}");
+    // A domain 2^20 h out, where f32 resolves positions to h/8.
+    let b = scene.boundary();
+    let offset = glam::Vec3::X * (1_048_576.0 * params.h);
+    let far = sph_core::Boundary::new(sph_core::Aabb::new(
+        b.domain.min + offset,
+        b.domain.max + offset,
+    ));
+    let e = GpuPbf::new(
+        &ctx.device,
+        &ctx.queue,
+        &world.particles,
+        &params,
+        &pbf,
+        &far,
+    )
+    .err()
+    .map(|e| e.to_string())
+    .unwrap_or_default();
+    assert!(e.contains("domain") && e.contains("65,536 h"), "{e}");
     let mut gpu = GpuPbf::new(
         &ctx.device,
         &ctx.queue,

@@ -174,14 +174,7 @@ impl World {
         }
         particles.validate()?;
         check_admitted(&particles, &boundary)?;
-        let corners = [boundary.domain.min, boundary.domain.max];
-        if let Some(k) = crate::error::first_imprecise(&corners, params.h) {
-            return Err(Error::InvalidParameter {
-                name: "domain",
-                value: format!("corner {} with h = {}", corners[k], params.h),
-                reason: crate::error::IMPRECISE,
-            });
-        }
+        boundary.check_precision(params.h)?;
         let program = solver.program(params, boundary.clone())?;
         Ok(Self {
             particles,
