@@ -54,7 +54,7 @@ pub use geometry::{Backdrop, Material, Mesh, Object, SceneGeometry};
 pub use readback::{Accumulation, read_texture_rgba8};
 pub use renderer::{OUTPUT_FORMAT, SplatPath, SplatRenderer};
 pub use shading::{Shading, View, WATER_ABSORPTION};
-pub use splat::{Splat, alpha_mask};
+pub use splat::{MAX_SPLAT_EXTENT, Splat, alpha_mask};
 pub use textures::Environment;
 
 pub use wgpu;

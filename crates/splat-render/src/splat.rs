@@ -30,6 +30,11 @@ impl Splat {
     }
 }
 
+/// The largest splat coordinate or radius [`crate::SplatRenderer::upload`]
+/// accepts: the shaders square lengths in f32, which overflows beyond
+/// about 1.8e19.
+pub const MAX_SPLAT_EXTENT: f32 = 1e18;
+
 /// GPU layout: two 16-byte vectors (WGSL `vec3` in storage is 16-aligned).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -45,8 +50,18 @@ impl GpuSplat {
         if !s.position.is_finite() {
             return invalid("position is not finite");
         }
+        if s.position.abs().max_element() > MAX_SPLAT_EXTENT {
+            return invalid(
+                "position lies beyond 1e18 of the origin: the shaders square it in f32",
+            );
+        }
         if !(s.radius.is_finite() && s.radius > 0.0) {
             return invalid("radius must be finite and > 0");
+        }
+        if s.radius > MAX_SPLAT_EXTENT {
+            return invalid(
+                "radius exceeds 1e18: the shaders square it in f32 (3e38 drew nothing)",
+            );
         }
         let n = s.normal.normalize_or_zero();
         if n == Vec3::ZERO || !n.is_finite() {
@@ -101,6 +116,11 @@ mod tests {
             },
             Splat {
                 normal: Vec3::ZERO,
+                ..ok
+            },
+            Splat { radius: 3e38, ..ok },
+            Splat {
+                position: Vec3::X * 1e30,
                 ..ok
             },
         ] {

@@ -407,7 +407,9 @@ impl SplatRenderer {
     ///
     /// # Errors
     /// [`RenderError::InvalidSplat`] naming the first splat with a non-finite
-    /// field, a zero normal or a non-positive radius (nothing is uploaded then);
+    /// field, a zero normal, a non-positive radius, or a radius or
+    /// coordinate beyond [`MAX_SPLAT_EXTENT`](crate::MAX_SPLAT_EXTENT) (nothing is
+    /// uploaded then);
     /// [`RenderError::TooManySplats`] beyond the device's storage binding limit;
     /// [`RenderError::ComputeLimit`] on the compute splat path when its
     /// memory for them is past that limit.
