@@ -196,19 +196,17 @@ impl Boundary {
         self
     }
 
-    /// Checks the domain (finite corners, min below max on every axis), the
-    /// obstacles (finite; boxes with min below max, spheres of radius > 0),
     /// Checks that the domain lies within [`crate::error::MAX_PRECISE_EXTENT`]
     /// × `h` of the origin, where f32 resolves the positions of particles
     /// of smoothing length `h` to h/128 or finer.
     ///
     /// # Errors
-    /// [`Error::InvalidParameter`] naming `domain` and the corner.
+    /// [`Error::InvalidParameter`] naming `boundary.domain` and the corner.
     pub fn check_precision(&self, h: f32) -> Result<()> {
         let corners = [self.domain.min, self.domain.max];
         match crate::error::first_imprecise(&corners, h) {
             Some(k) => Err(Error::InvalidParameter {
-                name: "domain",
+                name: "boundary.domain",
                 value: format!("corner {} with h = {h}", corners[k]),
                 reason: crate::error::IMPRECISE,
             }),
@@ -216,6 +214,8 @@ impl Boundary {
         }
     }
 
+    /// Checks the domain (finite corners, min below max on every axis), the
+    /// obstacles (finite; boxes with min below max, spheres of radius > 0),
     /// `restitution` (in [0, 1]: more would add energy at every bounce) and
     /// `clearance` (finite, ≥ 0 and less than half the domain's narrowest
     /// side, so that some of the domain admits particle centres).

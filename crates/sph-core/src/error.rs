@@ -184,10 +184,11 @@ pub(crate) fn check_kernel_h(h: f32) -> Result<()> {
 pub const MAX_PRECISE_EXTENT: f32 = 65536.0;
 
 /// The index of the first of `points` farther than [`MAX_PRECISE_EXTENT`]
-/// × `h` from the origin on some axis, if any.
+/// × `h` from the origin on some axis, if any. Non-finite points are left
+/// to the checks that name them so.
 pub fn first_imprecise(points: &[glam::Vec3], h: f32) -> Option<usize> {
     let reach = MAX_PRECISE_EXTENT * h;
-    points.iter().position(|p| p.abs().max_element() > reach)
+    (points.iter()).position(|p| p.is_finite() && p.abs().max_element() > reach)
 }
 
 /// Why a point beyond [`MAX_PRECISE_EXTENT`] h is refused, for errors.

@@ -570,6 +570,11 @@ fn dam_break_front_within_ritter() {
 #[test]
 fn bad_parameters_are_errors_naming_the_field() {
     let d = PbfParams::default();
+    let scorr = PbfParams { scorr_k: 0.01, ..d };
+    let implicit = PbfParams {
+        viscosity: PbfViscosity::Implicit,
+        ..d
+    };
     let cases: Vec<(&str, PbfParams)> = vec![
         ("pbf.substeps", PbfParams { substeps: 0, ..d }),
         (
@@ -653,16 +658,36 @@ fn bad_parameters_are_errors_naming_the_field() {
                 ..d
             },
         ),
-        ("pbf.scorr_n", PbfParams { scorr_n: 0, ..d }),
-        ("pbf.scorr_dq", PbfParams { scorr_dq: 0.0, ..d }),
-        ("pbf.scorr_dq", PbfParams { scorr_dq: 1.5, ..d }),
+        // s_corr's ranges, with s_corr on (off, n and Δq away from their
+        // defaults are refused as unread, below).
+        (
+            "pbf.scorr_n",
+            PbfParams {
+                scorr_n: 0,
+                ..scorr
+            },
+        ),
+        (
+            "pbf.scorr_dq",
+            PbfParams {
+                scorr_dq: 0.0,
+                ..scorr
+            },
+        ),
+        (
+            "pbf.scorr_dq",
+            PbfParams {
+                scorr_dq: 1.5,
+                ..scorr
+            },
+        ),
         // Each fine alone; together s_corr would overflow f32 at r = 0.
         (
             "pbf.scorr_dq",
             PbfParams {
                 scorr_n: 16,
                 scorr_dq: 0.95,
-                ..d
+                ..scorr
             },
         ),
         (
@@ -736,28 +761,46 @@ fn bad_parameters_are_errors_naming_the_field() {
                 ..d
             },
         ),
+        // The implicit solve's ranges, under the implicit viscosity (under
+        // XSPH any value away from the default is refused as unread).
         (
             "pbf.viscosity_tolerance",
             PbfParams {
                 viscosity_tolerance: 0.0,
-                ..d
+                ..implicit
             },
         ),
         (
             "pbf.viscosity_tolerance",
             PbfParams {
                 viscosity_tolerance: f32::NAN,
-                ..d
+                ..implicit
             },
         ),
         (
             "pbf.viscosity_max_iterations",
             PbfParams {
                 viscosity_max_iterations: 0,
-                ..d
+                ..implicit
             },
         ),
     ];
+    // The fields refused as unread above are accepted where they are read.
+    for read in [
+        PbfParams {
+            scorr_n: 2,
+            scorr_dq: 0.3,
+            ..scorr
+        },
+        PbfParams {
+            viscosity_tolerance: 1e-4,
+            viscosity_max_iterations: 20,
+            ..implicit
+        },
+        PbfParams { xsph: 0.1, ..d },
+    ] {
+        read.validate().unwrap();
+    }
     for (name, p) in cases {
         match p.validate() {
             Err(Error::InvalidParameter { name: got, .. }) => assert_eq!(got, name, "{p:?}"),

@@ -181,7 +181,7 @@ fn every_solver_applies_surface_tension() {
 
 #[test]
 fn malformed_scenes_name_the_field_and_reason() {
-    let cases: [(&str, &str, &[&str]); 40] = [
+    let cases: [(&str, &str, &[&str]); 41] = [
         (
             "spacing = 0.02\n",
             "spacing = 0.02\nclearance = -0.01\n",
@@ -318,6 +318,11 @@ fn malformed_scenes_name_the_field_and_reason() {
         ),
         ("fov_y = 45.0", "fov_y = 0.0", &["render.fov_y", "degrees"]),
         ("fov_y = 45.0", "fov_y = nan", &["render.fov_y", "degrees"]),
+        (
+            "fov_y = 45.0",
+            "fov_y = 179.995",
+            &["render.fov_y", "0.011°"],
+        ),
         (
             "look_at = [0.5, 0.208, 0.04]",
             "look_at = [0.5, 0.744, 1.112]",

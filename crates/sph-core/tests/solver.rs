@@ -497,8 +497,13 @@ fn bad_particles_and_a_grid_of_another_h_are_errors() {
     )
     .unwrap_err();
     assert!(
-        matches!(e, Error::InvalidParameter { name: "domain", .. })
-            && e.to_string().contains("65,536 h"),
+        matches!(
+            e,
+            Error::InvalidParameter {
+                name: "boundary.domain",
+                ..
+            }
+        ) && e.to_string().contains("65,536 h"),
         "{e}"
     );
 

@@ -42,7 +42,8 @@ impl Camera {
     /// target: d/100 and 100 d, so a scene's camera 300 m out or a tank in
     /// millimetres is drawn as one 1 m out is (the fixed planes of
     /// [`Camera::looking_at`] clip beyond 100 m), with the same depth
-    /// precision.
+    /// precision. Beyond about 3e36 m the far plane overflows f32, which
+    /// [`Camera::validate`] reports.
     pub fn with_planes_for_distance(self) -> Self {
         // Scaled first: |v|² of a vector 1e20 long overflows f32.
         let v = self.eye - self.target;

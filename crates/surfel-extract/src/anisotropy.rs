@@ -168,8 +168,8 @@ impl Anisotropy {
             return bad(
                 "anisotropy.isolated_scale",
                 self.isolated_scale,
-                "must lie in [0.05, 1] (a fraction of h): below, the sphere's det G = 1/k_n³ \
-                 leaves f32's range at the field's sums",
+                "must lie in [0.05, 1] (a fraction of h): a droplet's sphere far smaller than \
+                 its particle draws it as a dot, and near 1e-12 det G = 1/k_n³ overflows f32",
             );
         }
         Ok(())

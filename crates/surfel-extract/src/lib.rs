@@ -119,7 +119,9 @@ pub const STEP_RANGE: std::ops::RangeInclusive<f32> = 0.01..=4.0;
 
 /// Checks an iso value k_iso: finite and in (0, 1), where a colour field
 /// that sums the particles' volumes crosses it (c is 0 outside the fluid
-/// and about 1 inside). Every function that takes one checks it so.
+/// and about 1 inside). The extraction, the LDC, the coverage lattices and
+/// the ray caster check it so; `coverage::residuals`, a measure, gives
+/// NaN for a NaN iso.
 ///
 /// # Errors
 /// [`Error::InvalidParameter`] naming `iso`.

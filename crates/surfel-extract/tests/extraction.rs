@@ -351,6 +351,29 @@ fn bad_input_is_an_error() {
             },
             "fill_rounds",
         ),
+        // Steps so short that every surfel is discarded or every particle
+        // interior: Ok with nothing, before STEP_RANGE.
+        (
+            ExtractParams {
+                discard_step: 1e-30,
+                ..params
+            },
+            "discard_step",
+        ),
+        (
+            ExtractParams {
+                interior_step: 1e-3,
+                ..params
+            },
+            "interior_step",
+        ),
+        (
+            ExtractParams {
+                interior_step: 5.0,
+                ..params
+            },
+            "interior_step",
+        ),
     ] {
         let err = extract_points(&[Vec3::ZERO], &bad).unwrap_err().to_string();
         assert!(err.contains(field), "{err}");

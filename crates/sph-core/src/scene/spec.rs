@@ -312,6 +312,18 @@ impl RenderSpec {
                 format!("{} must lie in (0, 180) degrees", self.fov_y),
             ));
         }
+        // As the renderer's camera: a focal length 1/tan(fov/2) outside
+        // [1e-4, 1e4] draws nothing.
+        let focal = 1.0 / (0.5 * self.fov_y.to_radians()).tan();
+        if !(1e-4..=1e4).contains(&focal) {
+            return Err(invalid(
+                "render.fov_y",
+                format!(
+                    "{} degrees is within 0.011° of 0 or 180: the projection would draw nothing",
+                    self.fov_y
+                ),
+            ));
+        }
         Ok(())
     }
 }
