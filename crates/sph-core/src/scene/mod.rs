@@ -125,6 +125,24 @@ impl Scene {
             scene.render = RenderSpec::framing(d.min.into(), d.max.into(), 45.0);
         }
         scene.validate()?;
+        // A surface tension model in a file without σ is read by no solver.
+        // (Only files: the demo's panel may take σ to 0 and back with the
+        // model kept, through `validate`.)
+        if let Some(model) = scene.fluid.surface_tension_model
+            && scene.fluid.surface_tension == 0.0
+        {
+            return Err(invalid(
+                "fluid.surface_tension_model",
+                format!(
+                    "\"{}\" is read only where surface_tension > 0, and it is 0: leave the \
+                     model out, or give σ (N/m)",
+                    match model {
+                        crate::solver::SurfaceTensionModel::ColourField => "colour-field",
+                        crate::solver::SurfaceTensionModel::Akinci => "akinci",
+                    }
+                ),
+            ));
+        }
         Ok(scene)
     }
 
