@@ -195,6 +195,20 @@ pub fn first_imprecise(points: &[glam::Vec3], h: f32) -> Option<usize> {
 pub const IMPRECISE: &str = "lies more than 65,536 h from the origin, where f32 resolves \
     positions more coarsely than h/128: move the particles (and the scene) nearer the origin";
 
+/// Refuses particle `positions` beyond [`MAX_PRECISE_EXTENT`] × `h` from
+/// the origin: [`Error::InvalidParticle`] naming the first.
+pub fn check_precise(positions: &[glam::Vec3], h: f32) -> Result<()> {
+    match first_imprecise(positions, h) {
+        Some(index) => Err(Error::InvalidParticle {
+            index,
+            what: "position",
+            value: positions[index].to_string(),
+            reason: IMPRECISE,
+        }),
+        None => Ok(()),
+    }
+}
+
 /// `Ok` if `v` is finite and > 0, else [`Error::InvalidParameter`] naming `name`.
 pub fn positive(name: &'static str, v: f32) -> Result<()> {
     if v.is_finite() && v > 0.0 {

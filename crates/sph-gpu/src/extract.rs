@@ -418,9 +418,9 @@ impl GpuExtractor {
     ///
     /// # Errors
     /// [`GpuError::Capacity`]; [`GpuError::Invalid`] for a length mismatch, a
-    /// non-finite position or one more than 2¹⁶ h from the origin
-    /// ([`sph_core::error::MAX_PRECISE_EXTENT`]), or a volume that is not
-    /// finite and positive.
+    /// non-finite position or a volume that is not finite and positive;
+    /// [`GpuError::Params`] for a position more than 2¹⁶ h from the origin
+    /// ([`sph_core::error::check_precise`]).
     pub fn upload(
         &mut self,
         queue: &wgpu::Queue,
@@ -446,13 +446,7 @@ impl GpuExtractor {
         if volumes.iter().any(|v| !(v.is_finite() && *v > 0.0)) {
             return Err(GpuError::Invalid("volumes must be finite and > 0"));
         }
-        if sph_core::error::first_imprecise(positions, self.uniform.h).is_some() {
-            return Err(GpuError::Invalid(
-                "a position lies more than 65,536 h from the origin, where f32 resolves positions \
-                 more coarsely than h/128 (sph_core::error::MAX_PRECISE_EXTENT): move the \
-                 particles nearer the origin",
-            ));
-        }
+        sph_core::error::check_precise(positions, self.uniform.h).map_err(GpuError::Params)?;
         match self.anisotropy.as_mut() {
             Some(anisotropy) if kernels => {
                 anisotropy.upload(queue, positions)?;

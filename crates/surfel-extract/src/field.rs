@@ -257,14 +257,7 @@ impl ColourField {
         }
         // The kernel and the grid change together, or not at all.
         let poly6 = Poly6::new(h)?;
-        if let Some(index) = sph_core::error::first_imprecise(positions, h) {
-            return Err(Error::InvalidParticle {
-                index,
-                what: "position",
-                value: positions[index].to_string(),
-                reason: sph_core::error::IMPRECISE,
-            });
-        }
+        sph_core::error::check_precise(positions, h)?;
         // The anisotropic field with its volumes given and a wider
         // neighbourhood for its kernels needs the grid at h only over the
         // kernel centres, built below.

@@ -57,15 +57,11 @@ impl<'a> Raycaster<'a> {
             });
         }
         let bounds = field.support_bounds();
-        if let Some((lo, hi)) = bounds
-            && (hi - lo).length() / step > MAX_RAY_STEPS
-        {
+        let width = bounds.map_or(0.0, |(lo, hi)| (hi - lo).length());
+        if width / step > MAX_RAY_STEPS {
             return Err(Error::InvalidParameter {
                 name: "step",
-                value: format!(
-                    "{step} m across a support box {} m wide",
-                    (hi - lo).length()
-                ),
+                value: format!("{step} m across a support box {width} m wide"),
                 reason: "would take more than 10^6 steps per ray: take a longer step, or \
                          cast against the particles near the view only",
             });

@@ -487,46 +487,53 @@ impl PbfParams {
     /// s_corr's n and Δq only where its k is above 0. A field written out
     /// at its default (as the shipped scene files do) is accepted.
     fn check_read(&self) -> Result<()> {
+        const IMPLICIT_ONLY: &str = "is read only under viscosity = \"implicit\", and this is \
+            \"xsph\": leave it out, or set viscosity = \"implicit\" (with fluid.viscosity)";
+        const SCORR_ONLY: &str = "is read only where scorr_k > 0, and scorr_k = 0 turns s_corr \
+            off: leave it out, or give scorr_k";
         let d = Self::default();
-        let unread = |name, value: f64, reason| Error::InvalidParameter {
-            name,
-            value: value.to_string(),
-            reason,
-        };
-        match self.viscosity {
-            PbfViscosity::Implicit if self.xsph != d.xsph => Err(unread(
+        let xsph = self.viscosity == PbfViscosity::Xsph;
+        let scorr_off = self.scorr_k == 0.0;
+        let unread = [
+            (
                 "pbf.xsph",
-                self.xsph.into(),
+                !xsph && self.xsph != d.xsph,
+                f64::from(self.xsph),
                 "is not read under viscosity = \"implicit\", which replaces XSPH's blend: \
                  leave it out, or set viscosity = \"xsph\"",
-            )),
-            PbfViscosity::Xsph if self.viscosity_tolerance != d.viscosity_tolerance => Err(unread(
+            ),
+            (
                 "pbf.viscosity_tolerance",
-                self.viscosity_tolerance.into(),
-                "is read only under viscosity = \"implicit\", and this is \"xsph\": \
-                     leave it out, or set viscosity = \"implicit\" (with fluid.viscosity)",
-            )),
-            PbfViscosity::Xsph if self.viscosity_max_iterations != d.viscosity_max_iterations => {
-                Err(unread(
-                    "pbf.viscosity_max_iterations",
-                    self.viscosity_max_iterations.into(),
-                    "is read only under viscosity = \"implicit\", and this is \"xsph\": \
-                     leave it out, or set viscosity = \"implicit\" (with fluid.viscosity)",
-                ))
-            }
-            _ if self.scorr_k == 0.0 && self.scorr_n != d.scorr_n => Err(unread(
+                xsph && self.viscosity_tolerance != d.viscosity_tolerance,
+                f64::from(self.viscosity_tolerance),
+                IMPLICIT_ONLY,
+            ),
+            (
+                "pbf.viscosity_max_iterations",
+                xsph && self.viscosity_max_iterations != d.viscosity_max_iterations,
+                f64::from(self.viscosity_max_iterations),
+                IMPLICIT_ONLY,
+            ),
+            (
                 "pbf.scorr_n",
-                self.scorr_n.into(),
-                "is read only where scorr_k > 0, and scorr_k = 0 turns s_corr off: \
-                 leave it out, or give scorr_k",
-            )),
-            _ if self.scorr_k == 0.0 && self.scorr_dq != d.scorr_dq => Err(unread(
+                scorr_off && self.scorr_n != d.scorr_n,
+                f64::from(self.scorr_n),
+                SCORR_ONLY,
+            ),
+            (
                 "pbf.scorr_dq",
-                self.scorr_dq.into(),
-                "is read only where scorr_k > 0, and scorr_k = 0 turns s_corr off: \
-                 leave it out, or give scorr_k",
-            )),
-            _ => Ok(()),
+                scorr_off && self.scorr_dq != d.scorr_dq,
+                f64::from(self.scorr_dq),
+                SCORR_ONLY,
+            ),
+        ];
+        match unread.into_iter().find(|&(_, given, _, _)| given) {
+            Some((name, _, value, reason)) => Err(Error::InvalidParameter {
+                name,
+                value: value.to_string(),
+                reason,
+            }),
+            None => Ok(()),
         }
     }
 }
