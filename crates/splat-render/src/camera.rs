@@ -126,12 +126,14 @@ impl Camera {
 
     /// The view-space direction (z = −1) of the ray through pixel position
     /// `pixel` (pixel centres at half-integers), the same reconstruction the
-    /// shaders use.
+    /// shaders use. A pixel outside the image gives the ray beyond the
+    /// frustum's edge (a drag leaving the window); an empty image's size is
+    /// taken as 1, as [`Camera::projection`] takes it, so the ray is finite.
     pub fn view_ray(&self, pixel: Vec2, width: u32, height: u32) -> Vec3 {
         let proj = self.projection(width, height);
         let ndc = Vec2::new(
-            2.0 * pixel.x / width as f32 - 1.0,
-            1.0 - 2.0 * pixel.y / height as f32,
+            2.0 * pixel.x / width.max(1) as f32 - 1.0,
+            1.0 - 2.0 * pixel.y / height.max(1) as f32,
         );
         Vec3::new(ndc.x / proj.x_axis.x, ndc.y / proj.y_axis.y, -1.0)
     }
@@ -159,6 +161,16 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_empty_image_gives_a_finite_ray() {
+        let cam = Camera::looking_at(Vec3::new(1.0, 2.0, 5.0), Vec3::ZERO);
+        for (w, h) in [(0, 0), (0, 200), (320, 0)] {
+            let (o, d) = cam.pixel_ray(0, 0, w, h);
+            assert!(o.is_finite() && d.is_finite(), "{w}×{h}: {d}");
+            assert!((d.length() - 1.0).abs() < 1e-6);
+        }
+    }
 
     #[test]
     fn pixel_ray_hits_projected_point() {
