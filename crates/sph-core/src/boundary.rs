@@ -275,6 +275,25 @@ impl Boundary {
         self.domain.contains(x) && !self.obstacles.iter().any(|o| o.contains(x))
     }
 
+    /// Every one of `positions` lies where the boundary admits fluid
+    /// ([`Self::admits`]): a solver refuses particles outside the domain or
+    /// inside an obstacle, which its first step would move onto a wall, on
+    /// top of their neighbours.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParticle`] naming the first such particle.
+    pub fn check_admits(&self, positions: &[Vec3]) -> Result<()> {
+        match positions.iter().position(|&x| !self.admits(x)) {
+            Some(index) => Err(Error::InvalidParticle {
+                index,
+                what: "position",
+                value: format!("{}", positions[index]),
+                reason: "lies outside the domain or inside an obstacle",
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Moves `x` to the nearest position at least [`Boundary::clearance`]
     /// from every wall and obstacle (when it is not one) and reflects the
     /// velocity component into the boundary there by `restitution` (0
@@ -525,8 +544,19 @@ impl WallKernel {
     /// to the density of the lattice inside, where the continuous half-space
     /// ([`Self::fraction_and_density`]) starts it a few % compressed at h = 2
     /// spacings.
+    ///
+    /// Layers thinner than h/[`MAX_H_OVER_SPACING`] (or of no positive
+    /// spacing) are the continuous half-space,
+    /// [`Self::fraction_and_density`]: the layers' sum tends to it as they
+    /// thin, and summing them one by one would take h/s terms (none at all
+    /// once s is below an ulp of h, a loop that never ends).
+    ///
+    /// [`MAX_H_OVER_SPACING`]: crate::solver::MAX_H_OVER_SPACING
     #[inline]
     pub fn layers_fraction_and_density(&self, d: f32, layers: Layers) -> (f32, f32) {
+        if !(layers.spacing > 0.0 && self.h / layers.spacing <= crate::solver::MAX_H_OVER_SPACING) {
+            return self.fraction_and_density(d);
+        }
         let (mut f, mut slope) = (0.0, 0.0);
         let mut z = d.max(0.0) + 0.5 * layers.spacing;
         while z < self.h {
@@ -556,7 +586,9 @@ impl WallKernel {
     /// distances where t's calibration is approximate (h > 2 spacings).
     /// Where no lattice of that mass is within [`MAX_H_OVER_SPACING`]
     /// (a mass far lighter than any scene's), the layers are V^⅓ apart and
-    /// V^⅓ thick, the same volume per particle without the lattice's sums.
+    /// V^⅓ thick, the same volume per particle without the lattice's sums:
+    /// layers that thin sum as the continuous half-space
+    /// ([`Self::layers_fraction_and_density`]).
     ///
     /// [`MAX_H_OVER_SPACING`]: crate::solver::MAX_H_OVER_SPACING
     pub fn lattice_layers(&self, mass: f32, rest_density: f32) -> Layers {
@@ -855,6 +887,38 @@ mod tests {
         for m in [0.0, -1.0, f32::NAN, f32::INFINITY] {
             let l = wall.lattice_layers(m, 1000.0);
             assert!(!(l.spacing > 0.0 && l.spacing.is_finite()), "{m}: {l:?}");
+        }
+    }
+
+    /// Layers thinner than h/10 (a particle far lighter than its h's
+    /// lattice, 10⁻²⁰ kg at h = 4 cm) are the continuous half-space, where
+    /// summing them one by one never ended: 2 × 10⁻⁸ m is below an ulp of
+    /// the distances summed.
+    #[test]
+    fn layers_thinner_than_the_neighbourhood_are_the_half_space() {
+        for wall in [WallKernel::new(0.04), WallKernel::cubic_spline(0.04)] {
+            for mass in [1e-20f32, 1e-12] {
+                let layers = wall.lattice_layers(mass, 1000.0);
+                for d in [0.0, 0.005, 0.02, 0.039] {
+                    assert_eq!(
+                        wall.layers_fraction_and_density(d, layers),
+                        wall.fraction_and_density(d),
+                        "mass {mass}, d {d}"
+                    );
+                }
+            }
+            // Layers just within h/10 still sum one by one, close to it.
+            let s = 0.04 / 9.5;
+            let layers = Layers {
+                spacing: s,
+                thickness: s,
+            };
+            let (f, g) = wall.layers_fraction_and_density(0.01, layers);
+            let (f0, g0) = wall.fraction_and_density(0.01);
+            assert!(
+                (f - f0).abs() < 0.02 && (g - g0).abs() < 0.05 * g0,
+                "{f} {f0} {g} {g0}"
+            );
         }
     }
 

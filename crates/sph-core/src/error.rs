@@ -161,8 +161,12 @@ pub(crate) fn check_h(h: f32) -> Result<()> {
 pub const KERNEL_H_RANGE: (f32, f32) = (1e-4, 1e3);
 
 /// Checks that `h` is a smoothing length the kernels can represent: within
-/// [`KERNEL_H_RANGE`].
-pub(crate) fn check_kernel_h(h: f32) -> Result<()> {
+/// [`KERNEL_H_RANGE`]. The GPU's passes, which compute the kernels'
+/// coefficients themselves, check it too.
+///
+/// # Errors
+/// [`Error::InvalidParameter`] naming `h`.
+pub fn check_kernel_h(h: f32) -> Result<()> {
     check_h(h)?;
     let (lo, hi) = KERNEL_H_RANGE;
     if (lo..=hi).contains(&h) {

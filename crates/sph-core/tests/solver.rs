@@ -6,7 +6,8 @@ mod common;
 use glam::Vec3;
 use sph_core::scene::WcsphSpec;
 use sph_core::{
-    Aabb, Boundary, Context, Error, FluidParams, Particles, Processor, Scene, TimeStepping, World,
+    Aabb, Boundary, Context, Error, FluidParams, Particles, Processor, Scene, SolverKind,
+    TimeStepping, World,
 };
 
 fn momentum(p: &Particles) -> [f64; 3] {
@@ -444,6 +445,34 @@ fn a_stale_grid_is_an_error() {
     density_refuses(&mut world, "invalidate_grid");
 }
 
+/// A particle too light for h added after the world was built (here by a
+/// processor) stops DFSPH's next step with an error naming it, where its
+/// Jacobi relaxation summed over (h/V^⅓)³ neighbour offsets and never
+/// ended.
+#[test]
+fn a_light_particle_added_later_is_an_error() {
+    struct Light;
+    impl Processor for Light {
+        fn name(&self) -> &str {
+            "light"
+        }
+        fn process(
+            &mut self,
+            particles: &mut Particles,
+            ctx: &mut Context,
+        ) -> sph_core::Result<()> {
+            particles.push(Vec3::splat(0.05), Vec3::ZERO, 1e-20);
+            ctx.invalidate_grid();
+            Ok(())
+        }
+    }
+    let scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Dfsph);
+    let mut world = scene.build_world().unwrap();
+    assert!(world.program_mut().insert_before("grid", Light));
+    let e = world.step().unwrap_err();
+    assert!(e.to_string().contains("too light for h"), "{e}");
+}
+
 /// Particles a simulation cannot run are errors naming the particle, before
 /// any step (a zero mass used to surface as an `Unstable` NaN with a hint
 /// about time steps), and a grid built for another h than the fluid's is a
@@ -465,6 +494,24 @@ fn bad_particles_and_a_grid_of_another_h_are_errors() {
             matches!(e, Error::InvalidParticle { what: "mass", index, .. } if index == good.len()),
             "{e}"
         );
+    }
+    // A particle far lighter than its h's lattice (a volume whose side is
+    // under h/10) under every solver, with and without a clearance: DFSPH's
+    // relaxation and the walls' layers summed over (h/V^⅓)³ offsets, and
+    // at 10⁻²⁰ kg a step never ended.
+    for kind in SolverKind::ALL {
+        for clearance in [0.0, 0.01] {
+            let mut light = scene.clone().with_solver(kind);
+            light.clearance = Some(clearance);
+            let mut p = light.particles().unwrap();
+            p.push(x, Vec3::ZERO, 1e-20);
+            let e = light.world_with(p).unwrap_err();
+            assert!(
+                matches!(e, Error::InvalidParticle { what: "mass", .. })
+                    && e.to_string().contains("too light for h"),
+                "{kind:?}: {e}"
+            );
+        }
     }
     let e = bad(x, Vec3::new(0.0, f32::NAN, 0.0), m);
     assert!(

@@ -564,14 +564,20 @@ pub fn relaxation(cubic: &CubicSpline, spacing: f32) -> f32 {
 
 /// The relaxation for the widest neighbourhood of `masses`: the smallest
 /// spacing V^⅓ = (m/ρ0)^⅓. Kept in `cache` while that spacing stays the same.
-fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Model) -> f32 {
+///
+/// # Errors
+/// A particle added since the world was built that is too light for h
+/// ([`FluidParams::check_masses`]): its neighbourhood would take
+/// [`relaxation`] (h/V^⅓)³ offsets.
+fn cached_relaxation(cache: &mut Option<(f32, f32)>, masses: &[f32], model: &Model) -> Result<f32> {
     let spacing = (super::lanes::lightest(masses) * model.inv_rho0).cbrt();
     match *cache {
-        Some((s, omega)) if s == spacing => omega,
+        Some((s, omega)) if s == spacing => Ok(omega),
         _ => {
+            model.params.check_masses(masses)?;
             let omega = relaxation(&model.cubic, spacing);
             *cache = Some((spacing, omega));
-            omega
+            Ok(omega)
         }
     }
 }
@@ -756,7 +762,7 @@ impl Solve {
     /// The density solve first adds the non-pressure forces (v* = v + Δt a)
     /// and at the end writes the pressures.
     fn run(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
-        let omega = cached_relaxation(&mut self.relaxation, particles.masses(), &self.model);
+        let omega = cached_relaxation(&mut self.relaxation, particles.masses(), &self.model)?;
         let (dt, target) = (ctx.dt, self.target);
         let lists = lists(ctx, particles, target.name())?;
         let model = &*self.model;

@@ -173,7 +173,8 @@ impl World {
             check_viscous_dt(&params, &stepping)?;
         }
         particles.validate()?;
-        check_admitted(&particles, &boundary)?;
+        params.check_masses(particles.masses())?;
+        boundary.check_admits(particles.positions())?;
         boundary.check_precision(params.h)?;
         let program = solver.program(params, boundary.clone())?;
         Ok(Self {
@@ -510,22 +511,5 @@ impl std::fmt::Debug for World {
             .field("solver", &self.solver)
             .field("program", &self.program)
             .finish()
-    }
-}
-
-/// Every particle lies where `boundary` admits fluid.
-fn check_admitted(particles: &Particles, boundary: &Boundary) -> Result<()> {
-    match particles
-        .positions()
-        .iter()
-        .position(|&x| !boundary.admits(x))
-    {
-        Some(index) => Err(Error::InvalidParticle {
-            index,
-            what: "position",
-            value: format!("{}", particles.positions()[index]),
-            reason: "lies outside the domain or inside an obstacle",
-        }),
-        None => Ok(()),
     }
 }
