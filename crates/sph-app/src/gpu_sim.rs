@@ -145,7 +145,10 @@ impl GpuSim {
                 }
             }
             Stepper::Wcsph { solver, batch } => {
-                let with_margin = |substeps: u32| substeps.saturating_add(substeps / 4 + 1);
+                // A frame longer than the largest batch takes several.
+                let with_margin = |substeps: u32| {
+                    (substeps.saturating_add(substeps / 4 + 1)).min(sph_gpu::MAX_BATCH)
+                };
                 if *batch == 0 {
                     let substeps = (frame_dt / f64::from(world.stable_dt())).ceil();
                     *batch = with_margin(substeps.clamp(1.0, 1e4) as u32);

@@ -64,9 +64,7 @@ impl GpuAnisotropy {
         anisotropy: &Anisotropy,
     ) -> Result<Self, GpuError> {
         anisotropy.validate().map_err(GpuError::Params)?;
-        if !(h.is_finite() && h > 0.0) {
-            return Err(GpuError::Invalid("h must be finite and > 0"));
-        }
+        sph_core::error::check_kernel_h(h).map_err(GpuError::Params)?;
         let r = anisotropy.radius * h;
         let grid = GpuGrid::new(device, capacity, r, 1)?;
         let (layer, thickness) = match anisotropy.centres {
@@ -146,7 +144,9 @@ impl GpuAnisotropy {
     /// `vec4<f32>` each): a copy into the grid, its build, the kernel pass.
     ///
     /// # Errors
-    /// [`GpuError::Capacity`] for more than the capacity.
+    /// [`GpuError::Capacity`] for more than the capacity;
+    /// [`GpuError::Invalid`] for a `positions` buffer shorter than `n`
+    /// `vec4<f32>`s or one that cannot be copied from (`COPY_SRC`).
     pub fn encode(
         &mut self,
         queue: &wgpu::Queue,
@@ -154,6 +154,16 @@ impl GpuAnisotropy {
         positions: &wgpu::Buffer,
         n: usize,
     ) -> Result<(), GpuError> {
+        if positions.size() < 16 * n as u64 {
+            return Err(GpuError::Invalid(
+                "the positions buffer holds fewer than n vec4<f32>s",
+            ));
+        }
+        if !positions.usage().contains(wgpu::BufferUsages::COPY_SRC) {
+            return Err(GpuError::Invalid(
+                "the positions buffer needs COPY_SRC usage (it is copied into the grid)",
+            ));
+        }
         self.set_len(queue, n)?;
         self.record(encoder, Some(positions), None);
         Ok(())

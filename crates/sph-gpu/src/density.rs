@@ -30,6 +30,9 @@ struct Fluid {
 /// on the GPU, reading the grid's buffers and writing its own.
 pub struct GpuDensity {
     fluid: Fluid,
+    /// The positions of the grid the bind group reads, which every
+    /// [`GpuDensity::encode`] must be given.
+    grid_positions: wgpu::Buffer,
     uniform: wgpu::Buffer,
     densities: wgpu::Buffer,
     pressures: wgpu::Buffer,
@@ -45,8 +48,11 @@ impl GpuDensity {
     ///
     /// # Errors
     /// [`GpuError::Params`] for parameters or a boundary sph-core rejects (its
-    /// reason); [`GpuError::Invalid`] for an `h` different
-    /// from the grid's, a capacity below the grid's (the pass writes one
+    /// reason, an `h` outside [`sph_core::error::KERNEL_H_RANGE`] among
+    /// them); [`GpuError::Invalid`] for an `h` different
+    /// from the grid's, a grid built [`GpuGrid::in_box`] (the pass walks a
+    /// hashed grid's buckets, which a box grid's are not), a capacity below
+    /// the grid's (the pass writes one
     /// density per grid particle), or a non-finite obstacle; [`GpuError::DeviceLimit`]
     /// for a capacity beyond one dispatch or storage binding of this device.
     pub fn new(
@@ -58,6 +64,7 @@ impl GpuDensity {
         masses: &[f32],
     ) -> Result<Self, GpuError> {
         params.validate().map_err(GpuError::Params)?;
+        sph_core::error::check_kernel_h(params.h).map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
         boundary
             .check_precision(params.h)
@@ -65,6 +72,11 @@ impl GpuDensity {
         if params.h != grid.h() {
             return Err(GpuError::Invalid(
                 "the density's h must be the grid's cell size",
+            ));
+        }
+        if grid.is_box() {
+            return Err(GpuError::Invalid(
+                "the density pass walks a hashed grid (`GpuGrid::new`), not one built `in_box`",
             ));
         }
         if capacity < grid.capacity() {
@@ -126,6 +138,7 @@ impl GpuDensity {
         );
         Ok(Self {
             fluid,
+            grid_positions: grid.positions_buffer().clone(),
             uniform,
             densities,
             pressures,
@@ -137,14 +150,25 @@ impl GpuDensity {
 
     /// Records the pass for the grid's current particles (build the grid first,
     /// in the same or an earlier submission).
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a grid other than the one the pass was made
+    /// for: its buffers are bound, and another grid's count would read past
+    /// them.
     pub fn encode(
         &mut self,
         queue: &wgpu::Queue,
         encoder: &mut wgpu::CommandEncoder,
         grid: &GpuGrid,
-    ) {
+    ) -> Result<(), GpuError> {
+        if *grid.positions_buffer() != self.grid_positions {
+            return Err(GpuError::Invalid(
+                "the density pass encodes only the grid it was made for",
+            ));
+        }
         let groups = grid.len().div_ceil(64).max(1) as u32;
         self.encode_with(queue, encoder, grid, Groups::Direct(groups), None);
+        Ok(())
     }
 
     /// The same pass with its workgroups given (one thread per particle).

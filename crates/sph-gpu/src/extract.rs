@@ -180,13 +180,14 @@ fn groups(threads: u32) -> (u32, u32) {
 }
 
 impl GpuExtractor {
-    /// An extractor for up to `particles` particles that keeps up to
-    /// `max_surfels` surfels per refinement level and in the result.
+    /// An extractor for up to `particles` particles (room for one when 0:
+    /// an empty set extracts nothing) that keeps up to `max_surfels`
+    /// surfels per refinement level and in the result.
     ///
     /// # Errors
     /// [`GpuError::Params`] for parameters surfel-extract rejects (its
-    /// reason), [`GpuError::Invalid`] for [`Mode::Covered`] (hole closing is CPU-only: pass
-    /// [`ExtractParams::thesis`]), a zero capacity, or buffers beyond the
+    /// reason) and an `h` outside [`sph_core::error::KERNEL_H_RANGE`];
+    /// [`GpuError::Invalid`] for a zero `max_surfels`, or buffers beyond the
     /// device's storage binding limit.
     pub fn new(
         device: &wgpu::Device,
@@ -195,6 +196,8 @@ impl GpuExtractor {
         params: &ExtractParams,
     ) -> Result<Self, GpuError> {
         params.validate().map_err(GpuError::Params)?;
+        sph_core::error::check_kernel_h(params.h).map_err(GpuError::Params)?;
+        let particles = particles.max(1);
         let covered = params.mode == Mode::Covered;
         if max_surfels == 0 {
             return Err(GpuError::Invalid("max_surfels must be > 0"));
@@ -203,7 +206,7 @@ impl GpuExtractor {
         let max_bytes = limits
             .max_storage_buffer_binding_size
             .min(limits.max_buffer_size);
-        let surfel_bytes = max_surfels as u64 * SURFEL_BYTES;
+        let surfel_bytes = (max_surfels as u64).saturating_mul(SURFEL_BYTES);
         if surfel_bytes > max_bytes || max_surfels > u32::MAX as usize {
             return Err(GpuError::Invalid(
                 "max_surfels exceeds the device's storage buffer limit",

@@ -181,7 +181,7 @@ impl GpuGrid {
         min: Vec3,
         max: Vec3,
     ) -> Result<Self, GpuError> {
-        let most = 8 * capacity.max(32) as u64;
+        let most = (capacity.max(32) as u64).saturating_mul(8);
         let cells = (h.is_finite() && h > 0.0)
             .then(|| CellBox::covering(min, max, h, most))
             .flatten();
@@ -347,15 +347,20 @@ impl GpuGrid {
     ///
     /// # Errors
     /// [`GpuError::Capacity`], or [`GpuError::Invalid`] for a non-finite
-    /// position or mass, or a mass count that differs from the positions'.
+    /// position, a mass that is not finite and positive, or a mass count
+    /// that differs from the positions'.
     pub fn upload_with_masses(
         &mut self,
         queue: &wgpu::Queue,
         positions: &[Vec3],
         masses: Option<&[f32]>,
     ) -> Result<(), GpuError> {
-        if masses.is_some_and(|m| m.len() != positions.len() || m.iter().any(|m| !m.is_finite())) {
-            return Err(GpuError::Invalid("need one finite mass per position"));
+        if masses.is_some_and(|m| {
+            m.len() != positions.len() || m.iter().any(|m| !(m.is_finite() && *m > 0.0))
+        }) {
+            return Err(GpuError::Invalid(
+                "need one finite, positive mass per position",
+            ));
         }
         if positions.len() > self.capacity {
             return Err(GpuError::Capacity {

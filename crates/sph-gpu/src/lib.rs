@@ -40,9 +40,9 @@ pub use anisotropy::{GpuAnisotropy, KERNEL_BYTES};
 pub use density::GpuDensity;
 pub use extract::{GpuExtractStats, GpuExtractor, SURFEL_BYTES};
 pub use grid::{GpuError, GpuGrid};
-pub use pbf::{GpuPbf, MAX_NEIGHBOURS, PbfFrame, PbfFrameStats};
+pub use pbf::{GpuPbf, MAX_NEIGHBOURS, MIN_FRAME_DT, PbfFrame, PbfFrameStats};
 pub use push::RayPush;
-pub use solver::{GpuFrame, GpuSolver, GpuState};
+pub use solver::{GpuFrame, GpuSolver, GpuState, MAX_BATCH};
 
 /// A GPU solver's particle buffers, which an extractor or renderer reads in
 /// place ([`GpuExtractor::attach`]). Index i of each is particle i of the

@@ -42,6 +42,12 @@ use crate::passes::{bind_buffers, check_fits, read_floats, read_vec3s, shader, t
 use crate::push::{RayPush, push_uniforms};
 use crate::solver::{GpuState, HASH, PUSH, RESOLVE, WALLS};
 
+/// The shortest frame [`GpuPbf::encode_frame`] takes (s): sph-core's
+/// default `min_dt`, the shortest step a CPU run takes (`World::advance`
+/// refuses a shorter frame). Far shorter, Δt² underflows in the solve's
+/// pressure, which would turn infinite with no error.
+pub const MIN_FRAME_DT: f32 = 1e-7;
+
 /// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32
 /// within h = 2 spacings; a particle with more than this many is compressed
 /// far past anything the solve leaves, and the frame's statistics report it
@@ -225,7 +231,9 @@ impl GpuPbf {
     ///
     /// # Errors
     /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
-    /// rejects (the colour-field surface tension among them, WCSPH's only);
+    /// rejects (the colour-field surface tension among them, WCSPH's only;
+    /// a mass too light for h and a position the boundary does not admit,
+    /// as `World::with_solver` refuses them);
     /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` and for
     /// `pbf.sleep_speed` > 0, which run only on the CPU;
     /// [`GpuError::DeviceLimit`] for more particles than one dispatch or
@@ -240,10 +248,16 @@ impl GpuPbf {
     ) -> Result<Self, GpuError> {
         particles.validate().map_err(GpuError::Params)?;
         fluid.validate().map_err(GpuError::Params)?;
+        fluid
+            .check_masses(particles.masses())
+            .map_err(GpuError::Params)?;
         pbf.validate().map_err(GpuError::Params)?;
         boundary.validate().map_err(GpuError::Params)?;
         boundary
             .check_precision(fluid.h)
+            .map_err(GpuError::Params)?;
+        boundary
+            .check_admits(particles.positions())
             .map_err(GpuError::Params)?;
         Solver::Pbf(*pbf)
             .check_applies(fluid)
@@ -534,7 +548,7 @@ impl GpuPbf {
                 mapped: Arc::new(AtomicU8::new(PENDING)),
             })
             .collect();
-        Ok(Self {
+        let solver = Self {
             uniform,
             pbf: *pbf,
             grid,
@@ -552,7 +566,9 @@ impl GpuPbf {
             failure: None,
             frames: 0,
             substeps: 0,
-        })
+        };
+        solver.prime_densities(device, queue);
+        Ok(solver)
     }
 
     /// Pushes the fluid from the next frame recorded on (`None` stops).
@@ -595,8 +611,9 @@ impl GpuPbf {
     /// three frames' statistics are still on their way.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and
-    /// positive or that would take more than [`MAX_PBF_COUNT`] substeps;
+    /// [`GpuError::Invalid`] for a `frame_dt` that is not finite or is
+    /// shorter than [`MIN_FRAME_DT`], or that would take more than
+    /// [`MAX_PBF_COUNT`] substeps;
     /// [`GpuError::Unstable`] when statistics that came back show a frame
     /// whose state became non-finite, whose constraint solve diverged (as
     /// `SolveDensity` judges it on the CPU), or one of whose particles had
@@ -644,8 +661,10 @@ impl GpuPbf {
         frame_dt: f32,
         profiler: Option<&GpuProfiler>,
     ) -> Result<PbfFrame, GpuError> {
-        if !(frame_dt.is_finite() && frame_dt > 0.0) {
-            return Err(GpuError::Invalid("frame_dt must be finite and > 0"));
+        if !(frame_dt.is_finite() && frame_dt >= MIN_FRAME_DT) {
+            return Err(GpuError::Invalid(
+                "frame_dt must be finite and at least 1e-7 s (sph-core's default min_dt)",
+            ));
         }
         let substeps = self.pbf.substeps_for(frame_dt);
         if substeps > MAX_PBF_COUNT {
@@ -874,6 +893,34 @@ impl GpuPbf {
         }
     }
 
+    /// Computes the densities of the particles as given, so that a readback
+    /// or an extraction before the first frame sees them (the buffer starts
+    /// zeroed: volumes m/0): a substep's grid, lists and density pass
+    /// (`curl`, which also writes the curl and XSPH means the next substep
+    /// recomputes) and its scatter home, without the prediction or the
+    /// solve, so positions and velocities stay as they are.
+    fn prime_densities(&self, device: &wgpu::Device, queue: &wgpu::Queue) {
+        queue.write_buffer(&self.uniform_buffer, 0, bytemuck::bytes_of(&self.uniform));
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("pbf initial densities"),
+                timestamp_writes: None,
+            });
+            let p = &self.passes;
+            self.grid.record_build(&mut pass, Some(&self.gate));
+            for (pipeline, home) in [
+                (&p.gather, true),
+                (&p.lists, true),
+                (&p.curl, false),
+                (&p.scatter, true),
+            ] {
+                self.dispatch(pipeline, home)(&mut pass);
+            }
+        }
+        queue.submit([encoder.finish()]);
+    }
+
     /// Records one substep, each stage handed to `stage` with its label.
     /// Every dispatch but `reduce` (one workgroup, which writes the gate)
     /// reads its workgroups from the gate.
@@ -911,7 +958,8 @@ impl GpuPbf {
     }
 
     /// Reads positions, velocities, densities and pressures back (waits for
-    /// the device).
+    /// the device; before the first frame, the densities of the particles
+    /// as given and zero pressures).
     ///
     /// # Errors
     /// [`GpuError::Readback`].

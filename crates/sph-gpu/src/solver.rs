@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use sph_core::boundary::WallKernel;
+use sph_core::solver::MAX_H_OVER_SPACING;
 use sph_core::{Boundary, FluidParams, Particles, PressureKernel, TimeStepping};
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
@@ -74,8 +75,20 @@ pub(crate) fn wall_layers(params: &FluidParams, boundary: &Boundary, masses: &[f
         return [0.0; 4];
     }
     let layers = WallKernel::new(params.h).lattice_layers(lightest, params.rest_density);
+    // Layers thinner than h/10 are the continuous half-space, as on the
+    // CPU (`WallKernel::layers_fraction_and_density`): the shader sums them
+    // one by one, and at a spacing below an ulp of h it would never end.
+    if !(layers.spacing > 0.0 && params.h / layers.spacing <= MAX_H_OVER_SPACING) {
+        return [0.0; 4];
+    }
     [layers.spacing, layers.thickness, 0.0, 0.0]
 }
+
+/// The most steps [`GpuSolver::advance`] records in one batch: each is
+/// a handful of dispatches held in the encoder until it is submitted, so a
+/// batch of billions would exhaust memory before it ran. A frame longer
+/// than a batch takes several.
+pub const MAX_BATCH: u32 = 1 << 16;
 
 /// Mirrors `struct StepState` in `shaders/timestep.wgsl`.
 #[repr(C)]
@@ -150,8 +163,10 @@ impl GpuSolver {
     /// Uploads `particles` (positions, velocities, masses) and prepares the passes.
     ///
     /// # Errors
-    /// [`GpuError::Params`] for particles (`Particles::validate`),
-    /// parameters or a boundary sph-core rejects (its reason);
+    /// [`GpuError::Params`] for particles (`Particles::validate`, a mass too
+    /// light for h, a position the boundary does not admit), parameters or
+    /// a boundary sph-core rejects (its reason), as `World::with_solver`
+    /// refuses them;
     /// [`GpuError::Invalid`] for a non-finite `h` or Akinci et al.'s surface
     /// tension (which the GPU's PBF runs, its WCSPH not);
     /// [`GpuError::DeviceLimit`] for
@@ -165,6 +180,18 @@ impl GpuSolver {
         boundary: &Boundary,
     ) -> Result<Self, GpuError> {
         particles.validate().map_err(GpuError::Params)?;
+        params.validate().map_err(GpuError::Params)?;
+        sph_core::error::check_kernel_h(params.h).map_err(GpuError::Params)?;
+        params
+            .check_masses(particles.masses())
+            .map_err(GpuError::Params)?;
+        boundary.validate().map_err(GpuError::Params)?;
+        boundary
+            .check_precision(params.h)
+            .map_err(GpuError::Params)?;
+        boundary
+            .check_admits(particles.positions())
+            .map_err(GpuError::Params)?;
         if params.surface_tension > 0.0
             && params.surface_tension_model == Some(sph_core::SurfaceTensionModel::Akinci)
         {
@@ -332,6 +359,13 @@ impl GpuSolver {
             steps: 0,
         };
         solver.set_time_stepping(&TimeStepping::default())?;
+        // The densities and pressures of the particles as given, so that a
+        // readback or an extraction before the first step sees them (the
+        // buffers start zeroed: volumes m/0).
+        let mut encoder = device.create_command_encoder(&Default::default());
+        solver.grid.encode_build_gated(&mut encoder, None, None);
+        solver.density.encode(queue, &mut encoder, &solver.grid)?;
+        queue.submit([encoder.finish()]);
         Ok(solver)
     }
 
@@ -389,7 +423,8 @@ impl GpuSolver {
         self.grid.positions_buffer()
     }
 
-    /// Densities of the last step, `f32` per particle.
+    /// Densities of the last step (of the particles as given before the
+    /// first), `f32` per particle.
     pub fn densities_buffer(&self) -> &wgpu::Buffer {
         self.density.densities_buffer()
     }
@@ -407,7 +442,9 @@ impl GpuSolver {
     /// Takes one step of `dt` seconds (submitted; nothing read back).
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for a `dt` that is not finite and positive.
+    /// [`GpuError::Invalid`] for a `dt` that is not finite or is shorter
+    /// than the time stepping's `min_dt`, the shortest step a run takes
+    /// (`World::step` refuses it likewise).
     pub fn step(
         &mut self,
         device: &wgpu::Device,
@@ -441,8 +478,10 @@ impl GpuSolver {
         dt: f32,
         profiler: Option<&GpuProfiler>,
     ) -> Result<(), GpuError> {
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(GpuError::Invalid("dt must be finite and > 0"));
+        if !(dt.is_finite() && dt >= self.params.min_dt) {
+            return Err(GpuError::Invalid(
+                "dt must be finite and at least the time stepping's min_dt",
+            ));
         }
         self.params.dt = dt;
         self.params.frame_dt = 0.0;
@@ -511,7 +550,7 @@ impl GpuSolver {
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and positive
-    /// or a zero `batch`; [`GpuError::Unstable`] when the stable step falls
+    /// or a `batch` of 0 or above [`MAX_BATCH`]; [`GpuError::Unstable`] when the stable step falls
     /// below `min_dt` (a blow-up) or below the f32 resolution of the time
     /// elapsed in the frame (a frame far too long for its steps);
     /// [`GpuError::Readback`].
@@ -553,9 +592,9 @@ impl GpuSolver {
         batch: u32,
         profiler: Option<&GpuProfiler>,
     ) -> Result<GpuFrame, GpuError> {
-        if !(frame_dt.is_finite() && frame_dt > 0.0) || batch == 0 {
+        if !(frame_dt.is_finite() && frame_dt > 0.0 && (1..=MAX_BATCH).contains(&batch)) {
             return Err(GpuError::Invalid(
-                "frame_dt must be finite and > 0, batch > 0",
+                "frame_dt must be finite and > 0, batch in 1..=MAX_BATCH (65,536)",
             ));
         }
         self.params.dt = 0.0;
@@ -603,7 +642,9 @@ impl GpuSolver {
         }
     }
 
-    /// Reads positions, velocities, densities and pressures back.
+    /// Reads positions, velocities, densities and pressures back (before
+    /// the first step, the densities and pressures of the particles as
+    /// given).
     ///
     /// # Errors
     /// [`GpuError::Readback`].

@@ -72,6 +72,45 @@ fn lattice(n: i32, s: f32) -> Vec<Vec3> {
 /// A lattice block (faces, edges, corners, a jittered top) and scattered
 /// particles around it (isolated spheres, pairs), with both kinds of
 /// centres.
+/// A positions buffer that is too short or cannot be copied from is an
+/// error naming it (a short one left stale positions in the grid; one
+/// without `COPY_SRC` was a validation error, a panic under wgpu's default
+/// handler); an h whose kernel coefficients overflow f32 is refused.
+#[test]
+fn bad_position_buffers_are_errors() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let params = Anisotropy::default();
+    let e = GpuAnisotropy::new(&ctx.device, 10, 5e-5, &params)
+        .err()
+        .unwrap();
+    assert!(e.to_string().contains("[1e-4, 1e3]"), "{e}");
+    let mut gpu = GpuAnisotropy::new(&ctx.device, 10, 0.02, &params).unwrap();
+    let buffer = |size, usage| {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: None,
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
+    };
+    use wgpu::BufferUsages as U;
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    let short = buffer(16 * 4, U::STORAGE | U::COPY_SRC);
+    let e = gpu.encode(&ctx.queue, &mut encoder, &short, 5).unwrap_err();
+    assert!(e.to_string().contains("fewer than n"), "{e}");
+    let sealed = buffer(16 * 10, U::STORAGE);
+    let e = gpu
+        .encode(&ctx.queue, &mut encoder, &sealed, 5)
+        .unwrap_err();
+    assert!(e.to_string().contains("COPY_SRC"), "{e}");
+    let good = buffer(16 * 10, U::STORAGE | U::COPY_SRC);
+    gpu.encode(&ctx.queue, &mut encoder, &good, 10).unwrap();
+    ctx.queue.submit([encoder.finish()]);
+    ctx.check().unwrap();
+}
+
 #[test]
 fn gpu_kernels_match_the_cpu_on_a_block() {
     let Some(ctx) = GpuContext::headless_or_skip() else {

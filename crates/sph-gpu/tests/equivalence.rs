@@ -181,6 +181,49 @@ fn bad_input_is_an_error() {
         .err()
         .expect("Akinci's surface tension");
     assert!(err.to_string().contains("surface_tension_model"), "{err}");
+
+    // What `World::with_solver` refuses, the GPU solver refuses too: a
+    // particle outside the domain (its first step moved it onto the wall),
+    // a mass far too light for h, and an h whose kernel coefficients
+    // overflow (5e-5 m: densities inf).
+    let refuses = |particles: &sph_core::Particles, params: &sph_core::FluidParams, why: &str| {
+        let err = sph_gpu::GpuSolver::new(&ctx.device, &ctx.queue, particles, params, &boundary)
+            .err()
+            .unwrap_or_else(|| panic!("accepted: {why}"));
+        assert!(err.to_string().contains(why), "{err}");
+    };
+    let mut outside = sph_core::Particles::new();
+    outside.push(Vec3::splat(2.0), Vec3::ZERO, 1.0);
+    refuses(&outside, &params, "outside the domain");
+    let mut light = sph_core::Particles::new();
+    light.push(Vec3::ZERO, Vec3::ZERO, 1e-20);
+    refuses(&light, &params, "too light for h");
+    let tiny_h = sph_core::FluidParams::water(5e-5);
+    let mut tiny = sph_core::Particles::new();
+    tiny.push(Vec3::ZERO, Vec3::ZERO, 1e-9);
+    refuses(&tiny, &tiny_h, "[1e-4, 1e3]");
+    // A step below min_dt and a batch beyond MAX_BATCH.
+    let mut solver =
+        sph_gpu::GpuSolver::new(&ctx.device, &ctx.queue, &one, &params, &boundary).unwrap();
+    assert!(solver.step(&ctx.device, &ctx.queue, 1e-12).is_err());
+    let err = solver
+        .advance(&ctx.device, &ctx.queue, 0.01, sph_gpu::MAX_BATCH + 1)
+        .unwrap_err();
+    assert!(err.to_string().contains("MAX_BATCH"), "{err}");
+
+    // The density pass walks a hashed grid only, and encodes only its own.
+    let boxed = GpuGrid::in_box(&ctx.device, 2, 0.1, 8, Vec3::ZERO, Vec3::splat(0.3)).unwrap();
+    assert!(boxed.is_box());
+    match sph_gpu::GpuDensity::new(&ctx.device, &boxed, 2, &params, &boundary, &[]) {
+        Err(e) => assert!(e.to_string().contains("in_box"), "{e}"),
+        Ok(_) => panic!("a density pass over a box grid"),
+    }
+    let mut density =
+        sph_gpu::GpuDensity::new(&ctx.device, &grid, 2, &params, &boundary, &[]).unwrap();
+    let other = GpuGrid::new(&ctx.device, 2, 0.1, 8).unwrap();
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    assert!(density.encode(&ctx.queue, &mut encoder, &other).is_err());
+    density.encode(&ctx.queue, &mut encoder, &grid).unwrap();
 }
 
 #[test]
@@ -215,7 +258,7 @@ fn gpu_density_matches_the_cpu_processor() {
         GpuDensity::new(&ctx.device, &grid, n, &params, &boundary, cpu.masses()).unwrap();
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     grid.encode_build(&mut encoder);
-    density.encode(&ctx.queue, &mut encoder, &grid);
+    density.encode(&ctx.queue, &mut encoder, &grid).unwrap();
     ctx.queue.submit([encoder.finish()]);
     let (rho, p) = density.read(&ctx.device, &ctx.queue).unwrap();
     let mut worst = 0f32;

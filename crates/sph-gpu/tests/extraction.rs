@@ -185,6 +185,13 @@ fn overflow_is_reported_and_bad_input_rejected() {
         ..params
     };
     assert!(GpuExtractor::new(device, 10, 100, &bad).is_err());
+    // An h whose kernel coefficients overflow f32 (the CPU field refuses
+    // it too), and room for no particle: one that extracts an empty set.
+    let tiny = ExtractParams::new(5e-5).thesis();
+    let e = GpuExtractor::new(device, 10, 100, &tiny).err().unwrap();
+    assert!(e.to_string().contains("[1e-4, 1e3]"), "{e}");
+    let mut none = GpuExtractor::new(device, 0, 100, &params).unwrap();
+    none.upload(&ctx.queue, &[], &[]).unwrap();
     let mut gpu = GpuExtractor::new(device, 2, 100, &params).unwrap();
     let q = &ctx.queue;
     assert!(
@@ -206,6 +213,89 @@ fn overflow_is_reported_and_bad_input_rejected() {
     q.submit([encoder.finish()]);
     let (surfels, stats) = gpu.read_surfels(device, q).unwrap();
     assert!(surfels.is_empty() && stats.evaluations == 0);
+}
+
+/// The CPU's colour field of a GPU solver's read-back `state` (volumes
+/// m/ρ of its densities) and that field's surfels.
+fn cpu_extract_state(
+    masses: &[f32],
+    state: &sph_gpu::GpuState,
+    h: f32,
+    params: &ExtractParams,
+) -> (ColourField, surfel_extract::Surfels) {
+    let volumes: Vec<f32> = (masses.iter())
+        .zip(&state.densities)
+        .map(|(m, rho)| m / rho)
+        .collect();
+    let field = ColourField::with_volumes(&state.positions, &volumes, h).unwrap();
+    let cpu = extract_field(&field, params).unwrap();
+    (field, cpu)
+}
+
+/// Both GPU solvers before their first step: their densities are those of
+/// the particles as given, where the buffers started zeroed, so that a
+/// readback returned no densities (WCSPH) or zeros (PBF) and an extraction
+/// took volumes m/0; and the attached extraction matches the CPU's on the
+/// read-back state. Positions come back as they went in.
+#[test]
+fn unstepped_solvers_have_densities_and_extract() {
+    let Some(ctx) = GpuContext::headless_or_skip() else {
+        return;
+    };
+    let (device, queue) = (&ctx.device, &ctx.queue);
+    let scene = Scene::dam_break(0.2, 0.06, 0.02).with_solver(sph_core::SolverKind::Pbf);
+    let world = scene.build_world().unwrap();
+    let (params, boundary) = (world.params(), scene.boundary());
+    let (n, h) = (world.particles.len(), params.h);
+    let wcsph = GpuSolver::new(device, queue, &world.particles, params, &boundary).unwrap();
+    let pbf = sph_gpu::GpuPbf::new(
+        device,
+        queue,
+        &world.particles,
+        params,
+        &scene.pbf_params(),
+        &boundary,
+    )
+    .unwrap();
+    let extract = ExtractParams::new(h).thesis();
+    let solvers: [(&str, &dyn sph_gpu::GpuParticles, _); 2] = [
+        ("wcsph", &wcsph, wcsph.read_state(device, queue).unwrap()),
+        ("pbf", &pbf, pbf.read_state(device, queue).unwrap()),
+    ];
+    for (name, solver, state) in solvers {
+        assert_eq!(state.densities.len(), n, "{name}");
+        assert_eq!(state.pressures.len(), n, "{name}");
+        assert_eq!(state.positions, world.particles.positions(), "{name}");
+        let mut rho = state.densities.clone();
+        rho.sort_by(f32::total_cmp);
+        let rest = params.rest_density;
+        println!(
+            "{name}: densities {:.1} .. {:.1}, median {:.1} kg/m³",
+            rho[0],
+            rho[n - 1],
+            rho[n / 2]
+        );
+        assert!(rho[0] > 0.3 * rest && rho[n - 1] < 1.1 * rest, "{name}");
+        assert!((rho[n / 2] / rest - 1.0).abs() < 0.02, "{name}");
+
+        let mut gpu = GpuExtractor::new(device, n, 1 << 18, &extract).unwrap();
+        gpu.attach(device, solver).unwrap();
+        let mut encoder = device.create_command_encoder(&Default::default());
+        gpu.encode_attached(queue, &mut encoder).unwrap();
+        queue.submit([encoder.finish()]);
+        let (surfels, _) = gpu.read_surfels(device, queue).unwrap();
+        let (field, cpu) = cpu_extract_state(world.particles.masses(), &state, h, &extract);
+        let r = residuals(&field, 0.5, &surfels);
+        println!(
+            "{name}: {} GPU surfels, {} CPU, residual median {:.2e}",
+            surfels.len(),
+            cpu.surfels.len(),
+            r.median
+        );
+        let (g, c) = (surfels.len() as f64, cpu.surfels.len() as f64);
+        assert!(c > 0.0 && (g / c - 1.0).abs() < 0.01, "{name}: {g} vs {c}");
+        assert!(r.median < 0.01, "{name}");
+    }
 }
 
 #[test]
@@ -238,15 +328,7 @@ fn solver_particles_are_extracted_on_the_gpu() {
 
     // The CPU extractor on the read-back state (positions, densities).
     let state = solver.read_state(device, queue).unwrap();
-    let volumes: Vec<f32> = world
-        .particles
-        .masses()
-        .iter()
-        .zip(&state.densities)
-        .map(|(m, rho)| m / rho)
-        .collect();
-    let field = ColourField::with_volumes(&state.positions, &volumes, h).unwrap();
-    let cpu = extract_field(&field, &params).unwrap();
+    let (field, cpu) = cpu_extract_state(world.particles.masses(), &state, h, &params);
     let r = residuals(&field, 0.5, &surfels);
     println!(
         "after 100 GPU steps: {} GPU surfels vs {} CPU, residual median {:.2e} p95 {:.2e}, normal {:.2}°, {stats:?}",

@@ -364,7 +364,12 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
         &scene.boundary(),
     )
     .unwrap();
-    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+    // A frame below sph-core's min_dt, the CPU's shortest step, as well.
+    assert_eq!(
+        sph_gpu::MIN_FRAME_DT,
+        sph_core::TimeStepping::default().min_dt
+    );
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, 1e-9] {
         assert!(matches!(
             gpu.advance(&ctx.device, &ctx.queue, bad),
             Err(GpuError::Invalid(_))
@@ -374,7 +379,11 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     // 200 particles on one point: more neighbours than a list holds.
     let mut heap = Particles::new();
     for _ in 0..200 {
-        heap.push(Vec3::splat(0.1), Vec3::ZERO, world.particles.masses()[0]);
+        heap.push(
+            Vec3::new(0.1, 0.1, 0.03),
+            Vec3::ZERO,
+            world.particles.masses()[0],
+        );
     }
     let mut gpu = GpuPbf::new(
         &ctx.device,
@@ -584,7 +593,11 @@ fn gpu_pbf_stops_at_the_substep_that_failed() {
     // A heap on one point: the first substep's solve makes no headway.
     let mut heap = Particles::new();
     for _ in 0..200 {
-        heap.push(Vec3::splat(0.1), Vec3::ZERO, world.particles.masses()[0]);
+        heap.push(
+            Vec3::new(0.1, 0.1, 0.03),
+            Vec3::ZERO,
+            world.particles.masses()[0],
+        );
     }
     let dt = 1.0 / 180.0;
     let run = |substeps: u32| {
