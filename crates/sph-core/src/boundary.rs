@@ -545,16 +545,18 @@ impl WallKernel {
     /// ([`Self::fraction_and_density`]) starts it a few % compressed at h = 2
     /// spacings.
     ///
-    /// Layers thinner than h/[`MAX_H_OVER_SPACING`] (or of no positive
-    /// spacing) are the continuous half-space,
-    /// [`Self::fraction_and_density`]: the layers' sum tends to it as they
-    /// thin, and summing them one by one would take h/s terms (none at all
-    /// once s is below an ulp of h, a loop that never ends).
+    /// Layers thinner than h/(2 × [`MAX_H_OVER_SPACING`]) (or of no
+    /// positive spacing), which no particle a world accepts has, are the
+    /// continuous half-space, [`Self::fraction_and_density`]: the layers'
+    /// sum tends to it as they thin, and summing them one by one would take
+    /// h/s terms (none at all once s is below an ulp of h, a loop that
+    /// never ends).
     ///
     /// [`MAX_H_OVER_SPACING`]: crate::solver::MAX_H_OVER_SPACING
     #[inline]
     pub fn layers_fraction_and_density(&self, d: f32, layers: Layers) -> (f32, f32) {
-        if !(layers.spacing > 0.0 && self.h / layers.spacing <= crate::solver::MAX_H_OVER_SPACING) {
+        let most = 2.0 * crate::solver::MAX_H_OVER_SPACING;
+        if !(layers.spacing > 0.0 && self.h / layers.spacing <= most) {
             return self.fraction_and_density(d);
         }
         let (mut f, mut slope) = (0.0, 0.0);
@@ -890,7 +892,7 @@ mod tests {
         }
     }
 
-    /// Layers thinner than h/10 (a particle far lighter than its h's
+    /// Layers thinner than h/20 (a particle far lighter than its h's
     /// lattice, 10⁻²⁰ kg at h = 4 cm) are the continuous half-space, where
     /// summing them one by one never ended: 2 × 10⁻⁸ m is below an ulp of
     /// the distances summed.
@@ -907,7 +909,7 @@ mod tests {
                     );
                 }
             }
-            // Layers just within h/10 still sum one by one, close to it.
+            // Layers within h/20 still sum one by one, close to it.
             let s = 0.04 / 9.5;
             let layers = Layers {
                 spacing: s,

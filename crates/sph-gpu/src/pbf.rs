@@ -43,9 +43,11 @@ use crate::push::{RayPush, push_uniforms};
 use crate::solver::{GpuState, HASH, PUSH, RESOLVE, WALLS};
 
 /// The shortest frame [`GpuPbf::encode_frame`] takes (s): sph-core's
-/// default `min_dt`, the shortest step a CPU run takes (`World::advance`
-/// refuses a shorter frame). Far shorter, Δt² underflows in the solve's
-/// pressure, which would turn infinite with no error.
+/// default `min_dt`, the shortest step a CPU run takes with the default
+/// time stepping (`World::advance` refuses a frame shorter than its
+/// stepping's `min_dt`; the GPU's PBF has no stepping of its own). Far
+/// shorter, Δt² underflows in the solve's pressure, which would turn
+/// infinite with no error.
 pub const MIN_FRAME_DT: f32 = 1e-7;
 
 /// Neighbours a particle's list keeps on the GPU. A lattice at rest has 32

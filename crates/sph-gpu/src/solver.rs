@@ -75,10 +75,10 @@ pub(crate) fn wall_layers(params: &FluidParams, boundary: &Boundary, masses: &[f
         return [0.0; 4];
     }
     let layers = WallKernel::new(params.h).lattice_layers(lightest, params.rest_density);
-    // Layers thinner than h/10 are the continuous half-space, as on the
+    // Layers thinner than h/20 are the continuous half-space, as on the
     // CPU (`WallKernel::layers_fraction_and_density`): the shader sums them
     // one by one, and at a spacing below an ulp of h it would never end.
-    if !(layers.spacing > 0.0 && params.h / layers.spacing <= MAX_H_OVER_SPACING) {
+    if !(layers.spacing > 0.0 && params.h / layers.spacing <= 2.0 * MAX_H_OVER_SPACING) {
         return [0.0; 4];
     }
     [layers.spacing, layers.thickness, 0.0, 0.0]
@@ -167,7 +167,7 @@ impl GpuSolver {
     /// light for h, a position the boundary does not admit), parameters or
     /// a boundary sph-core rejects (its reason), as `World::with_solver`
     /// refuses them;
-    /// [`GpuError::Invalid`] for a non-finite `h` or Akinci et al.'s surface
+    /// [`GpuError::Invalid`] for Akinci et al.'s surface
     /// tension (which the GPU's PBF runs, its WCSPH not);
     /// [`GpuError::DeviceLimit`] for
     /// more particles than one dispatch or storage binding of this device
@@ -549,8 +549,9 @@ impl GpuSolver {
     /// each batch, to know whether the frame is done.
     ///
     /// # Errors
-    /// [`GpuError::Invalid`] for a `frame_dt` that is not finite and positive
-    /// or a `batch` of 0 or above [`MAX_BATCH`]; [`GpuError::Unstable`] when the stable step falls
+    /// [`GpuError::Invalid`] for a `frame_dt` that is not finite or is
+    /// shorter than the time stepping's `min_dt` (as `World::advance`
+    /// refuses it) or a `batch` of 0 or above [`MAX_BATCH`]; [`GpuError::Unstable`] when the stable step falls
     /// below `min_dt` (a blow-up) or below the f32 resolution of the time
     /// elapsed in the frame (a frame far too long for its steps);
     /// [`GpuError::Readback`].
@@ -592,9 +593,13 @@ impl GpuSolver {
         batch: u32,
         profiler: Option<&GpuProfiler>,
     ) -> Result<GpuFrame, GpuError> {
-        if !(frame_dt.is_finite() && frame_dt > 0.0 && (1..=MAX_BATCH).contains(&batch)) {
+        if !(frame_dt.is_finite()
+            && frame_dt >= self.params.min_dt
+            && (1..=MAX_BATCH).contains(&batch))
+        {
             return Err(GpuError::Invalid(
-                "frame_dt must be finite and > 0, batch in 1..=MAX_BATCH (65,536)",
+                "frame_dt must be finite and at least the time stepping's min_dt, batch in \
+                 1..=MAX_BATCH (65,536)",
             ));
         }
         self.params.dt = 0.0;

@@ -69,9 +69,6 @@ fn lattice(n: i32, s: f32) -> Vec<Vec3> {
     x
 }
 
-/// A lattice block (faces, edges, corners, a jittered top) and scattered
-/// particles around it (isolated spheres, pairs), with both kinds of
-/// centres.
 /// A positions buffer that is too short or cannot be copied from is an
 /// error naming it (a short one left stale positions in the grid; one
 /// without `COPY_SRC` was a validation error, a panic under wgpu's default
@@ -111,6 +108,9 @@ fn bad_position_buffers_are_errors() {
     ctx.check().unwrap();
 }
 
+/// A lattice block (faces, edges, corners, a jittered top) and scattered
+/// particles around it (isolated spheres, pairs), with both kinds of
+/// centres.
 #[test]
 fn gpu_kernels_match_the_cpu_on_a_block() {
     let Some(ctx) = GpuContext::headless_or_skip() else {

@@ -179,16 +179,18 @@ impl FluidParams {
 
 impl FluidParams {
     /// Every one of `masses` is heavy enough for h: its volume m/ρ0 has a
-    /// side V^⅓ of at least h/[`MAX_H_OVER_SPACING`], as a scene's blocks
-    /// must. A lighter particle stands for a lattice with thousands of
-    /// neighbours per particle, and what the solvers size by it (DFSPH's
-    /// Jacobi relaxation, the walls' layers under a clearance) would sum
-    /// over (h/V^⅓)³ offsets: at 10⁻²⁰ kg and h = 4 cm a step never ended.
+    /// side V^⅓ of at least h/[`MAX_H_OVER_SPACING`] (to a per cent, so
+    /// that the lattice mass of that spacing, which a scene's blocks may
+    /// have, passes). A lighter particle stands for a lattice with
+    /// thousands of neighbours per particle, and what the solvers size by
+    /// it would take (h/V^⅓)³ terms (DFSPH's Jacobi relaxation) or h/V^⅓
+    /// (the walls' layers under a clearance): at 10⁻²⁰ kg and h = 4 cm a
+    /// step never ended.
     ///
     /// # Errors
     /// [`Error::InvalidParticle`] naming the first such particle.
     pub fn check_masses(&self, masses: &[f32]) -> Result<()> {
-        let lightest = self.rest_density * (self.h / MAX_H_OVER_SPACING).powi(3);
+        let lightest = 0.97 * self.rest_density * (self.h / MAX_H_OVER_SPACING).powi(3);
         match masses.iter().position(|&m| m < lightest) {
             Some(index) => Err(Error::InvalidParticle {
                 index,

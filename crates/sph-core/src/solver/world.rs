@@ -156,9 +156,11 @@ impl World {
     /// # Errors
     /// Invalid parameters (the fluid's, the time stepping's or the
     /// solver's), boundary ([`Boundary::validate`]) or particles
-    /// ([`Particles::validate`]), or a particle the boundary does not admit
-    /// (outside the domain or inside an obstacle, [`Boundary::admits`]):
-    /// the first step would move it onto a wall, on top of its neighbours.
+    /// ([`Particles::validate`]), a mass too light for h
+    /// ([`FluidParams::check_masses`]), or a particle the boundary does not
+    /// admit (outside the domain or inside an obstacle,
+    /// [`Boundary::admits`]): the first step would move it onto a wall, on
+    /// top of its neighbours.
     pub fn with_solver(
         particles: Particles,
         params: FluidParams,
