@@ -213,6 +213,25 @@ pub fn check_precise(positions: &[glam::Vec3], h: f32) -> Result<()> {
     }
 }
 
+/// `Ok` if `ok`, else [`Error::InvalidParameter`] naming `name`, its
+/// `value` and `reason`: a parameter table's checks, one line each.
+pub(crate) fn check_param(
+    name: &'static str,
+    value: f64,
+    ok: bool,
+    reason: &'static str,
+) -> Result<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::InvalidParameter {
+            name,
+            value: value.to_string(),
+            reason,
+        })
+    }
+}
+
 /// `Ok` if `v` is finite and > 0, else [`Error::InvalidParameter`] naming `name`.
 pub fn positive(name: &'static str, v: f32) -> Result<()> {
     if v.is_finite() && v > 0.0 {

@@ -85,17 +85,7 @@ impl DfsphParams {
     /// Checks every parameter is finite and in range; the error names it
     /// (`dfsph.cfl`, ...).
     pub fn validate(&self) -> Result<()> {
-        let check = |name: &'static str, value: f64, ok: bool, reason: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(Error::InvalidParameter {
-                    name,
-                    value: value.to_string(),
-                    reason,
-                })
-            }
-        };
+        let check = crate::error::check_param;
         check(
             "dfsph.cfl",
             self.cfl.into(),

@@ -258,17 +258,7 @@ impl PbfParams {
     /// given where the others leave it unread; the error names it
     /// (`pbf.iterations`, ...).
     pub fn validate(&self) -> Result<()> {
-        let check = |name: &'static str, value: f64, ok: bool, reason: &'static str| {
-            if ok {
-                Ok(())
-            } else {
-                Err(Error::InvalidParameter {
-                    name,
-                    value: value.to_string(),
-                    reason,
-                })
-            }
-        };
+        let check = crate::error::check_param;
         let count = |name, n: u32| {
             check(
                 name,
