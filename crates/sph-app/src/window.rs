@@ -740,7 +740,12 @@ impl App {
                     acceleration: (delta.x * right - delta.y * up) * 40.0,
                     radius: 4.0 * self.pipeline.world.params().h,
                 };
-                *self.push.write().unwrap_or_else(|e| e.into_inner()) = Some(push);
+                // The CPU's push processor reads it unchecked (the GPU's
+                // `set_push` checks it): a push NaN would make the fluid NaN.
+                match push.validate() {
+                    Ok(()) => *self.push.write().unwrap_or_else(|e| e.into_inner()) = Some(push),
+                    Err(e) => log::warn!("push ignored: {e}"),
+                }
             }
             Some(MouseButton::Left) => self.orbit.rotate(delta),
             Some(MouseButton::Right) => self.orbit.pan(delta, height),

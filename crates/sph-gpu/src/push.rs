@@ -25,7 +25,28 @@ pub struct RayPush {
 }
 
 impl RayPush {
-    /// The push's acceleration at `x`.
+    /// Checks the push is one the field is defined for.
+    ///
+    /// # Errors
+    /// [`GpuError::Invalid`] for a push that is not finite, a direction
+    /// that is not unit length or a radius that is not positive (where
+    /// [`RayPush::acceleration_at`] would be NaN).
+    pub fn validate(&self) -> Result<(), GpuError> {
+        let finite =
+            self.origin.is_finite() && self.dir.is_finite() && self.acceleration.is_finite();
+        if !finite || (self.dir.length() - 1.0).abs() > 1e-3 {
+            return Err(GpuError::Invalid(
+                "a push needs a finite origin and acceleration and a unit direction",
+            ));
+        }
+        if !(self.radius.is_finite() && self.radius > 0.0) {
+            return Err(GpuError::Invalid("a push's radius must be finite and > 0"));
+        }
+        Ok(())
+    }
+
+    /// The push's acceleration at `x`, for a push that
+    /// [`validates`](RayPush::validate).
     pub fn acceleration_at(&self, x: Vec3) -> Vec3 {
         let d = x - self.origin;
         let off = d - d.dot(self.dir) * self.dir;
@@ -48,18 +69,55 @@ pub(crate) fn push_uniforms(push: Option<RayPush>) -> Result<[[f32; 4]; 3], GpuE
     let Some(p) = push else {
         return Ok([[0.0; 4]; 3]);
     };
-    let finite = p.origin.is_finite() && p.dir.is_finite() && p.acceleration.is_finite();
-    if !finite || (p.dir.length() - 1.0).abs() > 1e-3 {
-        return Err(GpuError::Invalid(
-            "a push needs a finite origin and acceleration and a unit direction",
-        ));
-    }
-    if !(p.radius.is_finite() && p.radius > 0.0) {
-        return Err(GpuError::Invalid("a push's radius must be finite and > 0"));
-    }
+    p.validate()?;
     Ok([
         p.origin.extend(p.radius).to_array(),
         p.dir.extend(0.0).to_array(),
         p.acceleration.extend(0.0).to_array(),
     ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A push the field is not defined for is an error from `validate`
+    /// (and so from both solvers' `set_push`), where `acceleration_at` was
+    /// NaN at a radius of 0; a valid one pushes hardest on its ray.
+    #[test]
+    fn bad_pushes_are_errors() {
+        let good = RayPush {
+            origin: Vec3::ZERO,
+            dir: Vec3::X,
+            acceleration: Vec3::Y,
+            radius: 0.1,
+        };
+        good.validate().unwrap();
+        assert_eq!(good.acceleration_at(Vec3::new(0.5, 0.0, 0.0)), Vec3::Y);
+        for bad in [
+            RayPush {
+                radius: 0.0,
+                ..good
+            },
+            RayPush {
+                radius: f32::NAN,
+                ..good
+            },
+            RayPush {
+                dir: Vec3::ZERO,
+                ..good
+            },
+            RayPush {
+                origin: Vec3::NAN,
+                ..good
+            },
+            RayPush {
+                acceleration: Vec3::INFINITY,
+                ..good
+            },
+        ] {
+            assert!(bad.validate().is_err(), "{bad:?}");
+            assert!(push_uniforms(Some(bad)).is_err(), "{bad:?}");
+        }
+    }
 }
