@@ -288,6 +288,17 @@ fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     identical_for_thread_counts(&scene, 6, &[1, 2, 3, 7]);
 }
 
+/// The same above 32,768 particles (40,000), where the grid's build, the
+/// particles' reordering and the other light passes split through rayon
+/// by the pool's size (`sph_core::light`): two frames at 1, 2 and 3
+/// threads.
+#[test]
+fn identical_for_1_2_and_3_threads_at_40k_particles() {
+    let big = Scene::dam_break(0.25, 0.32, 0.01).with_solver(SolverKind::Dfsph);
+    assert_eq!(big.particles().unwrap().len(), 40_000);
+    identical_for_thread_counts(&big, 2, &[1, 2, 3]);
+}
+
 fn identical_for_thread_counts(scene: &Scene, frames: usize, threads: &[usize]) {
     let run = |threads| {
         rayon::ThreadPoolBuilder::new()

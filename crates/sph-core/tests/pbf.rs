@@ -415,6 +415,17 @@ fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     }
 }
 
+/// The same above 32,768 particles (40,000), where the grid's build, the
+/// particles' reordering and the other light passes split through rayon
+/// by the pool's size (`sph_core::light`) instead of running on one
+/// thread: two frames at 1, 2 and 3 threads.
+#[test]
+fn identical_for_1_2_and_3_threads_at_40k_particles() {
+    let big = Scene::dam_break(0.25, 0.32, 0.01).with_solver(SolverKind::Pbf);
+    assert_eq!(big.particles().unwrap().len(), 40_000);
+    identical_for_thread_counts(&big, 2, &[1, 2, 3]);
+}
+
 /// A scene smaller than the caller's pool gains from steps on
 /// `useful_threads` of them (every one with `use_every_thread`), and gives
 /// the same results as on any count.

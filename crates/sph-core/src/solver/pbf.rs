@@ -677,9 +677,11 @@ impl Processor for SolveDensity {
         };
         ctx.counters.iterations += pbf.iterations;
         ctx.invalidate_grid(); // positions moved; the lists stay
+        // A non-finite state shows in the positions (`bad`): the blocks'
+        // largest densities, folded by `f32::max`, pass a NaN over.
         let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
         let stuck = first.is_some_and(|first| worst >= first);
-        if bad || worst.is_nan() || (worst > MAX_DENSITY_ERROR && stuck) {
+        if bad || (worst > MAX_DENSITY_ERROR && stuck) {
             return Err(Error::Unstable {
                 step: ctx.step,
                 time: ctx.time,
