@@ -21,8 +21,9 @@ mkdir -p "$kit/deb"
 # its `pbf-gpu` column).
 json=$(CARGO_TERM_COLOR=never cargo bench --bench gpu --bench render --no-run --message-format=json
     CARGO_TERM_COLOR=never cargo build --release --example realtime --example scaling --bin sph-app --message-format=json
-    CARGO_TERM_COLOR=never cargo build --release -p splat-render --example splat_passes --message-format=json)
-for bench in gpu render realtime scaling sph-app splat_passes; do
+    CARGO_TERM_COLOR=never cargo build --release -p splat-render --example splat_passes --message-format=json
+    CARGO_TERM_COLOR=never cargo build --release -p sph-core --example pbf_stations --message-format=json)
+for bench in gpu render realtime scaling sph-app splat_passes pbf_stations; do
     exe=$(printf '%s\n' "$json" |
         sed -n "s|.*\"target\":{[^}]*\"name\":\"$bench\".*\"executable\":\"\([^\"]*\)\".*|\1|p" | tail -1)
     [ -n "$exe" ] || { echo "gpu-kit: no executable for bench $bench" >&2; exit 1; }

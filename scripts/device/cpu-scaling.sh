@@ -3,8 +3,12 @@
 # scripts/gpu-kit.sh: the `scaling` table (PBF 10k and 100k, DFSPH 10k, the
 # anisotropic extraction at 10k and 100k, for 1, 2, 4, 8 and 16 threads) and
 # its `--sweep`, for this build and, where the kit holds one, a build from
-# before the team (`scaling-base`), alternated; then `dam-break-fine` end to
-# end through the demo at each thread count. Logs go to $OUT (default
+# before the team (`scaling-base`), alternated; the 10k PBF substep station
+# by station (`pbf_stations`) at each thread count, which shows whether the
+# grid build, one thread's below 32k particles, is what stops the scaling
+# (docs/benchmark-notes.md, "The grid build, the 10k step's last serial
+# stretch"); then `dam-break-fine` end to end through the demo at each
+# thread count. Logs go to $OUT (default
 # gpu-bench-out/); each run has its own time limit, so a slow one leaves the
 # others' logs.
 #
@@ -61,6 +65,13 @@ for build in "${builds[@]}"; do
     run 150 "$build-sweep.log" "$kit/$build" --sweep --frames "$frames"
 done
 
+# Where a 10k PBF substep's time goes at each thread count.
+if [ -x "$kit/pbf_stations" ]; then
+    for threads in ${THREADS:-1 2 4 8 16}; do
+        RAYON_NUM_THREADS=$threads run 90 "stations-$threads.log" "$kit/pbf_stations"
+    done
+fi
+
 # The demo end to end on the CPU path (`--cpu`: on a hardware adapter the
 # demo would step and extract on the GPU): step and extraction
 # milliseconds per simulated second from frames.csv (the renderer's own
@@ -82,4 +93,5 @@ for threads in ${THREADS:-1 2 4 8 16}; do
 done
 
 tail -n 30 "$OUT"/*-table-*.log "$OUT"/*-sweep.log
+tail -n 9 "$OUT"/stations-*.log 2>/dev/null || true
 cat "$OUT/demo-summary.txt" 2>/dev/null || true
