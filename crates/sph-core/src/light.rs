@@ -15,13 +15,17 @@
 //! break even near 29k.) The results are the same either way.
 //!
 //! Inside a step's team (`crate::region::team`) the other threads no
-//! longer sleep between passes, yet the build still runs on one thread
-//! below [`SERIAL_BELOW`]: split through rayon with the team released (a
-//! throwaway build with `SERIAL_BELOW` = 0), the grid station of `dam-break-fine` (10k particles, 2 threads) took
-//! 0.83–0.85 ms a substep against 0.68–0.81 on one (three alternated runs
-//! of `pbf_stations`, 2026-11-27, in a slow spell of the VM). The solvers'
-//! own light passes (integration, a density copy, a maximum) run as
-//! region passes in the team.
+//! longer sleep between passes, and the grid's dense build splits among
+//! them below [`SERIAL_BELOW`] too, as region passes (one part per thread,
+//! `grid/layout.rs`): the grid station of `dam-break-fine` (10k particles,
+//! 2 threads) took 0.35–0.44 ms a substep against 0.47–0.66 before, a
+//! median ratio of 0.70 over four alternated pairs of `pbf_stations`
+//! (2026-11-29), and the same on one thread. Split through rayon with the
+//! team released instead (a throwaway build with `SERIAL_BELOW` = 0), it
+//! had taken 0.83–0.85 ms against 0.68–0.81 on one (2026-11-27): the fork
+//! cost more than the work. The solvers' own light passes (integration, a
+//! density copy, a maximum) run as region passes in the team; the
+//! reordering still runs on one thread below [`SERIAL_BELOW`].
 
 /// The particle count from which a light pass splits.
 pub(crate) const SERIAL_BELOW: usize = 1 << 15;

@@ -14,7 +14,9 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Cell, SlotRange, scan, zyx};
-use crate::light::{SERIAL_BELOW, min_piece};
+use crate::light::SERIAL_BELOW;
+use crate::region::{self, Blocks};
+use std::ops::Range;
 
 /// The sorted particle data of a [`super::NeighbourGrid`]. Rebuilding from an
 /// old layout refills its buffers instead of allocating new ones.
@@ -219,56 +221,118 @@ impl Layout {
                 },
         } = self;
         let n = positions.len();
-        let piece = min_piece(n);
-        positions
-            .par_iter()
-            .with_min_len(piece)
-            .map(|&p| bounds.key(cell(p)) as u32)
-            .collect_into_vec(&mut keys);
-        // The input splits into a few chunks, one per thread, scattered in
-        // parallel: chunk c writes key k's particles from the slot where chunks
-        // before it ended, so the sort stays stable. One histogram per chunk,
-        // one chunk below `SERIAL_BELOW` particles (`crate::light`).
-        let chunks = if n < SERIAL_BELOW {
-            1
-        } else {
-            rayon::current_num_threads().clamp(1, 8)
-        };
-        let chunk_len = n.div_ceil(chunks).max(1);
-        next.resize_with(n.div_ceil(chunk_len), Vec::new);
-        next.par_iter_mut()
-            .zip(keys.par_chunks(chunk_len))
-            .for_each(|(count, ks)| {
-                count.clear();
-                count.resize(total, 0);
-                for &k in ks {
-                    count[k as usize] += 1;
+        // The build splits into parts: one below `SERIAL_BELOW` particles
+        // outside a step's team (waking threads costs more than the work),
+        // else one per thread, at most 8. Any split gives the same layout:
+        // the sort is stable, each part scattering from the slot where the
+        // parts before it ended.
+        let parts = build_parts(n);
+        let chunk_len = n.div_ceil(parts).max(1);
+        let chunks = n.div_ceil(chunk_len);
+        keys.clear();
+        keys.resize(n, 0);
+        next.resize_with(chunks, Vec::new);
+        // Per chunk of the input: each particle's dense cell number, and a
+        // histogram of them.
+        {
+            let (key_out, count_out) = (Blocks::new(&mut keys), Blocks::new(&mut next));
+            let count = |range: Range<usize>, c: usize| {
+                // SAFETY: chunk c writes its own keys and histogram alone.
+                let (ks, counts) = unsafe {
+                    (
+                        key_out.block(range.clone()),
+                        &mut count_out.block(c..c + 1)[0],
+                    )
+                };
+                counts.clear();
+                counts.resize(total, 0);
+                for (k, &p) in ks.iter_mut().zip(&positions[range]) {
+                    *k = bounds.key(cell(p)) as u32;
+                    counts[*k as usize] += 1;
                 }
-            });
-        // first[k]: the first slot of dense cell k; first[total] = n. Counts
-        // become each chunk's next slot per key.
+            };
+            region::run_by(n, chunk_len, &[&count]);
+        }
+        // Per range of dense cells: its particles and occupied cells, then
+        // their running sums: where each range's slots and occupied cells
+        // start.
+        let range_len = total.div_ceil(parts).max(1);
+        let ranges = total.div_ceil(range_len);
+        let mut sums = vec![(0u32, 0u32); ranges];
+        {
+            let (out, counts) = (Blocks::new(&mut sums), &next);
+            let sum = |range: Range<usize>, b: usize| {
+                let (mut particles, mut occupied) = (0u32, 0u32);
+                for k in range {
+                    let here: u32 = counts.iter().map(|c| c[k]).sum();
+                    particles += here;
+                    occupied += u32::from(here > 0);
+                }
+                // SAFETY: range b writes its own sums alone.
+                unsafe { out.block(b..b + 1)[0] = (particles, occupied) };
+            };
+            region::run_by(total, range_len, &[&sum]);
+        }
+        let mut bases = Vec::with_capacity(ranges);
+        let (mut slots, mut cells) = (0u32, 0usize);
+        for &(particles, occupied) in &sums {
+            bases.push((slots, cells));
+            slots += particles;
+            cells += occupied as usize;
+        }
+        // first[k]: the first slot of dense cell k; first[total] = n. Each
+        // chunk's count becomes its next slot in that cell; the occupied
+        // cells and their first slots follow in cell order.
         first.clear();
         first.resize(total + 1, 0);
-        let mut sum = 0u32;
-        for (k, f) in first[..total].iter_mut().enumerate() {
-            *f = sum;
-            for count in next.iter_mut() {
-                (count[k], sum) = (sum, sum + count[k]);
-            }
+        first[total] = n as u32;
+        let (mut occupied, mut cell_start) = (occupied, cell_start);
+        occupied.clear();
+        occupied.resize(cells, [0; 3]);
+        cell_start.clear();
+        cell_start.resize(cells + 1, 0);
+        cell_start[cells] = n as u32;
+        {
+            let firsts = Blocks::new(&mut first[..total]);
+            let (occupied_out, starts_out) = (
+                Blocks::new(&mut occupied),
+                Blocks::new(&mut cell_start[..cells]),
+            );
+            let counts: Vec<Scatter<u32>> =
+                next.iter_mut().map(|c| Scatter(c.as_mut_ptr())).collect();
+            let (bases, sums) = (&bases, &sums);
+            let prefix = |range: Range<usize>, b: usize| {
+                let (mut slot, o) = bases[b];
+                let own = o..o + sums[b].1 as usize;
+                // SAFETY: range b writes its own cells' firsts and counts,
+                // and its own occupied cells, alone.
+                let (first, occupied, starts) = unsafe {
+                    (
+                        firsts.block(range.clone()),
+                        occupied_out.block(own.clone()),
+                        starts_out.block(own),
+                    )
+                };
+                let mut o = 0;
+                for (f, k) in first.iter_mut().zip(range) {
+                    *f = slot;
+                    let start = slot;
+                    for c in &counts {
+                        // SAFETY: k < total, each chunk's histogram's
+                        // length; only range b touches cell k.
+                        unsafe {
+                            let count = c.0.add(k);
+                            (*count, slot) = (slot, slot + *count);
+                        }
+                    }
+                    if slot > start {
+                        (occupied[o], starts[o]) = (bounds.cell(k as u64), start);
+                        o += 1;
+                    }
+                }
+            };
+            region::run_by(total, range_len, &[&prefix]);
         }
-        first[total] = sum;
-        let mut pair = (occupied, cell_start);
-        pair.0.clear();
-        pair.1.clear();
-        pair.par_extend(
-            (0..total)
-                .into_par_iter()
-                .with_min_len(piece)
-                .filter(|&k| first[k + 1] > first[k])
-                .map(|k| (bounds.cell(k as u64), first[k])),
-        );
-        let (occupied, mut cell_start) = pair;
-        cell_start.push(n as u32);
 
         // The scatter writes the slot order, its inverse and the sorted
         // coordinates in one pass. Every slot below n is written exactly once
@@ -289,18 +353,23 @@ impl Layout {
             Scatter(ys.as_mut_ptr()),
             Scatter(zs.as_mut_ptr()),
         );
-        keys.par_chunks(chunk_len)
-            .zip(rank.par_chunks_mut(chunk_len))
-            .zip(next.par_iter_mut())
-            .enumerate()
-            .for_each(|(c, ((ks, rank), next))| {
+        {
+            let (rank_out, next_out, keys) =
+                (Blocks::new(&mut rank), Blocks::new(&mut next), &keys);
+            let scatter = |range: Range<usize>, c: usize| {
                 let (order, xs, ys, zs) = out;
-                for (local, &k) in ks.iter().enumerate() {
-                    let i = c * chunk_len + local;
-                    let slot = &mut next[k as usize];
+                // SAFETY: chunk c writes its own ranks and next slots alone.
+                let (rank, next) = unsafe {
+                    (
+                        rank_out.block(range.clone()),
+                        &mut next_out.block(c..c + 1)[0],
+                    )
+                };
+                for (r, i) in rank.iter_mut().zip(range) {
+                    let slot = &mut next[keys[i] as usize];
                     let s = *slot as usize;
                     *slot += 1;
-                    rank[local] = s as u32;
+                    *r = s as u32;
                     let p = positions[i];
                     // SAFETY: s < n <= capacity, and each slot is written by
                     // exactly one iteration of one chunk (see above).
@@ -311,7 +380,9 @@ impl Layout {
                         zs.write(s, p.z);
                     }
                 }
-            });
+            };
+            region::run_by(n, chunk_len, &[&scatter]);
+        }
         // SAFETY: the scatter wrote every slot below n.
         unsafe { order.set_len(n) };
         for c in &mut coords {
@@ -320,11 +391,19 @@ impl Layout {
             c.extend([f32::NAN; scan::PADDING]);
         }
 
-        occupied
-            .par_iter()
-            .with_min_len(piece)
-            .map(|&c| bounds.rows(&first, c))
-            .collect_into_vec(&mut rows);
+        rows.clear();
+        rows.resize(cells, [SlotRange::default(); 9]);
+        {
+            let (out, occupied, first) = (Blocks::new(&mut rows), &occupied, &first);
+            let each = |range: Range<usize>, _| {
+                // SAFETY: each block writes its own cells' rows alone.
+                let rows = unsafe { out.block(range.clone()) };
+                for (r, &c) in rows.iter_mut().zip(&occupied[range]) {
+                    *r = bounds.rows(first, c);
+                }
+            };
+            region::run_by(cells, cells.div_ceil(parts).max(1), &[&each]);
+        }
         fill_slot_cells(&cell_start, n, &mut slot_cell);
         Self {
             order,
@@ -402,17 +481,32 @@ fn fill_slot_cells(cell_start: &[u32], n: usize, slot_cell: &mut Vec<u32>) {
     slot_cell.clear();
     slot_cell.reserve(n);
     let dst = Scatter(slot_cell.as_mut_ptr());
-    let piece = min_piece(n);
-    (cell_start.par_windows(2).with_min_len(piece).enumerate()).for_each(|(c, w)| {
-        for s in w[0]..w[1] {
-            // SAFETY: the cells' slot ranges partition 0..n (cell_start rises from
-            // 0 to n) and n <= capacity, so each slot is written once, by one
-            // thread.
-            unsafe { dst.write(s as usize, c as u32) };
+    let cells = cell_start.len() - 1;
+    let each = |range: Range<usize>, _| {
+        for c in range {
+            for s in cell_start[c]..cell_start[c + 1] {
+                // SAFETY: the cells' slot ranges partition 0..n (cell_start
+                // rises from 0 to n) and n <= capacity, so each slot is
+                // written once, by one thread.
+                unsafe { dst.write(s as usize, c as u32) };
+            }
         }
-    });
+    };
+    region::run_by(cells, cells.div_ceil(build_parts(n)).max(1), &[&each]);
     // SAFETY: every slot below n was written above.
     unsafe { slot_cell.set_len(n) };
+}
+
+/// How many parts a build over `n` particles splits into: one below
+/// [`SERIAL_BELOW`] outside a step's team (`crate::region::team`), where
+/// waking the pool's threads costs more than the work; else one per
+/// thread, at most 8.
+fn build_parts(n: usize) -> usize {
+    if n < SERIAL_BELOW && !region::leading() {
+        1
+    } else {
+        rayon::current_num_threads().clamp(1, 8)
+    }
 }
 
 /// Stable LSD radix sort of (key, index) pairs on the low `bits` bits of the key;
