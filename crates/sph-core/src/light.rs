@@ -1,8 +1,8 @@
 //! How the neighbour grid's dense build (the usual one: a fluid filling
 //! its bounding box; a scattered set's sort splits as before) and a
 //! particle reordering split: passes doing a few nanoseconds of work per
-//! particle. Below [`SERIAL_BELOW`] particles such a pass runs on the
-//! calling thread alone, in one piece whatever its length: waking a second
+//! particle. Below [`SERIAL_BELOW`] particles, outside a step's team, such
+//! a pass runs on the calling thread alone, in one piece whatever its length: waking a second
 //! thread after the gap since the last station's pass costs tens of
 //! microseconds on a VM, more than the pass. Rebuilding the grid of a
 //! lattice of 10,648 particles after a 50 µs gap took 0.143 ms on one

@@ -52,8 +52,9 @@ const CLAIMS_PER_THREAD: usize = 16;
 /// How long a team's thread waits for a job before it leaves the team and
 /// goes back to its pool, where it sleeps; the next [`run`] calls it
 /// again. Longer than the serial stretches between a step's passes (the
-/// grid build, about 1 ms at 10k particles on a slow 2-core VM), so that
-/// within a step nobody leaves.
+/// contacts, the lists' prefix sums, the reordering: each well under 1 ms
+/// at 10k particles on a slow 2-core VM), so that within a step nobody
+/// leaves.
 const IDLE: std::time::Duration = std::time::Duration::from_millis(2);
 
 /// The number of blocks `n` particles make.
@@ -195,6 +196,13 @@ pub fn team<R>(f: impl FnOnce() -> R) -> R {
 /// rayon.
 pub fn leading() -> bool {
     !LEADING.with(Cell::get).is_null()
+}
+
+/// Whether this thread is inside a pass of a region, where a [`run`]
+/// runs its passes on this thread alone: a helper sizing its parts by the
+/// threads would only add work there.
+pub(crate) fn in_pass() -> bool {
+    IN_PASS.with(Cell::get)
 }
 
 /// Runs `f` with the team this thread leads (if any) sent back to the
@@ -687,7 +695,7 @@ mod tests {
     }
 
     /// A leading thread that forks with rayon without releasing its team
-    /// (as a grid build below `light::SERIAL_BELOW` does) and, while it
+    /// (as a scattered grid's sort below `light::SERIAL_BELOW` does) and, while it
     /// waits in a `join`, runs a region in work it picked up: that calls
     /// the team, and the pool's other thread, itself waiting inside a
     /// `join` above work the leader waits for, can pick up the call and

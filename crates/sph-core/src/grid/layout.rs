@@ -497,17 +497,33 @@ fn fill_slot_cells(cell_start: &[u32], n: usize, slot_cell: &mut Vec<u32>) {
     unsafe { slot_cell.set_len(n) };
 }
 
-/// How many parts a build over `n` particles splits into: one below
-/// [`SERIAL_BELOW`] outside a step's team (`crate::region::team`), where
-/// waking the pool's threads costs more than the work; else one per
-/// thread, at most 8.
+/// How many parts a build over `n` particles splits into:
+/// - one inside a region's pass, which runs a region on its own thread;
+/// - from [`SERIAL_BELOW`] particles, one per thread, at most 8;
+/// - below, in a step's team (`crate::region::team`), one per thread, at
+///   most [`TEAM_PARTS`];
+/// - else one: waking the pool's threads costs more than the work.
 fn build_parts(n: usize) -> usize {
-    if n < SERIAL_BELOW && !region::leading() {
+    let threads = rayon::current_num_threads();
+    if region::in_pass() {
         1
+    } else if n >= SERIAL_BELOW {
+        threads.clamp(1, 8)
+    } else if region::leading() {
+        threads.clamp(1, TEAM_PARTS)
     } else {
-        rayon::current_num_threads().clamp(1, 8)
+        1
     }
 }
+
+/// The most parts a team's build below [`SERIAL_BELOW`] splits into. Each
+/// part's histogram spans every dense cell, about two per particle in a
+/// fluid, so clearing, summing and offsetting them costs every thread
+/// about as many cells as there are whatever the split, against the
+/// particles' n/parts: beyond a few parts the histograms outweigh the
+/// split. Two parts took the 10k grid station from 0.59 to 0.42 ms
+/// (`light`'s module docs); more were not measured (a 2-core VM).
+const TEAM_PARTS: usize = 4;
 
 /// Stable LSD radix sort of (key, index) pairs on the low `bits` bits of the key;
 /// returns the indices. Input in index order, so ties stay in index order.
@@ -608,6 +624,64 @@ mod tests {
     /// The dense counting-sort path (scattered in parallel chunks) and the sparse
     /// radix path give the same layout on a set with empty cells, crowded cells
     /// and cells on the box's faces.
+    #[test]
+    fn dense_builds_agree_for_any_split() {
+        // A jittered lattice of n points with empty cells among them.
+        let lattice = |n: usize| -> Vec<Vec3> {
+            (0..n)
+                .map(|i| {
+                    let (x, y, z) = (i % 13, (i / 13) % 11, i / 143);
+                    let j = ((i * 2_654_435_761) % 1000) as f32 / 1000.0;
+                    Vec3::new(x as f32 * 1.7 + j, y as f32 * 0.9, z as f32 * 1.3 - j)
+                })
+                .collect()
+        };
+        let cell = |p: Vec3| p.floor().as_ivec3().to_array();
+        let build = |x: &[Vec3], reuse: Layout| {
+            let lo = x.iter().fold(Vec3::INFINITY, |a, &p| a.min(p));
+            let hi = x.iter().fold(Vec3::NEG_INFINITY, |a, &p| a.max(p));
+            Layout::new(x, Some((lo, hi)), cell, reuse)
+        };
+        let fields = |l: &Layout| {
+            let rows: Vec<_> = l.rows.iter().map(|r| r.map(|r| slots(&r))).collect();
+            let coords: Vec<Vec<u32>> = (l.coords.iter())
+                .map(|c| c.iter().map(|v| v.to_bits()).collect())
+                .collect();
+            let first = l.scratch.first.clone();
+            let cells = (l.cells.clone(), l.cell_start.clone(), l.slot_cell.clone());
+            (l.order.clone(), l.rank.clone(), cells, rows, coords, first)
+        };
+        for n in [1, 5, 1001, 3000] {
+            let x = lattice(n);
+            // One part: outside a team, below `SERIAL_BELOW`.
+            let one = build(&x, Layout::default());
+            assert!(one.is_dense(), "{n}");
+            for threads in [3, 7] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                // In a team: 3 and 4 parts; then rebuilt from a layout of
+                // another split, reusing its buffers.
+                let (split, again) = pool.install(|| {
+                    region::team(|| {
+                        let split = build(&x, Layout::default());
+                        let again = build(&x, build(&lattice(n / 2 + 1), Layout::default()));
+                        (split, again)
+                    })
+                });
+                assert!(
+                    fields(&split) == fields(&one),
+                    "{n} points, {threads} threads"
+                );
+                assert!(
+                    fields(&again) == fields(&one),
+                    "{n} points, {threads} threads, reused"
+                );
+            }
+        }
+    }
+
     #[test]
     fn dense_and_sparse_paths_agree() {
         let mut state = 0x2545_F491u32;
