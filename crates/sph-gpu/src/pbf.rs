@@ -234,8 +234,8 @@ impl GpuPbf {
     /// # Errors
     /// [`GpuError::Params`] for particles, parameters or a boundary sph-core
     /// rejects (the colour-field surface tension among them, WCSPH's only;
-    /// a mass too light for h and a position the boundary does not admit,
-    /// as `World::with_solver` refuses them);
+    /// a mass too light for h and a position the boundary does not admit:
+    /// `World::check_inputs`, as `World::with_solver` refuses them);
     /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` and for
     /// `pbf.sleep_speed` > 0, which run only on the CPU;
     /// [`GpuError::DeviceLimit`] for more particles than one dispatch or
@@ -248,19 +248,8 @@ impl GpuPbf {
         pbf: &PbfParams,
         boundary: &Boundary,
     ) -> Result<Self, GpuError> {
-        particles.validate().map_err(GpuError::Params)?;
-        fluid.validate().map_err(GpuError::Params)?;
-        fluid
-            .check_masses(particles.masses())
-            .map_err(GpuError::Params)?;
+        sph_core::World::check_inputs(particles, fluid, boundary).map_err(GpuError::Params)?;
         pbf.validate().map_err(GpuError::Params)?;
-        boundary.validate().map_err(GpuError::Params)?;
-        boundary
-            .check_precision(fluid.h)
-            .map_err(GpuError::Params)?;
-        boundary
-            .check_admits(particles.positions())
-            .map_err(GpuError::Params)?;
         Solver::Pbf(*pbf)
             .check_applies(fluid)
             .map_err(GpuError::Params)?;

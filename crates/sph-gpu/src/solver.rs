@@ -165,8 +165,8 @@ impl GpuSolver {
     /// # Errors
     /// [`GpuError::Params`] for particles (`Particles::validate`, a mass too
     /// light for h, a position the boundary does not admit), parameters or
-    /// a boundary sph-core rejects (its reason), as `World::with_solver`
-    /// refuses them;
+    /// a boundary sph-core rejects (its reason: `World::check_inputs`, as
+    /// `World::with_solver` refuses them);
     /// [`GpuError::Invalid`] for Akinci et al.'s surface
     /// tension (which the GPU's PBF runs, its WCSPH not);
     /// [`GpuError::DeviceLimit`] for
@@ -179,19 +179,7 @@ impl GpuSolver {
         params: &FluidParams,
         boundary: &Boundary,
     ) -> Result<Self, GpuError> {
-        particles.validate().map_err(GpuError::Params)?;
-        params.validate().map_err(GpuError::Params)?;
-        sph_core::error::check_kernel_h(params.h).map_err(GpuError::Params)?;
-        params
-            .check_masses(particles.masses())
-            .map_err(GpuError::Params)?;
-        boundary.validate().map_err(GpuError::Params)?;
-        boundary
-            .check_precision(params.h)
-            .map_err(GpuError::Params)?;
-        boundary
-            .check_admits(particles.positions())
-            .map_err(GpuError::Params)?;
+        sph_core::World::check_inputs(particles, params, boundary).map_err(GpuError::Params)?;
         if params.surface_tension > 0.0
             && params.surface_tension_model == Some(sph_core::SurfaceTensionModel::Akinci)
         {

@@ -621,9 +621,9 @@ mod tests {
         }
     }
 
-    /// The dense counting-sort path (scattered in parallel chunks) and the sparse
-    /// radix path give the same layout on a set with empty cells, crowded cells
-    /// and cells on the box's faces.
+    /// The dense build gives the same layout in one part (outside a team)
+    /// as in a team's three or four, built fresh or reusing the buffers of
+    /// a layout of another split, at sizes below and above a part each.
     #[test]
     fn dense_builds_agree_for_any_split() {
         // A jittered lattice of n points with empty cells among them.
@@ -682,6 +682,9 @@ mod tests {
         }
     }
 
+    /// The dense counting-sort path (scattered in parallel chunks) and the sparse
+    /// radix path give the same layout on a set with empty cells, crowded cells
+    /// and cells on the box's faces.
     #[test]
     fn dense_and_sparse_paths_agree() {
         let mut state = 0x2545_F491u32;

@@ -174,10 +174,7 @@ impl World {
         if matches!(solver, Solver::Wcsph) {
             check_viscous_dt(&params, &stepping)?;
         }
-        particles.validate()?;
-        params.check_masses(particles.masses())?;
-        boundary.check_admits(particles.positions())?;
-        boundary.check_precision(params.h)?;
+        Self::check_inputs(&particles, &params, &boundary)?;
         let program = solver.program(params, boundary.clone())?;
         Ok(Self {
             particles,
@@ -193,6 +190,30 @@ impl World {
             narrow_pool: None,
             every_thread: false,
         })
+    }
+
+    /// What every world refuses of the particles, fluid and walls it is
+    /// built from, whatever runs it: parameters that do not validate or an
+    /// h the kernels cannot represent, particles that do not validate or
+    /// are too light for h, a boundary that does not validate or reaches
+    /// where f32 no longer resolves h, and a particle the boundary does not
+    /// admit. [`World::with_solver`] checks it, and so do the GPU's solvers
+    /// (`sph-gpu`), so both paths refuse the same input.
+    ///
+    /// # Errors
+    /// The first of those, naming the field or particle.
+    pub fn check_inputs(
+        particles: &Particles,
+        params: &FluidParams,
+        boundary: &Boundary,
+    ) -> Result<()> {
+        params.validate()?;
+        crate::error::check_kernel_h(params.h)?;
+        particles.validate()?;
+        params.check_masses(particles.masses())?;
+        boundary.validate()?;
+        boundary.check_precision(params.h)?;
+        boundary.check_admits(particles.positions())
     }
 
     /// The program, to add, insert or remove processors.
