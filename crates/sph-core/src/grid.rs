@@ -402,7 +402,7 @@ impl Neighbourhood<'_> {
         let (g, c) = (&self.grid.layout, self.centre);
         let [xs, ys, zs] = &g.coords;
         let mut scan = Scan::new(c, self.grid.h2, [xs, ys, zs], &self.rows);
-        let mut hits = [0u32; scan::QUERY_CAPACITY];
+        let mut hits = scan::Hits::<{ scan::QUERY_CAPACITY }>::new();
         while !scan.done() {
             let n = scan.fill(&mut hits, 0);
             for &k in &hits[..n] {

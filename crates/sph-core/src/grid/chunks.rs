@@ -88,7 +88,7 @@ impl Neighbourhood<'_> {
         let [xs, ys, zs] = &self.grid.layout.coords;
         HitChunks {
             scan: scan::Scan::new(self.centre, self.grid.h2, [xs, ys, zs], &self.rows),
-            hits: [0; scan::HIT_CAPACITY],
+            hits: scan::Hits::new(),
             n: 0,
             whole: 0,
             done: false,
@@ -136,7 +136,7 @@ impl Neighbourhood<'_> {
             scan: scan::Scan::new(self.centre, self.grid.h2, [xs, ys, zs], &self.rows),
             coords: [xs, ys, zs],
             centre: self.centre,
-            hits: [0; scan::HIT_CAPACITY],
+            hits: scan::Hits::new(),
             n: 0,
             whole: 0,
             next: 0,
@@ -150,7 +150,7 @@ impl Neighbourhood<'_> {
 /// front of the buffer and completed by the next fill.
 pub(crate) struct HitChunks<'a> {
     scan: scan::Scan<'a>,
-    hits: [u32; scan::HIT_CAPACITY],
+    hits: scan::Hits<{ scan::HIT_CAPACITY }>,
     /// Hits in the buffer, and the end of its whole chunks.
     n: usize,
     whole: usize,
@@ -186,7 +186,7 @@ pub struct Chunks<'a> {
     centre: Vec3,
     /// The scan's hits; `hits[next..whole]` are still to go out in chunks,
     /// `hits[whole..n]` are a partial chunk carried into the next fill.
-    hits: [u32; scan::HIT_CAPACITY],
+    hits: scan::Hits<{ scan::HIT_CAPACITY }>,
     n: usize,
     whole: usize,
     next: usize,

@@ -100,7 +100,7 @@ impl NeighbourLists {
             found.reserve(range.len() * per_particle);
             let layout = &grid.layout;
             let [xs, ys, zs] = &layout.coords;
-            let mut hits = [0u32; scan::HIT_CAPACITY];
+            let mut hits = scan::Hits::<{ scan::HIT_CAPACITY }>::new();
             for i in range {
                 let before = found.len();
                 let own = layout.rank[i];

@@ -40,6 +40,36 @@ pub(crate) const HIT_CAPACITY: usize = 256;
 /// buffer, which at 256 entries took 3 % of an anisotropic extraction.
 pub(super) const QUERY_CAPACITY: usize = 64;
 
+/// A scan's hit buffer of `N` slots, aligned to 1 KiB so that the fills'
+/// 16-lane stores never straddle a 4 KiB page (a buffer of at most 256
+/// slots lies within one aligned KiB). A store across a page boundary is
+/// slow, and where the stack put an unaligned buffer decided whether a
+/// build's neighbour lists took half as long again (`docs/benchmark-notes.md`,
+/// "Hit buffers across a page").
+#[derive(Clone, Copy)]
+#[repr(C, align(1024))]
+pub(crate) struct Hits<const N: usize>(pub [u32; N]);
+
+impl<const N: usize> Hits<N> {
+    /// A zeroed buffer.
+    pub(crate) const fn new() -> Self {
+        Self([0; N])
+    }
+}
+
+impl<const N: usize> std::ops::Deref for Hits<N> {
+    type Target = [u32; N];
+    fn deref(&self) -> &[u32; N] {
+        &self.0
+    }
+}
+
+impl<const N: usize> std::ops::DerefMut for Hits<N> {
+    fn deref_mut(&mut self) -> &mut [u32; N] {
+        &mut self.0
+    }
+}
+
 /// The widest chunk any path writes.
 const MAX_LANES: usize = 16;
 
@@ -280,6 +310,29 @@ fn offsets_avx512(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Hit buffers on the stack and in a struct lie within one 4 KiB page,
+    /// wherever the stack happens to be.
+    #[test]
+    fn hit_buffers_never_straddle_a_page() {
+        fn within_a_page<const N: usize>(h: &Hits<N>) -> bool {
+            let start = h.as_ptr() as usize;
+            start / 4096 == (start + 4 * N - 1) / 4096
+        }
+        // Frames of many sizes above the buffer.
+        fn nested(depth: usize, pad: &[u8]) -> bool {
+            let mut local = [0u8; 24];
+            local[depth % 24] = pad.len() as u8;
+            let hits = Hits::<HIT_CAPACITY>::new();
+            let query = Hits::<QUERY_CAPACITY>::new();
+            within_a_page(&hits)
+                && within_a_page(&query)
+                && (depth == 0 || nested(depth - 1, &local[..depth % 24]))
+        }
+        assert!(nested(40, &[]));
+        let boxed: Vec<Hits<HIT_CAPACITY>> = vec![Hits::new(); 9];
+        assert!(boxed.iter().all(within_a_page));
+    }
 
     /// Runs a scan to the end with `fill` into a buffer of `N`, collecting
     /// every hit.
