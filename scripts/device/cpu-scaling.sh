@@ -14,7 +14,13 @@
 #
 #   scripts/gpu-kit.sh                                  # here
 #   BASE=3cabb4b scripts/device/cpu-scaling.sh --kit    # here: add scaling-base
+#   scripts/device/cpu-scaling.sh --kit-patch P         # here: add *-patched
 #   OUT=$OUT scripts/device/cpu-scaling.sh              # there
+#
+# `--kit-patch P` builds `scaling` and `pbf_stations` from HEAD with the
+# patch P applied (docs/attempts/: a change measured neutral on two cores
+# and built for many) as `scaling-patched` and `pbf_stations-patched`,
+# which the run then alternates with this build's.
 #
 # FRAMES (default 10) sets the frames each row times; THREADS (default
 # "1 2 4 8 16") the demo's thread counts.
@@ -39,6 +45,24 @@ if [ "${1:-}" = "--kit" ]; then
     exit 0
 fi
 
+if [ "${1:-}" = "--kit-patch" ]; then
+    # As --kit, at HEAD with the patch applied.
+    patch=$(realpath "${2:?give the patch to apply}")
+    target=${CARGO_TARGET_DIR:-$PWD/target}
+    dir=$(mktemp -d)
+    mkdir -p "$kit"
+    git worktree add -f --detach "$dir" HEAD >/dev/null
+    trap 'git worktree remove --force "$dir"' EXIT
+    (cd "$dir" && git apply "$patch" &&
+        CARGO_TARGET_DIR="$target" cargo build --release --example scaling &&
+        CARGO_TARGET_DIR="$target" cargo build --release -p sph-core --example pbf_stations)
+    for bin in scaling pbf_stations; do
+        strip -o "$kit/$bin-patched" "$target/release/examples/$bin"
+    done
+    echo "packed $kit/scaling-patched and $kit/pbf_stations-patched: HEAD with $patch"
+    exit 0
+fi
+
 export OUT=${OUT:-gpu-bench-out}
 mkdir -p "$OUT"
 frames=${FRAMES:-10}
@@ -56,6 +80,7 @@ run() {
 
 builds=(scaling)
 [ -x "$kit/scaling-base" ] && builds+=(scaling-base)
+[ -x "$kit/scaling-patched" ] && builds+=(scaling-patched)
 for round in 1 2; do
     for build in "${builds[@]}"; do
         run 120 "$build-table-$round.log" "$kit/$build" --frames "$frames"
@@ -66,11 +91,12 @@ for build in "${builds[@]}"; do
 done
 
 # Where a 10k PBF substep's time goes at each thread count.
-if [ -x "$kit/pbf_stations" ]; then
-    for threads in ${THREADS:-1 2 4 8 16}; do
-        RAYON_NUM_THREADS=$threads run 90 "stations-$threads.log" "$kit/pbf_stations"
+for threads in ${THREADS:-1 2 4 8 16}; do
+    for stations in pbf_stations pbf_stations-patched; do
+        [ -x "$kit/$stations" ] || continue
+        RAYON_NUM_THREADS=$threads run 90 "${stations/pbf_/}-$threads.log" "$kit/$stations"
     done
-fi
+done
 
 # The demo end to end on the CPU path (`--cpu`: on a hardware adapter the
 # demo would step and extract on the GPU): step and extraction
@@ -93,5 +119,5 @@ for threads in ${THREADS:-1 2 4 8 16}; do
 done
 
 tail -n 30 "$OUT"/*-table-*.log "$OUT"/*-sweep.log
-tail -n 9 "$OUT"/stations-*.log 2>/dev/null || true
+tail -n 9 "$OUT"/stations*-*.log 2>/dev/null || true
 cat "$OUT/demo-summary.txt" 2>/dev/null || true
