@@ -10,8 +10,10 @@ use std::any::Any;
 use std::collections::BTreeMap;
 
 use glam::Vec3;
+use std::ops::Range;
 
 use crate::error::{Error, Result};
+use crate::region::Blocks;
 
 /// Names of the built-in fields; extra attributes may not reuse them.
 pub const BUILTIN_FIELDS: [&str; 9] = [
@@ -54,12 +56,13 @@ pub struct Particles {
     spare: Spare,
 }
 
-/// A spare column of each built-in type, for [`Particles::permute`].
+/// A spare for each built-in column, for [`Particles::permute`]: a step's
+/// team gathers every column at once.
 #[derive(Default)]
 struct Spare {
     ids: Vec<u64>,
-    vec3s: Vec<Vec3>,
-    f32s: Vec<f32>,
+    vec3s: [Vec<Vec3>; 4],
+    f32s: [Vec<f32>; 4],
 }
 
 /// Mutable views of every built-in field at once, for processors that read some
@@ -293,28 +296,77 @@ impl Particles {
                 }
             }
         }
-        let spare = &mut self.spare;
-        permute_vec(&mut self.ids, order, &mut spare.ids);
-        for v in [
+        self.permute_unchecked(order);
+        Ok(())
+    }
+
+    /// [`Particles::permute`] for an `order` known to be a permutation of
+    /// the particles (a grid's slot order): no check. In a step's team
+    /// ([`crate::region::team`]) the built-in columns are gathered in one
+    /// region pass, each block of slots from every column at once, so the
+    /// team's threads share the work instead of waiting for the leading
+    /// one; elsewhere each column is gathered as [`crate::light`] says.
+    pub(crate) fn permute_unchecked(&mut self, order: &[u32]) {
+        let n = order.len();
+        let Spare { ids, vec3s, f32s } = &mut self.spare;
+        let vec3_columns = [
             &mut self.positions,
             &mut self.velocities,
             &mut self.accelerations,
             &mut self.colour_gradients,
-        ] {
-            permute_vec(v, order, &mut spare.vec3s);
-        }
-        for v in [
+        ];
+        let f32_columns = [
             &mut self.densities,
             &mut self.pressures,
             &mut self.masses,
             &mut self.colour_laplacians,
-        ] {
-            permute_vec(v, order, &mut spare.f32s);
+        ];
+        if crate::region::leading() {
+            // A spare holds the old column of the last reordering: refilled,
+            // not initialised again, once its length is n.
+            ids.resize(n, 0);
+            vec3s.iter_mut().for_each(|v| v.resize(n, Vec3::ZERO));
+            f32s.iter_mut().for_each(|v| v.resize(n, 0.0));
+            {
+                let ids_out = Blocks::new(ids);
+                let vec3_out = vec3s.each_mut().map(|v| Blocks::new(v));
+                let f32_out = f32s.each_mut().map(|v| Blocks::new(v));
+                let (ids_in, vec3_in, f32_in) = (&self.ids, &vec3_columns, &f32_columns);
+                let gather = |range: Range<usize>, _: usize| {
+                    let order = &order[range.clone()];
+                    // SAFETY: each block writes its own slots of each spare,
+                    // alone; the columns read are not written in the region.
+                    unsafe {
+                        gather_into(ids_in, order, ids_out.block(range.clone()));
+                        for (from, to) in vec3_in.iter().zip(&vec3_out) {
+                            gather_into(from, order, to.block(range.clone()));
+                        }
+                        for (from, to) in f32_in.iter().zip(&f32_out) {
+                            gather_into(from, order, to.block(range.clone()));
+                        }
+                    }
+                };
+                crate::region::run(n, &[&gather]);
+            }
+            std::mem::swap(&mut self.ids, ids);
+            for (column, spare) in vec3_columns.into_iter().zip(vec3s) {
+                std::mem::swap(column, spare);
+            }
+            for (column, spare) in f32_columns.into_iter().zip(f32s) {
+                std::mem::swap(column, spare);
+            }
+        } else {
+            permute_vec(&mut self.ids, order, ids);
+            for (column, spare) in vec3_columns.into_iter().zip(vec3s) {
+                permute_vec(column, order, spare);
+            }
+            for (column, spare) in f32_columns.into_iter().zip(f32s) {
+                permute_vec(column, order, spare);
+            }
         }
         for column in self.extra.values_mut() {
             column.permute(order);
         }
-        Ok(())
     }
 
     /// Checks what a simulation needs of every particle: a finite position,
@@ -407,6 +459,13 @@ fn check_len(what: &'static str, actual: usize, expected: usize) -> Result<()> {
 fn retain_vec<T>(v: &mut Vec<T>, keep: &[bool]) {
     let mut k = keep.iter();
     v.retain(|_| *k.next().unwrap_or(&false));
+}
+
+/// `to[k] = from[order[k]]` for each slot k of a block.
+fn gather_into<T: Copy>(from: &[T], order: &[u32], to: &mut [T]) {
+    for (t, &o) in to.iter_mut().zip(order) {
+        *t = from[o as usize];
+    }
 }
 
 /// `v` reordered by `order`, written into `spare`'s memory; `spare` gets
@@ -518,6 +577,71 @@ mod tests {
         assert!(p.permute(&[0, 1, 3]).is_err());
         p.remove_attribute("heat").unwrap();
         assert!(!p.has_attribute("heat"));
+    }
+
+    /// Reordered in a step's team (one region pass, blocks on several
+    /// threads) or outside one, every column ends the same, and again when
+    /// the spares are refilled.
+    #[test]
+    fn a_team_reorders_every_column_as_outside_one() {
+        let n = 3_000;
+        let mut p = Particles::new();
+        for i in 0..n {
+            let x = i as f32;
+            p.push(Vec3::new(x, -x, 0.5 * x), Vec3::splat(x + 0.25), 1.0 + x);
+        }
+        let f = p.fields_mut();
+        for (i, a) in f.accelerations.iter_mut().enumerate() {
+            *a = Vec3::new(0.0, i as f32, 1.0);
+        }
+        for (i, (d, q)) in f
+            .densities
+            .iter_mut()
+            .zip(f.pressures.iter_mut())
+            .enumerate()
+        {
+            (*d, *q) = (1000.0 + i as f32, -(i as f32));
+        }
+        for (i, (g, l)) in (f.colour_gradients.iter_mut())
+            .zip(f.colour_laplacians.iter_mut())
+            .enumerate()
+        {
+            (*g, *l) = (Vec3::splat(i as f32 * 3.0), i as f32 * 7.0);
+        }
+        p.add_attribute("tag", 0u32).unwrap();
+        for (i, t) in p
+            .attribute_mut::<u32>("tag")
+            .unwrap()
+            .iter_mut()
+            .enumerate()
+        {
+            *t = i as u32;
+        }
+        // A scrambled order, twice.
+        let order: Vec<u32> = (0..n as u32).map(|k| (k * 1_237 + 11) % n as u32).collect();
+        let (mut outside, mut inside) = (p.clone(), p);
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(3)
+            .build()
+            .unwrap();
+        for _ in 0..2 {
+            outside.permute(&order).unwrap();
+            pool.install(|| crate::region::team(|| inside.permute_unchecked(&order)));
+            assert_eq!(inside.ids(), outside.ids());
+            assert_eq!(inside.positions(), outside.positions());
+            assert_eq!(inside.velocities(), outside.velocities());
+            assert_eq!(inside.accelerations(), outside.accelerations());
+            assert_eq!(inside.densities(), outside.densities());
+            assert_eq!(inside.pressures(), outside.pressures());
+            assert_eq!(inside.masses(), outside.masses());
+            assert_eq!(inside.colour_gradients(), outside.colour_gradients());
+            assert_eq!(inside.colour_laplacians(), outside.colour_laplacians());
+            assert_eq!(
+                inside.attribute::<u32>("tag").unwrap(),
+                outside.attribute::<u32>("tag").unwrap()
+            );
+        }
+        assert_eq!(outside.ids()[0], order[order[0] as usize] as u64);
     }
 
     #[test]
