@@ -132,31 +132,44 @@ impl NeighbourLists {
         };
         region::run_by(n, CHUNK, &[&find]);
         let blocks = &self.blocks.0;
-        self.start.clear();
-        self.start.reserve(n + 1);
-        self.start.push(0);
+        // Where each block's rows begin: the pairs of the blocks before it.
+        let mut bases = Vec::with_capacity(blocks.len() + 1);
         let mut total = 0u64;
-        for &c in blocks.iter().flat_map(|(counts, _)| counts) {
-            total += u64::from(c);
-            let Ok(end) = u32::try_from(total) else {
-                self.start.clear();
-                self.start.push(0);
-                self.neighbours.clear();
-                return Err(Error::TooManyPairs { pairs: total });
-            };
-            self.start.push(end);
+        for (_, found) in blocks {
+            bases.push(total);
+            total += found.len() as u64;
         }
-        // The blocks' rows copied into place in parallel, then the padding.
+        if u32::try_from(total).is_err() {
+            self.start.clear();
+            self.start.push(0);
+            self.neighbours.clear();
+            return Err(Error::TooManyPairs { pairs: total });
+        }
+        // Each block's row ends and rows copied into place in parallel,
+        // then the padding.
         let total = total as usize;
         let padding = if n > 0 { LANES } else { 0 };
+        self.start.resize(n + 1, 0);
+        self.start[0] = 0;
         self.neighbours.resize(total + padding, 0);
         self.neighbours[total..].fill(0);
-        let (start, out) = (&self.start, Blocks::new(&mut self.neighbours[..total]));
+        let (ends, out) = (
+            Blocks::new(&mut self.start[1..]),
+            Blocks::new(&mut self.neighbours[..total]),
+        );
+        let bases = &bases;
         let copy = |range: Range<usize>, c: usize| {
-            let piece = start[range.start] as usize..start[range.end] as usize;
-            // SAFETY: block c's rows, disjoint from every other block's;
-            // nothing reads them in this pass.
-            unsafe { out.block(piece) }.copy_from_slice(&blocks[c].1);
+            let (counts, found) = &blocks[c];
+            let base = bases[c] as usize;
+            // SAFETY: block c's row ends and rows, disjoint from every
+            // other block's; nothing reads them in this pass.
+            let (ends, rows) = unsafe { (ends.block(range), out.block(base..base + found.len())) };
+            let mut end = base as u32;
+            for (e, &count) in ends.iter_mut().zip(counts) {
+                end += count;
+                *e = end;
+            }
+            rows.copy_from_slice(found);
         };
         region::run_by(n, CHUNK, &[&copy]);
         Ok(())
