@@ -5,9 +5,9 @@
 # its `--sweep`, for this build and, where the kit holds one, a build from
 # before the team (`scaling-base`), alternated; the 10k PBF substep station
 # by station (`pbf_stations`) at each thread count, which shows whether the
-# grid build, one thread's below 32k particles, is what stops the scaling
-# (docs/benchmark-notes.md, "The grid build, the 10k step's last serial
-# stretch"); then `dam-break-fine` end to end through the demo at each
+# grid build (at most four parts in a team below 32k particles) is what
+# stops the scaling (docs/benchmark-notes.md, "The grid build by ranges of
+# cells"); then `dam-break-fine` end to end through the demo at each
 # thread count. Logs go to $OUT (default
 # gpu-bench-out/); each run has its own time limit, so a slow one leaves the
 # others' logs.
