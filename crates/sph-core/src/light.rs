@@ -24,9 +24,9 @@
 //! team released instead (a throwaway build with `SERIAL_BELOW` = 0), it
 //! had taken 0.83–0.85 ms against 0.68–0.81 on one (2026-11-27): the fork
 //! cost more than the work. The solvers' own light passes (integration, a
-//! density copy, a maximum) and the particles' reordering after each build
-//! run as region passes in the team too: the reordering gathers every
-//! column in one pass, and with it the 10k grid station took 0.18–0.19 ms
+//! density copy, a maximum) and, below [`SERIAL_BELOW`], the particles'
+//! reordering after each build run as region passes in the team too: the
+//! reordering gathers every column in one pass, and with it the 10k grid station took 0.18–0.19 ms
 //! against 0.23–0.24 on two threads (`pbf_stations`, 2026-11-29).
 
 /// The particle count from which a light pass splits.

@@ -56,8 +56,8 @@ pub struct Particles {
     spare: Spare,
 }
 
-/// A spare for each built-in column, for [`Particles::permute`]: a step's
-/// team gathers every column at once.
+/// Spare columns for [`Particles::permute`]: one per built-in column where
+/// a step's team gathers every column at once, else the first of each type.
 #[derive(Default)]
 struct Spare {
     ids: Vec<u64>,
@@ -301,11 +301,14 @@ impl Particles {
     }
 
     /// [`Particles::permute`] for an `order` known to be a permutation of
-    /// the particles (a grid's slot order): no check. In a step's team
-    /// ([`crate::region::team`]) the built-in columns are gathered in one
-    /// region pass, each block of slots from every column at once, so the
-    /// team's threads share the work instead of waiting for the leading
-    /// one; elsewhere each column is gathered as [`crate::light`] says.
+    /// the particles (a grid's slot order): no check. On the thread that
+    /// leads a step's team ([`crate::region::team`], not inside
+    /// [`crate::region::released`]: below [`crate::light`]'s 32k particles)
+    /// the built-in columns are gathered in one region pass, each block of
+    /// slots from every column at once and each column into a spare of its
+    /// own, so the team's threads share the work instead of waiting for the
+    /// leading one. Elsewhere each column is gathered in turn through one
+    /// spare of its type, as [`crate::light`] says.
     pub(crate) fn permute_unchecked(&mut self, order: &[u32]) {
         let n = order.len();
         let Spare { ids, vec3s, f32s } = &mut self.spare;
@@ -356,12 +359,14 @@ impl Particles {
                 std::mem::swap(column, spare);
             }
         } else {
+            // One spare per type, passed from column to column: large
+            // scenes, which reorder here, keep no more spares than that.
             permute_vec(&mut self.ids, order, ids);
-            for (column, spare) in vec3_columns.into_iter().zip(vec3s) {
-                permute_vec(column, order, spare);
+            for column in vec3_columns {
+                permute_vec(column, order, &mut vec3s[0]);
             }
-            for (column, spare) in f32_columns.into_iter().zip(f32s) {
-                permute_vec(column, order, spare);
+            for column in f32_columns {
+                permute_vec(column, order, &mut f32s[0]);
             }
         }
         for column in self.extra.values_mut() {
@@ -642,6 +647,16 @@ mod tests {
             );
         }
         assert_eq!(outside.ids()[0], order[order[0] as usize] as u64);
+        // Fewer particles: spares longer than the columns are refilled.
+        let keep: Vec<bool> = (0..n).map(|i| i % 3 != 0).collect();
+        inside.retain(&keep).unwrap();
+        outside.retain(&keep).unwrap();
+        let reversed: Vec<u32> = (0..inside.len() as u32).rev().collect();
+        outside.permute(&reversed).unwrap();
+        pool.install(|| crate::region::team(|| inside.permute_unchecked(&reversed)));
+        assert_eq!(inside.ids(), outside.ids());
+        assert_eq!(inside.positions(), outside.positions());
+        assert_eq!(inside.colour_laplacians(), outside.colour_laplacians());
     }
 
     #[test]

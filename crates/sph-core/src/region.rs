@@ -52,9 +52,8 @@ const CLAIMS_PER_THREAD: usize = 16;
 /// How long a team's thread waits for a job before it leaves the team and
 /// goes back to its pool, where it sleeps; the next [`run`] calls it
 /// again. Longer than the serial stretches between a step's passes (the
-/// contacts, the lists' prefix sums, the reordering: each well under 1 ms
-/// at 10k particles on a slow 2-core VM), so that within a step nobody
-/// leaves.
+/// contacts, the sums of per-block counts: each well under 1 ms at 10k
+/// particles on a slow 2-core VM), so that within a step nobody leaves.
 const IDLE: std::time::Duration = std::time::Duration::from_millis(2);
 
 /// The number of blocks `n` particles make.

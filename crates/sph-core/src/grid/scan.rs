@@ -53,6 +53,7 @@ pub(crate) struct Hits<const N: usize>(pub [u32; N]);
 impl<const N: usize> Hits<N> {
     /// A zeroed buffer.
     pub(crate) const fn new() -> Self {
+        const { assert!(N <= 256, "a hit buffer beyond 1 KiB could straddle a page") };
         Self([0; N])
     }
 }
