@@ -255,30 +255,20 @@ impl NeighbourGrid {
     /// index the grid reports names the wrong particle.
     pub fn renumber_by_slot(&mut self) {
         let n = self.len();
-        if crate::region::leading() {
-            // In a step's team, as a region pass.
-            let (orders, ranks) = (
-                crate::region::Blocks::new(&mut self.layout.order),
-                crate::region::Blocks::new(&mut self.layout.rank),
-            );
-            let identity = |range: std::ops::Range<usize>, _: usize| {
-                // SAFETY: each block writes its own slots alone.
-                let (order, rank) =
-                    unsafe { (orders.block(range.clone()), ranks.block(range.clone())) };
-                for ((o, r), k) in order.iter_mut().zip(rank).zip(range) {
-                    (*o, *r) = (k as u32, k as u32);
-                }
-            };
-            crate::region::run(n, &[&identity]);
-        } else {
-            let piece = crate::light::min_piece(n);
-            (self.layout.order.par_iter_mut().with_min_len(piece))
-                .enumerate()
-                .for_each(|(k, o)| *o = k as u32);
-            (self.layout.rank.par_iter_mut().with_min_len(piece))
-                .enumerate()
-                .for_each(|(k, r)| *r = k as u32);
-        }
+        let (orders, ranks) = (
+            crate::region::Blocks::new(&mut self.layout.order),
+            crate::region::Blocks::new(&mut self.layout.rank),
+        );
+        let identity = |range: std::ops::Range<usize>, _: usize| {
+            // SAFETY: each block writes its own slots alone.
+            let (order, rank) =
+                unsafe { (orders.block(range.clone()), ranks.block(range.clone())) };
+            for ((o, r), k) in order.iter_mut().zip(rank).zip(range) {
+                (*o, *r) = (k as u32, k as u32);
+            }
+        };
+        let block = n.div_ceil(crate::light::parts(n)).max(1);
+        crate::region::run_by(n, block, &[&identity]);
         self.by_slot = true;
     }
 

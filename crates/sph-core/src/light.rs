@@ -40,6 +40,21 @@ pub(crate) fn min_piece(n: usize) -> usize {
     if n < SERIAL_BELOW { usize::MAX } else { 1 }
 }
 
+/// How many parts a light pass over `n` particles written as region passes
+/// (`crate::region::run_by`) splits into: one per thread from
+/// [`SERIAL_BELOW`] particles or in a step's team, whose threads are
+/// waiting; else one, on the calling thread; and one inside a region's
+/// pass, which runs a region on its own thread anyway.
+pub(crate) fn parts(n: usize) -> usize {
+    if crate::region::in_pass() {
+        1
+    } else if n >= SERIAL_BELOW || crate::region::leading() {
+        rayon::current_num_threads().max(1)
+    } else {
+        1
+    }
+}
+
 /// Runs `f`, a light pass over `n` particles that uses rayon, with the
 /// calling thread's team released (`crate::region::released`) where it
 /// splits (from [`SERIAL_BELOW`]); below, on this thread as it is.

@@ -221,11 +221,9 @@ impl Layout {
                 },
         } = self;
         let n = positions.len();
-        // The build splits into parts: one below `SERIAL_BELOW` particles
-        // outside a step's team (waking threads costs more than the work),
-        // else one per thread, at most 8. Any split gives the same layout:
-        // the sort is stable, each part scattering from the slot where the
-        // parts before it ended.
+        // The build splits into parts (`build_parts`). Any split gives the
+        // same layout: the sort is stable, each part scattering from the
+        // slot where the parts before it ended.
         let parts = build_parts(n);
         let chunk_len = n.div_ceil(parts).max(1);
         let chunks = n.div_ceil(chunk_len);
@@ -497,23 +495,12 @@ fn fill_slot_cells(cell_start: &[u32], n: usize, slot_cell: &mut Vec<u32>) {
     unsafe { slot_cell.set_len(n) };
 }
 
-/// How many parts a build over `n` particles splits into:
-/// - one inside a region's pass, which runs a region on its own thread;
-/// - from [`SERIAL_BELOW`] particles, one per thread, at most 8;
-/// - below, in a step's team (`crate::region::team`), one per thread, at
-///   most [`TEAM_PARTS`];
-/// - else one: waking the pool's threads costs more than the work.
+/// How many parts a build over `n` particles splits into: as many as a
+/// light pass takes ([`crate::light::parts`]), at most 8, and at most
+/// [`TEAM_PARTS`] in a step's team below [`SERIAL_BELOW`].
 fn build_parts(n: usize) -> usize {
-    let threads = rayon::current_num_threads();
-    if region::in_pass() {
-        1
-    } else if n >= SERIAL_BELOW {
-        threads.clamp(1, 8)
-    } else if region::leading() {
-        threads.clamp(1, TEAM_PARTS)
-    } else {
-        1
-    }
+    let cap = if n >= SERIAL_BELOW { 8 } else { TEAM_PARTS };
+    crate::light::parts(n).min(cap)
 }
 
 /// The most parts a team's build below [`SERIAL_BELOW`] splits into. Each

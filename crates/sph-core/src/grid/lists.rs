@@ -133,7 +133,7 @@ impl NeighbourLists {
         region::run_by(n, CHUNK, &[&find]);
         let blocks = &self.blocks.0;
         // Where each block's rows begin: the pairs of the blocks before it.
-        let mut bases = Vec::with_capacity(blocks.len() + 1);
+        let mut bases = Vec::with_capacity(blocks.len());
         let mut total = 0u64;
         for (_, found) in blocks {
             bases.push(total);

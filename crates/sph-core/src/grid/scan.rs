@@ -46,7 +46,7 @@ pub(super) const QUERY_CAPACITY: usize = 64;
 /// slow, and where the stack put an unaligned buffer decided whether a
 /// build's neighbour lists took half as long again (`docs/benchmark-notes.md`,
 /// "Hit buffers across a page").
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 #[repr(C, align(1024))]
 pub(crate) struct Hits<const N: usize>(pub [u32; N]);
 
