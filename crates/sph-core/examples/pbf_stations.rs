@@ -5,6 +5,7 @@
 //! ```text
 //! cargo run --release -p sph-core --example pbf_stations
 //! SPH_SIMD=baseline cargo run --release -p sph-core --example pbf_stations
+//! cargo run --release -p sph-core --example pbf_stations -- --gauss-seidel
 //! ```
 
 use std::sync::{Arc, Mutex};
@@ -12,7 +13,7 @@ use std::time::{Duration, Instant};
 
 use sph_core::solver::pbf::{BodyForces, FindNeighbours, Predict, SolveDensity, VorticityXsph};
 use sph_core::solver::{Boundaries, BuildGrid};
-use sph_core::{Context, Particles, Processor, Result, Scene, SolverKind};
+use sph_core::{Context, Particles, PbfParams, PbfSolve, Processor, Result, Scene, SolverKind};
 
 /// A station and the wall time it took, summed.
 struct Timed<P> {
@@ -36,7 +37,13 @@ impl<P: Processor> Processor for Timed<P> {
 }
 
 fn main() -> Result<()> {
-    let scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf);
+    let mut scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf);
+    if std::env::args().any(|a| a == "--gauss-seidel") {
+        scene.solver.pbf = Some(PbfParams {
+            solve: PbfSolve::GaussSeidel,
+            ..scene.pbf_params()
+        });
+    }
     let mut world = scene.build_world()?;
     let (params, pbf, boundary) = (*world.params(), scene.pbf_params(), scene.boundary());
     let stations: Vec<Box<dyn Processor>> = vec![

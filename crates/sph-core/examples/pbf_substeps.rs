@@ -6,9 +6,11 @@
 //! value and the mean.
 //!
 //! A setting is SUBSTEPSxITERATIONS, optionally followed by `@ω` (the
-//! over-relaxation) and `/c` (XSPH's c); what it leaves out takes the
-//! defaults ([`sph_core::PbfParams`]). `5x2@1/0.01` is the paper's plain
-//! Jacobi and XSPH at 5 substeps of 2 iterations.
+//! over-relaxation) and `/c` (XSPH's c), and `+gs` for the Gauss–Seidel
+//! solve ([`sph_core::PbfSolve::GaussSeidel`]); what it leaves out takes
+//! the defaults ([`sph_core::PbfParams`]). `5x2@1/0.01` is the paper's
+//! plain Jacobi and XSPH at 5 substeps of 2 iterations, `5x3+gs` Gauss–Seidel
+//! at 5 substeps of 3 sweeps.
 //!
 //! ```text
 //! cargo run --release -p sph-core --example pbf_substeps [-- 5x2 6x3@1/0.01 5x2@1.3 ...]
@@ -19,7 +21,7 @@ mod common;
 use std::time::Instant;
 
 use common::cluster_sizes;
-use sph_core::{PbfParams, Scene, SolverKind};
+use sph_core::{PbfParams, PbfSolve, Scene, SolverKind};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut settings: Vec<String> = std::env::args().skip(1).collect();
@@ -44,7 +46,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let frame = 1.0 / 60.0;
         let defaults = scene.pbf_params();
         let parse = || -> Option<PbfParams> {
-            let (counts, rest) = setting.split_once('@').unwrap_or((&setting, ""));
+            let (body, solve) = match setting.strip_suffix("+gs") {
+                Some(body) => (body, PbfSolve::GaussSeidel),
+                None => (setting.as_str(), PbfSolve::Jacobi),
+            };
+            let (counts, rest) = body.split_once('@').unwrap_or((body, ""));
             let (omega, c) = rest.split_once('/').unwrap_or((rest, ""));
             let (s, i) = counts.split_once('x')?;
             let substeps: u32 = s.parse().ok()?;
@@ -55,6 +61,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Some(PbfParams {
                 substeps,
                 iterations: i.parse().ok()?,
+                solve,
                 over_relaxation: value(omega, defaults.over_relaxation)?,
                 xsph: value(c, defaults.xsph)?,
                 max_dt: frame / substeps as f32,
@@ -62,7 +69,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
         };
         let pbf = parse().ok_or(format!(
-            "{setting}: expected SUBSTEPSxITERATIONS[@OMEGA][/XSPH], e.g. 5x2@1.4/0.05"
+            "{setting}: expected SUBSTEPSxITERATIONS[@OMEGA][/XSPH][+gs], e.g. 5x2@1.4/0.05"
         ))?;
         scene.solver.pbf = Some(pbf);
         let mut world = scene.build_world()?;

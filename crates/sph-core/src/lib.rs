@@ -37,8 +37,8 @@ pub use processor::{Context, Processor, Program, StepCounters};
 pub use scene::Scene;
 pub use simd::{Simd, simd_level};
 pub use solver::{
-    DfsphParams, FluidParams, FrameReport, PbfParams, PbfViscosity, PressureKernel, Solver,
-    SolverKind, SurfaceTensionModel, TimeStepping, World, useful_threads,
+    DfsphParams, FluidParams, FrameReport, PbfParams, PbfSolve, PbfViscosity, PressureKernel,
+    Solver, SolverKind, SurfaceTensionModel, TimeStepping, World, useful_threads,
 };
 
 /// Re-export of the vector maths crate used in the public API.

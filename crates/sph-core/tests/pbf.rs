@@ -8,8 +8,8 @@ mod common;
 
 use glam::Vec3;
 use sph_core::{
-    Boundary, Error, FluidParams, Particles, PbfParams, PbfViscosity, Scene, Solver, SolverKind,
-    World,
+    Boundary, Error, FluidParams, Particles, PbfParams, PbfSolve, PbfViscosity, Scene, Solver,
+    SolverKind, World,
 };
 
 /// Deterministic pseudo-random numbers in [-1, 1).
@@ -283,11 +283,18 @@ fn free_cluster_keeps_its_momentum() {
             .map(|(&m, v)| 0.5 * f64::from(m) * f64::from(v.length_squared()))
             .sum()
     };
-    // Plain and over-relaxed Jacobi: ω scales each antisymmetric pair term.
-    for over_relaxation in [1.0, 1.25] {
+    // Plain and over-relaxed Jacobi: ω scales each antisymmetric pair term;
+    // and Gauss–Seidel, whose constraint i pushes i and each neighbour by
+    // opposite momenta.
+    for (over_relaxation, solve) in [
+        (1.0, PbfSolve::Jacobi),
+        (1.25, PbfSolve::Jacobi),
+        (1.0, PbfSolve::GaussSeidel),
+    ] {
         let pbf = PbfParams {
             vorticity: 0.0,
             over_relaxation,
+            solve,
             ..PbfParams::default()
         };
         let mut world = unbounded(particles.clone(), params, pbf);
@@ -308,19 +315,19 @@ fn free_cluster_keeps_its_momentum() {
         for a in 0..3 {
             assert!(
                 (after[a] - before[a]).abs() < 1e-6 * scale,
-                "ω = {over_relaxation}, axis {a}: {} → {}",
+                "{solve:?}, ω = {over_relaxation}, axis {a}: {} → {}",
                 before[a],
                 after[a]
             );
         }
         println!(
-            "ω = {over_relaxation}: momentum {before:?} → {after:?}; largest density error {:.4} \
-             after the first frame; kinetic energy ×{gained:.2}",
+            "{solve:?}, ω = {over_relaxation}: momentum {before:?} → {after:?}; largest density \
+             error {:.4} after the first frame; kinetic energy ×{gained:.2}",
             first.unwrap()
         );
         assert!(
             gained > 50.0,
-            "ω = {over_relaxation}: kinetic energy ×{gained}"
+            "{solve:?}, ω = {over_relaxation}: kinetic energy ×{gained}"
         );
     }
 }
@@ -365,8 +372,8 @@ fn over_relaxation_lowers_the_density_error() {
 
 /// Bitwise the same particles and reports for 1, 2 and 4 threads, with
 /// XSPH, with the implicit viscosity (whose conjugate gradients sum in
-/// fixed chunks) and with particle sleeping, over half a second of a small
-/// dam break.
+/// fixed chunks), with particle sleeping and with the Gauss–Seidel solve,
+/// over half a second of a small dam break.
 #[test]
 fn identical_for_1_2_and_4_threads() {
     let [xsph, implicit] = with_both_viscosities(Scene::dam_break(0.16, 0.08, 0.02));
@@ -385,7 +392,13 @@ fn identical_for_1_2_and_4_threads() {
         world.particles.positions().to_vec()
     };
     assert_ne!(positions(&xsph), positions(&sleeping));
-    for scene in [xsph, implicit, sleeping] {
+    // And Gauss–Seidel, whose columns of one colour relax side by side.
+    let mut gauss_seidel = xsph.clone();
+    gauss_seidel.solver.pbf = Some(PbfParams {
+        solve: PbfSolve::GaussSeidel,
+        ..xsph.pbf_params()
+    });
+    for scene in [xsph, implicit, sleeping, gauss_seidel] {
         identical_for_thread_counts(&scene, 30, &[1, 2, 4]);
     }
 }
@@ -405,12 +418,19 @@ fn identical_with_surface_tension_for_1_2_and_4_threads() {
 /// split them otherwise would sum in another order), and with the
 /// density solve, the vorticity and XSPH station and the CG iterations
 /// each in one parallel region: 157 blocks, claimed a few at a time by
-/// however many threads arrive, their sums added in block order.
+/// however many threads arrive, their sums added in block order. And
+/// under Gauss–Seidel, whose colours' columns are claimed the same way.
 #[test]
 fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     let fine = Scene::dam_break(0.25, 0.08, 0.01);
     assert_eq!(fine.particles().unwrap().len(), 10_000);
-    for scene in with_both_viscosities(fine) {
+    let [xsph, implicit] = with_both_viscosities(fine);
+    let mut gauss_seidel = xsph.clone();
+    gauss_seidel.solver.pbf = Some(PbfParams {
+        solve: PbfSolve::GaussSeidel,
+        ..xsph.pbf_params()
+    });
+    for scene in [xsph, implicit, gauss_seidel] {
         identical_for_thread_counts(&scene, 6, &[1, 2, 3, 7]);
     }
 }
@@ -740,6 +760,15 @@ fn bad_parameters_are_errors_naming_the_field() {
             "pbf.sleep_speed",
             PbfParams {
                 sleep_speed: -0.01,
+                ..d
+            },
+        ),
+        // s_corr, which the Gauss–Seidel sweeps do not apply.
+        (
+            "pbf.scorr_k",
+            PbfParams {
+                solve: PbfSolve::GaussSeidel,
+                scorr_k: 0.05,
                 ..d
             },
         ),

@@ -31,7 +31,9 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use bytemuck::{Pod, Zeroable};
 use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
 use sph_core::solver::surface_tension;
-use sph_core::{Boundary, FluidParams, Particles, PbfParams, PbfViscosity, Poly6, Solver};
+use sph_core::{
+    Boundary, FluidParams, Particles, PbfParams, PbfSolve, PbfViscosity, Poly6, Solver,
+};
 use wgpu::util::DeviceExt;
 use wgpu_profiler::GpuProfiler;
 
@@ -236,8 +238,9 @@ impl GpuPbf {
     /// rejects (the colour-field surface tension among them, WCSPH's only;
     /// a mass too light for h and a position the boundary does not admit:
     /// `World::check_inputs`, as `World::with_solver` refuses them);
-    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"` and for
-    /// `pbf.sleep_speed` > 0, which run only on the CPU;
+    /// [`GpuError::Invalid`] for `pbf.viscosity = "implicit"`, for
+    /// `pbf.sleep_speed` > 0 and for `pbf.solve = "gauss-seidel"`, which
+    /// run only on the CPU;
     /// [`GpuError::DeviceLimit`] for more particles than one dispatch or
     /// storage binding of this device holds.
     pub fn new(
@@ -261,6 +264,11 @@ impl GpuPbf {
         if pbf.sleep_speed > 0.0 {
             return Err(GpuError::Invalid(
                 "solver.pbf.sleep_speed > 0 (particle sleeping) runs only on the CPU: on the GPU leave it out or set it to 0",
+            ));
+        }
+        if pbf.solve == PbfSolve::GaussSeidel {
+            return Err(GpuError::Invalid(
+                "solver.pbf.solve = \"gauss-seidel\" runs only on the CPU: on the GPU leave it out or set \"jacobi\"",
             ));
         }
         let n = particles.len();

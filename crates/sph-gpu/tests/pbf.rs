@@ -321,6 +321,12 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     };
     let e = new(&params, &sleeping, &world.particles);
     assert!(e.contains("sleep_speed") && e.contains("CPU"), "{e}");
+    let gauss_seidel = PbfParams {
+        solve: sph_core::PbfSolve::GaussSeidel,
+        ..pbf
+    };
+    let e = new(&params, &gauss_seidel, &world.particles);
+    assert!(e.contains("gauss-seidel") && e.contains("CPU"), "{e}");
     // σ by the thesis's colour field is WCSPH's only, on the GPU as on the
     // CPU (Akinci et al.'s forces, the default, run).
     let colour_field = sph_core::FluidParams {

@@ -53,15 +53,8 @@ fn covered(out: &Surfels, field: &ColourField) -> (f64, usize) {
 /// (`cargo run --release -p surfel-extract --example flat_pool -- wcsph`).
 #[test]
 fn settled_pool_is_flat_and_keeps_its_volume() {
-    let mut scene = Scene::dam_break(0.15, 0.6, 0.02).with_solver(SolverKind::Dfsph);
-    scene.domain.min = [0.0; 3];
-    scene.domain.max = [0.6, 0.4, 0.6];
-    scene.blocks[0].min = [0.0; 3];
-    scene.blocks[0].max = [0.6, 0.2, 0.6];
-    let mut world = scene.build_world().unwrap();
-    for _ in 0..120 {
-        world.advance(1.0 / 60.0).unwrap();
-    }
+    let scene = Scene::dam_break(0.15, 0.6, 0.02).with_solver(SolverKind::Dfsph);
+    let world = settled_pool(scene.clone());
     let p = &world.particles;
     let h = scene.fluid.h;
     let volume: f64 = (p.masses().iter())
@@ -77,24 +70,13 @@ fn settled_pool_is_flat_and_keeps_its_volume() {
         let mut extractor = Extractor::new();
         let out = extractor.extract(p, &params).unwrap().clone();
         let field = extractor.field().unwrap();
-        let mut angles: Vec<f32> = (out.surfels.iter())
-            .filter(|s| {
-                let (x, z) = (s.position.x, s.position.z);
-                s.normal.y > 0.0
-                    && s.position.y > top - h
-                    && (2.0 * h..0.6 - 2.0 * h).contains(&x)
-                    && (2.0 * h..0.6 - 2.0 * h).contains(&z)
-            })
-            .map(|s| s.normal.y.clamp(-1.0, 1.0).acos().to_degrees())
-            .collect();
-        angles.sort_by(f32::total_cmp);
+        let angles = top_angles(&out, top, h);
         assert!(
             angles.len() > 5000,
             "{surface:?}: {} top surfels",
             angles.len()
         );
-        let at = |q: f32| angles[((angles.len() - 1) as f32 * q).round() as usize];
-        let (median, p99) = (at(0.5), at(0.99));
+        let (median, p99) = (quantile(&angles, 0.5), quantile(&angles, 0.99));
         let enclosed = coverage::enclosed_volume(field, params.iso, 0.005).unwrap() / volume;
         let (covered, points) = covered(&out, field);
         println!(
@@ -119,6 +101,97 @@ fn settled_pool_is_flat_and_keeps_its_volume() {
         "anisotropic median {}° against isotropic {}°",
         medians[1],
         medians[0]
+    );
+}
+
+/// The issue's pool (0.6 × 0.2 × 0.6 m in a 0.6 × 0.4 × 0.6 m tank) of
+/// `scene`'s solver and spacing, settled for 2 s.
+fn settled_pool(mut scene: Scene) -> sph_core::World {
+    scene.domain.min = [0.0; 3];
+    scene.domain.max = [0.6, 0.4, 0.6];
+    scene.blocks[0].min = [0.0; 3];
+    scene.blocks[0].max = [0.6, 0.2, 0.6];
+    let mut world = scene.build_world().unwrap();
+    for _ in 0..120 {
+        world.advance(1.0 / 60.0).unwrap();
+    }
+    world
+}
+
+/// How far the top surfels' normals lean from vertical (degrees, sorted):
+/// those facing up within h of the `top` particle and more than 2h from
+/// the pool's side walls.
+fn top_angles(out: &Surfels, top: f32, h: f32) -> Vec<f32> {
+    let mut angles: Vec<f32> = (out.surfels.iter())
+        .filter(|s| {
+            let (x, z) = (s.position.x, s.position.z);
+            s.normal.y > 0.0
+                && s.position.y > top - h
+                && (2.0 * h..0.6 - 2.0 * h).contains(&x)
+                && (2.0 * h..0.6 - 2.0 * h).contains(&z)
+        })
+        .map(|s| s.normal.y.clamp(-1.0, 1.0).acos().to_degrees())
+        .collect();
+    angles.sort_by(f32::total_cmp);
+    angles
+}
+
+/// The `q` quantile of sorted `values`.
+fn quantile(values: &[f32], q: f32) -> f32 {
+    values[((values.len() - 1) as f32 * q).round() as usize]
+}
+
+/// Issue 41's target for PBF's top normals, met by its Gauss–Seidel solve
+/// (`PbfSolve::GaussSeidel`) at 4 substeps a frame: the pool above settled
+/// by PBF for 2 s, the default anisotropic surface's top normals lean at
+/// most 1° at the median and 5° at the 99th percentile. Measured (`cargo
+/// run --release -p surfel-extract --example flat_pool -- pbf
+/// --solver-toml 'pbf = { solve = "gauss-seidel", substeps = S }'`):
+/// 0.96°, 1.76° at p90 and 2.42° at p99 at 4 substeps; 1.03°, 1.93° and
+/// 2.85° at the default 3, a miss by 0.03°. Under the default Jacobi solve
+/// 2.7° and 9.2° at 3 substeps; at 4 this test checks they stay above 2°
+/// and 5°, so that it shows the solve's difference.
+#[test]
+fn a_pool_settled_by_pbf_gauss_seidel_is_flat() {
+    use sph_core::{PbfParams, PbfSolve};
+    let mut results = Vec::new();
+    for solve in [PbfSolve::GaussSeidel, PbfSolve::Jacobi] {
+        let mut scene = Scene::dam_break(0.15, 0.6, 0.02).with_solver(SolverKind::Pbf);
+        scene.solver.pbf = Some(PbfParams {
+            solve,
+            substeps: 4,
+            ..PbfParams::default()
+        });
+        let world = settled_pool(scene.clone());
+        let p = &world.particles;
+        let h = scene.fluid.h;
+        let top = p.positions().iter().map(|x| x.y).fold(f32::MIN, f32::max);
+        let mut extractor = Extractor::new();
+        let params = ExtractParams::new(h).anisotropic();
+        let out = extractor.extract(p, &params).unwrap();
+        let angles = top_angles(out, top, h);
+        assert!(
+            angles.len() > 5000,
+            "{solve:?}: {} top surfels",
+            angles.len()
+        );
+        let (median, p99) = (quantile(&angles, 0.5), quantile(&angles, 0.99));
+        println!(
+            "{solve:?}: {} top surfels, median {median:.2}°, p99 {p99:.2}°",
+            angles.len()
+        );
+        results.push((median, p99));
+    }
+    let [(median, p99), (jacobi_median, jacobi_p99)] = results[..] else {
+        unreachable!("two solves")
+    };
+    assert!(
+        median <= 1.0 && p99 <= 5.0,
+        "Gauss–Seidel: {median}°, {p99}°"
+    );
+    assert!(
+        jacobi_median > 2.0 && jacobi_p99 > 5.0,
+        "Jacobi: {jacobi_median}°, {jacobi_p99}°"
     );
 }
 

@@ -19,9 +19,11 @@ use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 /// Neighbours per chunk.
 pub(super) const LANES: usize = 8;
 
-/// Poly6 W and the spiky gradient's factor s (∇W_spiky = s r) per lane, from
-/// |r|²: the same formulas as [`Poly6::value_r2`] and
-/// [`Spiky::gradient_len`], written without branches.
+/// PBF's pair kernels per lane, from |r|²: poly6 W and the spiky
+/// gradient's factor s (∇W_spiky = s r), the same formulas as
+/// [`Poly6::value_r2`] and [`Spiky::gradient_len`] written without
+/// branches; or, built by [`LaneKernels::with_cubic`], the cubic spline's W and
+/// its own gradient ([`LaneCubic`]).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct LaneKernels {
     h: f32,
@@ -30,6 +32,8 @@ pub(super) struct LaneKernels {
     spiky: f32,
     /// The smallest |r| divided by: 1e-6 h.
     tiny: f32,
+    /// The cubic spline in place of the pair above.
+    cubic: Option<LaneCubic>,
 }
 
 impl LaneKernels {
@@ -40,14 +44,27 @@ impl LaneKernels {
             poly6: poly6.coefficients().0,
             spiky: spiky.coefficient(),
             tiny: h * 1e-6,
+            cubic: None,
         }
     }
 
-    /// (W, s) per lane. Without branches: beyond h both kernels are 0
-    /// through the `max`es, and a coincident pair (r = 0) has a finite s
-    /// times a zero offset.
+    /// These lanes with the cubic spline's W and gradient factor instead
+    /// of poly6's and spiky's.
+    pub(super) fn with_cubic(self, cubic: &CubicSpline) -> Self {
+        Self {
+            cubic: Some(LaneCubic::new(cubic)),
+            ..self
+        }
+    }
+
+    /// (W, s) per lane. Without branches within a kind: beyond h both
+    /// kernels are 0 through the `max`es, and a coincident pair (r = 0)
+    /// has a finite s times a zero offset.
     #[inline(always)]
     pub(super) fn eval<S: F32x8>(&self, r2: S) -> (S, S) {
+        if let Some(cubic) = &self.cubic {
+            return cubic.eval(r2);
+        }
         let zero = S::splat(0.0);
         let d = (S::splat(self.h2) - r2).max(zero);
         let w = S::splat(self.poly6) * d * d * d;

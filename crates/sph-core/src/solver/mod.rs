@@ -38,7 +38,7 @@ pub use params::{
     FluidParams, MAX_H_OVER_SPACING, MAX_REST_DENSITY, PressureKernel, SurfaceTensionModel,
     TimeStepping,
 };
-pub use pbf::{PbfParams, PbfViscosity};
+pub use pbf::{PbfParams, PbfSolve, PbfViscosity};
 pub use stations::{
     BodyForces, Boundaries, BuildGrid, Emitter, ExternalAcceleration, FindNeighbours, Integrate,
     Sink, nozzle_corners, nozzle_points,
@@ -150,15 +150,17 @@ impl Solver {
 
     /// The particle mass for fluid sampled on a cubic lattice of `spacing`
     /// that starts at rest density with the kernel this solver sums
-    /// densities with: poly6 for WCSPH and PBF
-    /// ([`FluidParams::particle_mass`]), the cubic spline for DFSPH.
+    /// densities with: poly6 for WCSPH and PBF's Jacobi solve
+    /// ([`FluidParams::particle_mass`]), the cubic spline for DFSPH and
+    /// PBF's Gauss–Seidel ([`PbfSolve::GaussSeidel`]).
     ///
     /// # Errors
     /// A spacing [`FluidParams::lattice_mass`] refuses.
     pub fn particle_mass(&self, params: &FluidParams, spacing: f32) -> Result<f32> {
         match self {
-            Solver::Wcsph | Solver::Pbf(_) => params.particle_mass(spacing),
-            Solver::Dfsph(_) => {
+            Solver::Wcsph => params.particle_mass(spacing),
+            Solver::Pbf(p) if p.solve == PbfSolve::Jacobi => params.particle_mass(spacing),
+            Solver::Pbf(_) | Solver::Dfsph(_) => {
                 params.lattice_mass(&crate::kernels::CubicSpline::new(params.h)?, spacing)
             }
         }

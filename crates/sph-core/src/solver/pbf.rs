@@ -96,23 +96,24 @@ use super::stations::{Boundaries, BuildGrid};
 use crate::NeighbourLists;
 use crate::boundary::{Boundary, WallKernel};
 use crate::error::{Error, Result};
-use crate::kernels::{Poly6, Spiky};
+use crate::kernels::{CubicSpline, Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
 use super::lane_map::{LaneMap, fill_block};
-use super::lanes::{DensitySums, LaneKernels, Near};
+use super::lanes::{DensitySums, LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::surface_tension::SurfaceTension;
 use super::viscosity::{ImplicitViscosity, Update};
 use super::walls::{LayersCache, Walls};
 use crate::region::{self, Blocks, OwnedPass, Pass};
-use crate::simd::F32x8;
+use crate::simd::{F32x8, Lanes};
 
+mod coloured;
 mod params;
 use params::check_sleep_at;
-pub use params::{FALL_CFL, MAX_DENSITY_ERROR, MAX_PBF_COUNT, PbfParams, PbfViscosity};
+pub use params::{FALL_CFL, MAX_DENSITY_ERROR, MAX_PBF_COUNT, PbfParams, PbfSolve, PbfViscosity};
 
 /// The PBF program: forces → predict → grid → neighbours → density →
 /// viscosity (vorticity and XSPH) → surface tension (where σ > 0,
@@ -232,13 +233,13 @@ struct Model {
     walls: Walls,
     /// ε in 1/m².
     epsilon: f32,
-    /// 1 / W_poly6(Δq·h).
+    /// 1 / W(Δq·h).
     inv_w_dq: f32,
     /// 1 / ρ0.
     inv_rho0: f32,
-    /// The kernels lane by lane.
+    /// The kernels lane by lane ([`PbfSolve`] picks them).
     lanes: LaneKernels,
-    /// W_poly6(0).
+    /// W(0), the density's own term.
     w0: f32,
     /// Under a clearance, the layers of the fluid's lattice that the walls
     /// continue behind them ([`Walls::at_layers`]): the lightest
@@ -270,15 +271,35 @@ impl Model {
         let h = params.h;
         let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
         let dq = pbf.scorr_dq * h;
+        let lanes = LaneKernels::new(&poly6, &spiky, h);
+        // Gauss–Seidel's kernel: the cubic spline, its density and its own
+        // gradient, and the walls' term of the same kernel.
+        let (lanes, wall_kernel, w, w_dq) = match pbf.solve {
+            PbfSolve::Jacobi => (
+                lanes,
+                WallKernel::new(h),
+                poly6.value_r2(0.0),
+                poly6.value_r2(dq * dq),
+            ),
+            PbfSolve::GaussSeidel => {
+                let cubic = CubicSpline::new(h)?;
+                (
+                    lanes.with_cubic(&cubic),
+                    WallKernel::cubic_spline(h),
+                    cubic.value_len(0.0),
+                    cubic.value_len(dq),
+                )
+            }
+        };
         Ok(Self {
             params,
             pbf,
-            walls: Walls::new(boundary, WallKernel::new(h), params.rest_density),
+            walls: Walls::new(boundary, wall_kernel, params.rest_density),
             epsilon: pbf.relaxation / (h * h),
-            inv_w_dq: 1.0 / poly6.value_r2(dq * dq),
+            inv_w_dq: 1.0 / w_dq,
             inv_rho0: 1.0 / params.rest_density,
-            lanes: LaneKernels::new(&poly6, &spiky, h),
-            w0: poly6.value_r2(0.0),
+            lanes,
+            w0: w,
             layers: None,
         })
     }
@@ -484,6 +505,17 @@ pub struct SolveDensity {
     densest: Vec<f32>,
     /// Whether a block's final positions are all finite.
     finite: Vec<bool>,
+    /// Gauss–Seidel's blocks ([`PbfSolve::GaussSeidel`]).
+    colouring: coloured::Colouring,
+}
+
+/// A solve's headway: the largest density error at its first and last
+/// iteration (none without iterations), and whether a position became
+/// non-finite.
+struct Headway {
+    first: Option<f32>,
+    worst: f32,
+    bad: bool,
 }
 
 /// The λ pass: every particle's [`Constraint`].
@@ -533,6 +565,7 @@ impl SolveDensity {
             constraints: Vec::new(),
             densest: Vec::new(),
             finite: Vec::new(),
+            colouring: coloured::Colouring::default(),
         }
     }
 }
@@ -547,12 +580,51 @@ impl Processor for SolveDensity {
     fn process(&mut self, particles: &mut Particles, ctx: &mut Context) -> Result<()> {
         let lists = lists(ctx, particles, "density")?;
         self.model.set_layers(particles.masses());
-        let model = &self.model;
-        let (rho0, pbf, dt) = (model.params.rest_density, model.pbf, ctx.dt);
-        let sleep = pbf.sleep_speed;
+        let (pbf, dt) = (self.model.pbf, ctx.dt);
         // `World::advance` checks each frame before its first substep; this
         // holds for programs that run the station themselves.
-        check_sleep_at(sleep, model.params.gravity.length(), dt)?;
+        check_sleep_at(pbf.sleep_speed, self.model.params.gravity.length(), dt)?;
+        let Headway { first, worst, bad } = match pbf.solve {
+            PbfSolve::Jacobi => self.jacobi(particles, lists, dt),
+            PbfSolve::GaussSeidel => self.gauss_seidel(particles, lists, dt),
+        };
+        ctx.counters.iterations += pbf.iterations;
+        ctx.invalidate_grid(); // positions moved; the lists stay
+        let stuck = first.is_some_and(|first| worst >= first);
+        if bad || (worst > MAX_DENSITY_ERROR && stuck) {
+            return Err(Error::Unstable {
+                step: ctx.step,
+                time: ctx.time,
+                what: if bad {
+                    "a position became non-finite in the density constraint solve".into()
+                } else {
+                    format!(
+                        "the density constraint solve diverged: a density error of {:.0} % \
+                         after {} iterations, from {:.0} % at the first (above {:.0} %, no headway)",
+                        worst * 100.0,
+                        pbf.iterations,
+                        first.unwrap_or(worst) * 100.0,
+                        MAX_DENSITY_ERROR * 100.0
+                    )
+                },
+                hint: format!(
+                    "raise solver.pbf.iterations (now {}) or solver.pbf.substeps (now {}), \
+                     or lower solver.pbf.max_dt (now {:e} s); check that no particles start on top of each other",
+                    pbf.iterations, pbf.substeps, pbf.max_dt
+                ),
+            });
+        }
+        Ok(())
+    }
+}
+
+impl SolveDensity {
+    /// Lines 8–19 as the paper has them: Jacobi iterations, each every λ_i
+    /// and then every particle moved.
+    fn jacobi(&mut self, particles: &mut Particles, lists: &NeighbourLists, dt: f32) -> Headway {
+        let model = &self.model;
+        let (rho0, pbf) = (model.params.rest_density, model.pbf);
+        let sleep = pbf.sleep_speed;
         let n = particles.len();
         let (iterations, per_pass) = (pbf.iterations as usize, region::blocks(n));
         for rows in &mut self.rows {
@@ -675,36 +747,106 @@ impl Processor for SolveDensity {
             0 => (None, 0.0f32),
             _ => (Some(worst_at(0)), worst_at(1)),
         };
-        ctx.counters.iterations += pbf.iterations;
-        ctx.invalidate_grid(); // positions moved; the lists stay
         // A non-finite state shows in the positions (`bad`): the blocks'
         // largest densities, folded by `f32::max`, pass a NaN over.
         let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
-        let stuck = first.is_some_and(|first| worst >= first);
-        if bad || (worst > MAX_DENSITY_ERROR && stuck) {
-            return Err(Error::Unstable {
-                step: ctx.step,
-                time: ctx.time,
-                what: if bad {
-                    "a position became non-finite in the density constraint solve".into()
-                } else {
-                    format!(
-                        "the density constraint solve diverged: a density error of {:.0} % \
-                         after {} iterations, from {:.0} % at the first (above {:.0} %, no headway)",
-                        worst * 100.0,
-                        pbf.iterations,
-                        first.unwrap_or(worst) * 100.0,
-                        MAX_DENSITY_ERROR * 100.0
-                    )
-                },
-                hint: format!(
-                    "raise solver.pbf.iterations (now {}) or solver.pbf.substeps (now {}), \
-                     or lower solver.pbf.max_dt (now {:e} s); check that no particles start on top of each other",
-                    pbf.iterations, pbf.substeps, pbf.max_dt
-                ),
-            });
+        Headway { first, worst, bad }
+    }
+
+    /// Lines 8–19 as sweeps of Gauss–Seidel ([`PbfSolve::GaussSeidel`],
+    /// `coloured`): each constraint in turn moves its particle and the
+    /// neighbours from the positions the ones before it left.
+    fn gauss_seidel(
+        &mut self,
+        particles: &mut Particles,
+        lists: &NeighbourLists,
+        dt: f32,
+    ) -> Headway {
+        let model = &self.model;
+        let (rho0, pbf) = (model.params.rest_density, model.pbf);
+        let (n, iterations) = (particles.len(), pbf.iterations as usize);
+        let rows = &mut self.rows[0];
+        rows_of(particles.positions(), particles.masses(), rows);
+        let colouring = &mut self.colouring;
+        colouring.build(rows, model.params.h, model.params.gravity);
+        let colouring = &*colouring;
+        let columns = colouring.columns();
+        self.densest.resize(2 * columns, 0.0);
+        let per_pass = region::blocks(n);
+        self.finite.resize(per_pass, true);
+        let f = particles.fields_mut();
+        let sweep = coloured::Sweep {
+            model,
+            pbf: &model.pbf,
+            boundary: model.walls.boundary(),
+            lists,
+            dt,
+            rows: coloured::Shared::new(rows),
+            velocities: coloured::Shared::new(f.velocities),
+            pressures: coloured::Shared::new(f.pressures),
+            densities: coloured::Shared::new(f.densities),
+        };
+        let densest = coloured::Shared::new(&mut self.densest);
+        let lanes = Lanes::best();
+        // Sweep k's pass over colour c: item t is the colour's t-th column.
+        let pass = |k: usize, c: usize| {
+            let (sweep, densest) = (&sweep, &densest);
+            move |items: Range<usize>, _| {
+                let of_colour = colouring.colour(c);
+                for t in items.filter(|&t| t < of_colour.len()) {
+                    let t = of_colour.start + t;
+                    // SAFETY: the columns of colour c share no particle
+                    // (`coloured`), and each column is one item; the first
+                    // and last sweeps' densities are kept per column.
+                    let rho = unsafe { sweep.column(colouring, t, k, lanes) };
+                    if k == 0 {
+                        unsafe { densest.set(t, rho) };
+                    }
+                    if k + 1 == iterations {
+                        unsafe { densest.set(columns + t, rho) };
+                    }
+                }
+            }
+        };
+        let steps: Vec<OwnedPass<'_>> = (0..iterations)
+            .flat_map(|k| {
+                let colours: [usize; 4] =
+                    std::array::from_fn(|c| if k % 2 == 0 { c } else { 3 - c });
+                colours.map(|c| Box::new(pass(k, c)) as OwnedPass<'_>)
+            })
+            .collect();
+        let passes: Vec<Pass<'_>> = steps.iter().map(|p| &**p as Pass<'_>).collect();
+        if n > 0 {
+            region::run_by(colouring.widest(), 1, &passes);
         }
-        Ok(())
+        // Sleeping, and the solved positions back from the rows.
+        let sleep = pbf.sleep_speed;
+        let (positions, velocities) = (Blocks::new(f.positions), Blocks::new(f.velocities));
+        let finite = Blocks::new(&mut self.finite);
+        let rows = &self.rows[0];
+        let finish = |r: Range<usize>, block: usize| {
+            // SAFETY: each block writes its own particles.
+            let (x, v) = unsafe { (positions.block(r.clone()), velocities.block(r.clone())) };
+            for ((x, v), row) in x.iter_mut().zip(v.iter_mut()).zip(&rows[r]) {
+                *x = Vec3::new(row[0], row[1], row[2]);
+                if sleep > 0.0 && v.length() < sleep {
+                    *x -= *v * dt;
+                    *v = Vec3::ZERO;
+                }
+            }
+            unsafe { finite.block(block..block + 1)[0] = x.iter().all(|x| x.is_finite()) };
+        };
+        region::run(n, &[&finish]);
+        let worst_at = |row: usize| {
+            let rows = &self.densest[row * columns..(row + 1) * columns];
+            rows.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0
+        };
+        let (first, worst) = match iterations {
+            0 => (None, 0.0f32),
+            _ => (Some(worst_at(0)), worst_at(1)),
+        };
+        let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
+        Headway { first, worst, bad }
     }
 }
 

@@ -20,14 +20,21 @@ pub struct PbfParams {
     /// FleX's dam break runs 2 substeps × 3 iterations, with larger
     /// particles for its speeds.
     pub substeps: u32,
-    /// Jacobi iterations of the density constraint per substep. Default 3.
+    /// Iterations of the density constraint per substep (Jacobi sweeps, or
+    /// Gauss–Seidel sweeps under [`PbfSolve::GaussSeidel`]). Default 3.
     pub iterations: u32,
+    /// How the density constraints are solved: `"jacobi"` (default, the
+    /// paper's) or `"gauss-seidel"` (coloured Gauss–Seidel on the cubic
+    /// spline, the quieter water at rest; [`PbfSolve`]).
+    pub solve: PbfSolve,
     /// The over-relaxation ω of the Jacobi iterations: each position
     /// correction moves a particle by ω Δp_i instead of Δp_i (successive
     /// over-relaxation, as in Macklin et al. 2014, "Unified Particle
     /// Physics for Real-Time Applications", §4.2, and FleX's
     /// `relaxationFactor`). Each pair's term stays antisymmetric, so
-    /// momentum is kept. Default 1, the paper's plain Jacobi.
+    /// momentum is kept. Default 1, the paper's plain Jacobi. Under
+    /// [`PbfSolve::GaussSeidel`] each constraint's λ_i is scaled by ω
+    /// (successive over-relaxation proper).
     ///
     /// PBF's Jacobi iterations undershoot (each corrects a particle as if
     /// its neighbours stood still, while they move too), and ω > 1 makes up
@@ -141,11 +148,44 @@ pub enum PbfViscosity {
     Implicit,
 }
 
+/// How PBF solves its density constraints ([`PbfParams::solve`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PbfSolve {
+    /// Macklin & Müller 2013: poly6 densities, spiky gradients, and each
+    /// iteration a Jacobi sweep (every λ_i, then every particle moved by
+    /// its correction), with [`PbfParams::over_relaxation`] ω.
+    #[default]
+    Jacobi,
+    /// Every iteration a Gauss–Seidel sweep: each particle's constraint in
+    /// turn moves it and its neighbours by the pushes a Jacobi correction
+    /// would give them (ω times λ_i), from the positions its predecessors
+    /// left. The sweep visits blocks of 2h in eight colours, so that
+    /// blocks of one colour share no particle and run in parallel, and
+    /// goes backwards on odd iterations (a symmetric Gauss–Seidel). The
+    /// densities and their gradients are the cubic spline's, DFSPH's
+    /// kernel: a density whose own gradient moves the particles, where
+    /// Jacobi's spiky gradient of a poly6 density is not one. Masses are
+    /// the cubic spline's lattice masses
+    /// ([`crate::solver::Solver::particle_mass`]).
+    ///
+    /// It is what brings PBF water at rest near rest: in the 0.2 m pool of
+    /// `pool_at_rest` at the defaults otherwise, 19 mm/s rms at 2 s and
+    /// the free surface 1.2 % low, against Jacobi's 82 mm/s and 3.1 %
+    /// (`docs/benchmark-notes.md`, "Coloured Gauss–Seidel on the cubic
+    /// spline"). Neither half does it alone: Gauss–Seidel on Jacobi's
+    /// kernels jitters as Jacobi does, and Jacobi on the cubic spline needs
+    /// ω = ½. s_corr is not applied ([`PbfParams::scorr_k`] must stay 0),
+    /// and the GPU path runs only Jacobi.
+    GaussSeidel,
+}
+
 impl Default for PbfParams {
     fn default() -> Self {
         Self {
             substeps: 3,
             iterations: 3,
+            solve: PbfSolve::Jacobi,
             over_relaxation: 1.0,
             max_dt: 1.0 / 180.0,
             relaxation: 0.01,
@@ -365,7 +405,8 @@ impl PbfParams {
     }
 
     /// Refuses a field the other settings leave unread, set away from its
-    /// default: nothing a scene gives is silently dropped. XSPH's blend is
+    /// default: nothing a scene gives is silently dropped. s_corr is
+    /// applied only by [`PbfSolve::Jacobi`], XSPH's blend is
     /// read only under [`PbfViscosity::Xsph`], the implicit viscosity's
     /// tolerance and iterations only under [`PbfViscosity::Implicit`], and
     /// s_corr's n and Δq only where its k is above 0. A field written out
@@ -379,6 +420,13 @@ impl PbfParams {
         let xsph = self.viscosity == PbfViscosity::Xsph;
         let scorr_off = self.scorr_k == 0.0;
         let unread = [
+            (
+                "pbf.scorr_k",
+                self.solve == PbfSolve::GaussSeidel && !scorr_off,
+                f64::from(self.scorr_k),
+                "is not applied by solve = \"gauss-seidel\", whose sweeps move particles by \
+                 their constraints alone: leave it out, or set solve = \"jacobi\"",
+            ),
             (
                 "pbf.xsph",
                 !xsph && self.xsph != d.xsph,
