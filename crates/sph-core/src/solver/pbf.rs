@@ -82,7 +82,15 @@
 //!   it also stops any real motion slower than the threshold and needs
 //!   damping and more iterations to reach below it (in a 0.2 m pool: XSPH
 //!   0.1 and 4 iterations instead of 3, a third more Jacobi passes), which
-//!   the dam break does not want.
+//!   the dam break does not want. [`PbfSolve::GaussSeidel`] takes away most
+//!   of the jitter's source instead: with the cubic spline's density and
+//!   its own gradient, solved constraint by constraint (`coloured`), the
+//!   same pool keeps 21.6 mm/s at 3 substeps and 10.8 at 4, for about
+//!   twice the density station's time.
+//! - **Gauss–Seidel** ([`PbfParams::solve`]): the sweeps move particles in
+//!   place, so lines 12–21 run per constraint: i and its neighbours move
+//!   by the terms of Δp that constraint i gives them, each projected out of
+//!   the walls, and their velocities by that motion over Δt.
 //! - **Guard.** The predicted displacement per substep is limited to
 //!   [`PbfParams::max_displacement`] × h (FleX clamps speed the same way);
 //!   every clamped particle is counted in [`crate::StepCounters::clamped`].
@@ -471,7 +479,9 @@ struct Constraint {
 /// density constraint. Each computes every λ_i, then every position
 /// correction Δp_i = (1/ρ0) Σ_j m_j (λ_i + λ_j + s_corr) ∇W_ij plus the
 /// walls' λ_i ∇_i(ρ_wall/ρ0), moves each particle by it and back out of
-/// walls, and adds that motion over Δt to its velocity.
+/// walls, and adds that motion over Δt to its velocity. Under
+/// [`PbfSolve::GaussSeidel`] each iteration is instead a sweep of the
+/// constraints one by one, in coloured columns (`coloured`).
 ///
 /// Writes the pressure the solve applied into [`Particles::pressures`]:
 /// p_i = −ω ρ0 Σ_k λ_i^k / Δt² over the iterations k. A pressure
