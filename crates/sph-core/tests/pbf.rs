@@ -1082,3 +1082,32 @@ fn a_large_drop_swings_as_slowly_as_an_inviscid_one() {
         );
     }
 }
+
+/// Gauss–Seidel's columns keep threads apart only for neighbour lists of
+/// the fluid's h: a program whose grid and lists are of another radius
+/// is refused by the density station, not run with two threads writing
+/// one particle. (Jacobi reads such lists without harm to memory.)
+#[test]
+fn gauss_seidel_refuses_lists_of_another_radius() {
+    use sph_core::solver::BuildGrid;
+    use sph_core::solver::pbf::FindNeighbours;
+    let mut scene = Scene::dam_break(0.16, 0.08, 0.02).with_solver(SolverKind::Pbf);
+    scene.solver.pbf = Some(PbfParams {
+        solve: PbfSolve::GaussSeidel,
+        ..scene.pbf_params()
+    });
+    let mut world = scene.build_world().unwrap();
+    world.advance(1.0 / 60.0).unwrap();
+    let wide = 2.0 * scene.fluid.h;
+    let program = world.program_mut();
+    assert!(program.remove("grid") && program.remove("neighbours"));
+    assert!(program.insert_before("density", BuildGrid::new(wide, 1)));
+    assert!(program.insert_before("density", FindNeighbours::new(wide)));
+    match world.advance(1.0 / 60.0) {
+        Err(Error::Pipeline { processor, reason }) => {
+            assert_eq!(processor, "density");
+            assert!(reason.contains("gauss-seidel"), "{reason}");
+        }
+        other => panic!("expected the density station to refuse: {other:?}"),
+    }
+}

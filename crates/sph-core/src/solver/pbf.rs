@@ -515,8 +515,11 @@ pub struct SolveDensity {
     densest: Vec<f32>,
     /// Whether a block's final positions are all finite.
     finite: Vec<bool>,
-    /// Gauss–Seidel's blocks ([`PbfSolve::GaussSeidel`]).
+    /// Gauss–Seidel's columns ([`PbfSolve::GaussSeidel`]).
     colouring: coloured::Colouring,
+    /// Each particle's farthest neighbour's |r|², Gauss–Seidel's check of
+    /// its lists.
+    farthest: Vec<f32>,
 }
 
 /// A solve's headway: the largest density error at its first and last
@@ -576,6 +579,7 @@ impl SolveDensity {
             densest: Vec::new(),
             finite: Vec::new(),
             colouring: coloured::Colouring::default(),
+            farthest: Vec::new(),
         }
     }
 }
@@ -596,7 +600,7 @@ impl Processor for SolveDensity {
         check_sleep_at(pbf.sleep_speed, self.model.params.gravity.length(), dt)?;
         let Headway { first, worst, bad } = match pbf.solve {
             PbfSolve::Jacobi => self.jacobi(particles, lists, dt),
-            PbfSolve::GaussSeidel => self.gauss_seidel(particles, lists, dt),
+            PbfSolve::GaussSeidel => self.gauss_seidel(particles, lists, dt)?,
         };
         ctx.counters.iterations += pbf.iterations;
         ctx.invalidate_grid(); // positions moved; the lists stay
@@ -766,17 +770,22 @@ impl SolveDensity {
     /// Lines 8–19 as sweeps of Gauss–Seidel ([`PbfSolve::GaussSeidel`],
     /// `coloured`): each constraint in turn moves its particle and the
     /// neighbours from the positions the ones before it left.
+    ///
+    /// # Errors
+    /// [`Error::Pipeline`] where a pair of `lists` is farther apart than h:
+    /// lists that the colouring cannot keep apart ([`coloured::check_lists`]).
     fn gauss_seidel(
         &mut self,
         particles: &mut Particles,
         lists: &NeighbourLists,
         dt: f32,
-    ) -> Headway {
+    ) -> Result<Headway> {
         let model = &self.model;
         let (rho0, pbf) = (model.params.rest_density, model.pbf);
         let (n, iterations) = (particles.len(), pbf.iterations as usize);
         let rows = &mut self.rows[0];
         rows_of(particles.positions(), particles.masses(), rows);
+        coloured::check_lists(rows, lists, model.params.h, &mut self.farthest)?;
         let colouring = &mut self.colouring;
         colouring.build(rows, model.params.h, model.params.gravity);
         let colouring = &*colouring;
@@ -785,49 +794,52 @@ impl SolveDensity {
         let per_pass = region::blocks(n);
         self.finite.resize(per_pass, true);
         let f = particles.fields_mut();
-        let sweep = coloured::Sweep {
-            model,
-            pbf: &model.pbf,
-            boundary: model.walls.boundary(),
-            lists,
-            dt,
-            rows: coloured::Shared::new(rows),
-            velocities: coloured::Shared::new(f.velocities),
-            pressures: coloured::Shared::new(f.pressures),
-            densities: coloured::Shared::new(f.densities),
-        };
-        let densest = coloured::Shared::new(&mut self.densest);
-        let lanes = Lanes::best();
-        // Sweep k's pass over colour c: item t is the colour's t-th column.
-        let pass = |k: usize, c: usize| {
-            let (sweep, densest) = (&sweep, &densest);
-            move |items: Range<usize>, _| {
-                let of_colour = colouring.colour(c);
-                for t in items.filter(|&t| t < of_colour.len()) {
-                    let t = of_colour.start + t;
-                    // SAFETY: the columns of colour c share no particle
-                    // (`coloured`), and each column is one item; the first
-                    // and last sweeps' densities are kept per column.
-                    let rho = unsafe { sweep.column(colouring, t, k, lanes) };
-                    if k == 0 {
-                        unsafe { densest.set(t, rho) };
-                    }
-                    if k + 1 == iterations {
-                        unsafe { densest.set(columns + t, rho) };
+        // The sweeps, in a scope of their own: `Shared` borrows what they write.
+        {
+            let sweep = coloured::Sweep {
+                model,
+                pbf: &model.pbf,
+                boundary: model.walls.boundary(),
+                lists,
+                dt,
+                rows: coloured::Shared::new(rows),
+                velocities: coloured::Shared::new(f.velocities),
+                pressures: coloured::Shared::new(f.pressures),
+                densities: coloured::Shared::new(f.densities),
+            };
+            let densest = coloured::Shared::new(&mut self.densest);
+            let lanes = Lanes::best();
+            // Sweep k's pass over colour c: item t is the colour's t-th column.
+            let pass = |k: usize, c: usize| {
+                let (sweep, densest) = (&sweep, &densest);
+                move |items: Range<usize>, _| {
+                    let of_colour = colouring.colour(c);
+                    for t in items.filter(|&t| t < of_colour.len()) {
+                        let t = of_colour.start + t;
+                        // SAFETY: the columns of colour c share no particle
+                        // (`coloured`), and each column is one item; the first
+                        // and last sweeps' densities are kept per column.
+                        let rho = unsafe { sweep.column(colouring, t, k, lanes) };
+                        if k == 0 {
+                            unsafe { densest.set(t, rho) };
+                        }
+                        if k + 1 == iterations {
+                            unsafe { densest.set(columns + t, rho) };
+                        }
                     }
                 }
+            };
+            let steps: Vec<OwnedPass<'_>> = (0..iterations)
+                .flat_map(|k| {
+                    let colours: [usize; 4] =
+                        std::array::from_fn(|c| if k % 2 == 0 { c } else { 3 - c });
+                    colours.map(|c| Box::new(pass(k, c)) as OwnedPass<'_>)
+                })
+                .collect();
+            let passes: Vec<Pass<'_>> = steps.iter().map(|p| &**p as Pass<'_>).collect();
+            if n > 0 {
+                region::run_by(colouring.widest(), 1, &passes);
             }
-        };
-        let steps: Vec<OwnedPass<'_>> = (0..iterations)
-            .flat_map(|k| {
-                let colours: [usize; 4] =
-                    std::array::from_fn(|c| if k % 2 == 0 { c } else { 3 - c });
-                colours.map(|c| Box::new(pass(k, c)) as OwnedPass<'_>)
-            })
-            .collect();
-        let passes: Vec<Pass<'_>> = steps.iter().map(|p| &**p as Pass<'_>).collect();
-        if n > 0 {
-            region::run_by(colouring.widest(), 1, &passes);
         }
         // Sleeping, and the solved positions back from the rows.
         let sleep = pbf.sleep_speed;
@@ -847,6 +859,10 @@ impl SolveDensity {
             unsafe { finite.block(block..block + 1)[0] = x.iter().all(|x| x.is_finite()) };
         };
         region::run(n, &[&finish]);
+        // The first sweep's largest density is taken as each constraint
+        // is, after those before it have moved its neighbours: below
+        // Jacobi's first reading, so a solve that makes no headway is
+        // caught a little sooner.
         let worst_at = |row: usize| {
             let rows = &self.densest[row * columns..(row + 1) * columns];
             rows.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0
@@ -856,7 +872,7 @@ impl SolveDensity {
             _ => (Some(worst_at(0)), worst_at(1)),
         };
         let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
-        Headway { first, worst, bad }
+        Ok(Headway { first, worst, bad })
     }
 }
 

@@ -21,11 +21,15 @@ use std::ops::Range;
 
 use glam::Vec3;
 
+use std::marker::PhantomData;
+
 use super::{Model, PbfParams};
 use crate::NeighbourLists;
 use crate::boundary::Boundary;
+use crate::error::{Error, Result};
 use crate::simd::{F32x8, LaneFn, Lanes};
-use crate::solver::lanes::{DensitySums, Near};
+use crate::solver::lane_map::{LaneMap, par_map};
+use crate::solver::lanes::{DensitySums, LANES, Near};
 
 /// Block edge over h: a little over 2, so that f32 rounding in the lists'
 /// distances cannot make a particle within h of two columns of one colour.
@@ -230,23 +234,27 @@ impl Colouring {
 }
 
 /// Memory that the columns of one colour write in parallel, each at the
-/// particles its colour gives it alone ([`Colouring`]).
+/// particles its colour gives it alone ([`Colouring`]): element by element,
+/// never as a slice, so that no thread holds a reference over elements
+/// another writes.
 #[derive(Clone, Copy)]
-pub(super) struct Shared<T> {
+pub(super) struct Shared<'a, T> {
     ptr: *mut T,
     len: usize,
+    borrowed: PhantomData<&'a mut [T]>,
 }
 
 // SAFETY: `Shared` hands out its elements only through its unsafe methods,
 // whose callers keep different threads on different elements.
-unsafe impl<T: Send> Send for Shared<T> {}
-unsafe impl<T: Send> Sync for Shared<T> {}
+unsafe impl<T: Send> Send for Shared<'_, T> {}
+unsafe impl<T: Send> Sync for Shared<'_, T> {}
 
-impl<T: Copy> Shared<T> {
-    pub(super) fn new(values: &mut [T]) -> Self {
+impl<'a, T: Copy> Shared<'a, T> {
+    pub(super) fn new(values: &'a mut [T]) -> Self {
         Self {
             ptr: values.as_mut_ptr(),
             len: values.len(),
+            borrowed: PhantomData,
         }
     }
 
@@ -256,7 +264,7 @@ impl<T: Copy> Shared<T> {
     /// No other thread writes element `i` meanwhile.
     #[inline(always)]
     pub(super) unsafe fn get(&self, i: usize) -> T {
-        debug_assert!(i < self.len);
+        assert!(i < self.len);
         unsafe { self.ptr.add(i).read() }
     }
 
@@ -266,20 +274,59 @@ impl<T: Copy> Shared<T> {
     /// No other thread reads or writes element `i` meanwhile.
     #[inline(always)]
     pub(super) unsafe fn set(&self, i: usize, value: T) {
-        debug_assert!(i < self.len);
+        assert!(i < self.len);
         unsafe { self.ptr.add(i).write(value) }
     }
+}
 
-    /// The whole slice, for reads.
-    ///
-    /// # Safety
-    /// While it lives, no thread writes an element that the caller reads
-    /// through it, and this thread writes none.
+/// The farthest neighbour's |r|² of each particle: what
+/// [`check_lists`] compares with h².
+struct Farthest<'a> {
+    rows: &'a [[f32; 4]],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneMap for Farthest<'_> {
+    type Out = f32;
     #[inline(always)]
-    pub(super) unsafe fn all(&self) -> &[T] {
-        unsafe { std::slice::from_raw_parts(self.ptr, self.len) }
+    fn particle<S: F32x8>(&self, i: usize) -> f32 {
+        let mut far = S::splat(0.0);
+        for (_, slots, count) in self.lists.lanes(i) {
+            let c = Near::<S>::gather(self.rows[i], self.rows, slots, count);
+            far = far.max(c.r2() * S::first(count));
+        }
+        far.to_array().into_iter().fold(0.0, f32::max)
     }
 }
+
+/// Checks that every pair of `lists` is within h (to a thousandth) at
+/// `rows`, as the colouring's proof that a colour's columns share no
+/// particle needs: lists found for another radius, or before the
+/// particles moved, would let two threads write one particle.
+///
+/// # Errors
+/// [`Error::Pipeline`] naming the density station.
+pub(super) fn check_lists(
+    rows: &[[f32; 4]],
+    lists: &NeighbourLists,
+    h: f32,
+    farthest: &mut Vec<f32>,
+) -> Result<()> {
+    par_map(&Farthest { rows, lists }, rows.len(), farthest);
+    let far = farthest.iter().copied().fold(0.0, f32::max);
+    if far <= h * h * (1.0 + 1e-3) {
+        return Ok(());
+    }
+    Err(Error::Pipeline {
+        processor: "density",
+        reason: "solve = \"gauss-seidel\" needs the neighbour lists of this fluid's h, found on \
+                 the positions it starts from: put `grid` and `neighbours` (of the fluid's h) \
+                 right before it",
+    })
+}
+
+/// A chunk's own lanes, for gathers from its copied rows.
+const LOCAL: [u32; LANES] = [0, 1, 2, 3, 4, 5, 6, 7];
 
 /// Chunks of neighbours whose kernel gradients a constraint keeps between
 /// its density sum and its pushes: 64 neighbours, about twice a particle's
@@ -294,11 +341,11 @@ pub(super) struct Sweep<'a> {
     pub(super) lists: &'a NeighbourLists,
     pub(super) dt: f32,
     /// (x, m) per particle, moved in place.
-    pub(super) rows: Shared<[f32; 4]>,
-    pub(super) velocities: Shared<Vec3>,
-    pub(super) pressures: Shared<f32>,
+    pub(super) rows: Shared<'a, [f32; 4]>,
+    pub(super) velocities: Shared<'a, Vec3>,
+    pub(super) pressures: Shared<'a, f32>,
     /// Each particle's density when its constraint was last taken.
-    pub(super) densities: Shared<f32>,
+    pub(super) densities: Shared<'a, f32>,
 }
 
 /// One column of one sweep, for [`Lanes::run`].
@@ -362,32 +409,33 @@ impl Sweep<'_> {
     fn relax<S: F32x8>(&self, i: usize, k: usize) -> f32 {
         let m = self.model;
         // SAFETY (the reads and writes below): particle i and its neighbours
-        // are the caller's alone (`Sweep::column`); the lanes past i's own
-        // neighbours are pointed back at its first, so nothing else is
-        // read. Each phase ends before the next begins on this thread.
+        // are the caller's alone (`Sweep::column`, `check_lists`); a
+        // chunk's lanes past i's own neighbours (`NeighbourLists::lanes`)
+        // are not read.
         let xi = unsafe { self.rows.get(i) };
         let (rho_wall, wall) = m.walls_at(Vec3::new(xi[0], xi[1], xi[2]));
         let inv_rho0 = S::splat(m.inv_rho0);
+        // Each chunk's rows copied out one by one (see `Shared`); the lanes
+        // past i's own neighbours stay empty (no mass).
         let chunks = || {
             self.lists.lanes(i).map(|(_, slots, count)| {
-                let mut own = *slots;
-                own[count..].fill(slots[0]);
-                (own, count)
+                let mut near = [[0.0; 4]; LANES];
+                for (row, &j) in near.iter_mut().zip(&slots[..count]) {
+                    *row = unsafe { self.rows.get(j as usize) };
+                }
+                (near, *slots, count)
             })
         };
         // The first chunks' ∇W_ij, kept for the pushes; longer lists
         // gather the rest again.
         let mut kept = [[S::splat(0.0); 3]; KEPT];
         let mut sums = DensitySums::new();
-        {
-            let rows = unsafe { self.rows.all() };
-            for (q, (slots, count)) in chunks().enumerate() {
-                let c = Near::<S>::gather(xi, rows, &slots, count);
-                let (w, s) = m.lanes.eval(c.r2());
-                sums.add(&c, w, s, inv_rho0);
-                if q < KEPT {
-                    kept[q] = [c.d[0] * s, c.d[1] * s, c.d[2] * s];
-                }
+        for (q, (near, _, count)) in chunks().enumerate() {
+            let c = Near::<S>::gather(xi, &near, &LOCAL, count);
+            let (w, s) = m.lanes.eval(c.r2());
+            sums.add(&c, w, s, inv_rho0);
+            if q < KEPT {
+                kept[q] = [c.d[0] * s, c.d[1] * s, c.d[2] * s];
             }
         }
         let (rho_sum, grad_sum, squares) = sums.finish();
@@ -407,12 +455,11 @@ impl Sweep<'_> {
         }
         // The neighbours' pushes, −λ_i (m_i/ρ0) ∇W_ij.
         let f = S::splat(-lambda * xi[3] * m.inv_rho0);
-        for (q, (slots, count)) in chunks().enumerate() {
+        for (q, (near, slots, count)) in chunks().enumerate() {
             let grad = if q < KEPT {
                 kept[q]
             } else {
-                let rows = unsafe { self.rows.all() };
-                let c = Near::<S>::gather(xi, rows, &slots, count);
+                let c = Near::<S>::gather(xi, &near, &LOCAL, count);
                 let (_, s) = m.lanes.eval(c.r2());
                 [c.d[0] * s, c.d[1] * s, c.d[2] * s]
             };

@@ -160,23 +160,26 @@ pub enum PbfSolve {
     /// Every iteration a Gauss–Seidel sweep: each particle's constraint in
     /// turn moves it and its neighbours by the pushes a Jacobi correction
     /// would give them (ω times λ_i), from the positions its predecessors
-    /// left. The sweep visits blocks of 2h in eight colours, so that
-    /// blocks of one colour share no particle and run in parallel, and
-    /// goes backwards on odd iterations (a symmetric Gauss–Seidel). The
-    /// densities and their gradients are the cubic spline's, DFSPH's
-    /// kernel: a density whose own gradient moves the particles, where
-    /// Jacobi's spiky gradient of a poly6 density is not one. Masses are
-    /// the cubic spline's lattice masses
+    /// left. The sweep visits columns along gravity, 2h wide, in four
+    /// colours, so that columns of one colour share no particle and run in
+    /// parallel, each from the bottom up; odd sweeps go backwards (a
+    /// symmetric Gauss–Seidel). The whole PBF step then uses the cubic
+    /// spline, DFSPH's kernel, where Jacobi uses poly6 and spiky: the
+    /// constraint's density and its own gradient (Jacobi's spiky gradient
+    /// of a poly6 density is not one), and also the vorticity station's
+    /// curl, XSPH's weights and the densities it reports. Masses are the
+    /// cubic spline's lattice masses
     /// ([`crate::solver::Solver::particle_mass`]).
     ///
-    /// It is what brings PBF water at rest near rest: in the 0.2 m pool of
-    /// `pool_at_rest` at the defaults otherwise, 19 mm/s rms at 2 s and
-    /// the free surface 1.2 % low, against Jacobi's 82 mm/s and 3.1 %
-    /// (`docs/benchmark-notes.md`, "Coloured Gauss–Seidel on the cubic
-    /// spline"). Neither half does it alone: Gauss–Seidel on Jacobi's
-    /// kernels jitters as Jacobi does, and Jacobi on the cubic spline needs
-    /// ω = ½. s_corr is not applied ([`PbfParams::scorr_k`] must stay 0),
-    /// and the GPU path runs only Jacobi.
+    /// It is what brings PBF water at rest nearest rest: in the 0.2 m pool
+    /// of `pool_at_rest`, 21.6 mm/s rms at 2 s and the free surface 2.4 %
+    /// low at the other defaults, 10.8 mm/s at 4 substeps, against
+    /// Jacobi's 81.7 mm/s and 3.1 % (`docs/benchmark-notes.md`, "Coloured
+    /// Gauss–Seidel on the cubic spline"). Neither half does it alone:
+    /// Gauss–Seidel on Jacobi's kernels jitters as Jacobi does, and Jacobi
+    /// on the cubic spline needs ω = ½. Its density solve costs about 2.5
+    /// times Jacobi's. s_corr is not applied ([`PbfParams::scorr_k`] must
+    /// stay 0), and the GPU path runs only Jacobi.
     GaussSeidel,
 }
 
@@ -314,7 +317,7 @@ impl PbfParams {
             "pbf.over_relaxation",
             w.into(),
             w > 0.0 && w < 2.0,
-            "must lie in (0, 2): 1 is plain Jacobi, 2 and above diverge",
+            "must lie in (0, 2): 1 is plain Jacobi or Gauss–Seidel, 2 and above diverge",
         )?;
         let dt = self.max_dt;
         check(
