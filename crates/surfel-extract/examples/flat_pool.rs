@@ -3,12 +3,13 @@
 //! against the particles' N m/ρ0.
 //!
 //! `cargo run --release -p surfel-extract --example flat_pool [-- SOLVER
-//! [--solver-toml 'pbf = { ... }']]`
+//! [--solver-toml 'pbf = { ... }'] [--depth D]]`
 //!
 //! The pool: 0.6 × 0.2 × 0.6 m of water at 2 cm spacing (h = 4 cm) in a
-//! 0.6 × 0.4 × 0.6 m tank, settled for 2 s by DFSPH, or by the solver named
-//! (`wcsph`, `pbf`, `dfsph`), with the body of a `[solver]` table (without
-//! `kind`) where given.
+//! 0.6 × 0.4 × 0.6 m tank (`--depth D`: D deep, in a tank 0.2 m deeper),
+//! settled for 2 s by DFSPH, or by the solver named (`wcsph`, `pbf`,
+//! `dfsph`), with the body of a `[solver]` table (without `kind`) where
+//! given.
 
 use std::time::Instant;
 
@@ -17,15 +18,16 @@ use sph_core::{Scene, SolverKind, World};
 use surfel_extract::anisotropy::Centres;
 use surfel_extract::{Anisotropy, ExtractParams, Extractor, Surface, coverage};
 
-/// The pool settled by `kind` with the solver parameters of `spec`.
-pub fn settled_pool(kind: SolverKind, spec: SolverSpec) -> (Scene, World) {
+/// The pool, `depth` deep, settled by `kind` with the solver parameters of
+/// `spec`.
+pub fn settled_pool(kind: SolverKind, spec: SolverSpec, depth: f32) -> (Scene, World) {
     let spacing = 0.02;
     let mut scene = Scene::dam_break(0.15, 0.6, spacing);
     scene.solver = SolverSpec { kind, ..spec };
     scene.domain.min = [0.0; 3];
-    scene.domain.max = [0.6, 0.4, 0.6];
+    scene.domain.max = [0.6, depth + 0.2, 0.6];
     scene.blocks[0].min = [0.0; 3];
-    scene.blocks[0].max = [0.6, 0.2, 0.6];
+    scene.blocks[0].max = [0.6, depth, 0.6];
     let mut world = scene.build_world().expect("the pool builds");
     for _ in 0..120 {
         world.advance(1.0 / 60.0).expect("the pool settles");
@@ -62,7 +64,17 @@ fn main() {
         }
     };
     let start = Instant::now();
-    let (scene, world) = settled_pool(kind, spec);
+    let depth = match args.iter().position(|a| a == "--depth") {
+        Some(at) => match args.get(at + 1).and_then(|d| d.parse::<f32>().ok()) {
+            Some(d) if d > 0.0 && d <= 1.0 => d,
+            _ => {
+                eprintln!("--depth: a depth in (0, 1] m");
+                std::process::exit(2);
+            }
+        },
+        None => 0.2,
+    };
+    let (scene, world) = settled_pool(kind, spec, depth);
     let p = &world.particles;
     let h = scene.fluid.h;
     let volume: f64 = p
