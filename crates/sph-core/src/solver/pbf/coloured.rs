@@ -16,12 +16,15 @@
 //! (a symmetric Gauss–Seidel). What a column does depends only on the
 //! positions the colours before it left, never on the threads: results are
 //! bitwise the same for any number.
+//!
+//! The argument needs lists of the fluid's h on the positions the sweeps
+//! start from, which a custom program need not give: [`check_lists`]
+//! checks every pair first, and refuses other lists.
 
+use std::marker::PhantomData;
 use std::ops::Range;
 
 use glam::Vec3;
-
-use std::marker::PhantomData;
 
 use super::{Model, PbfParams};
 use crate::NeighbourLists;
