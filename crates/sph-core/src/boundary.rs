@@ -351,6 +351,22 @@ impl Boundary {
     /// solvers derive the velocity from the motion afterwards).
     #[inline]
     pub fn project(&self, x: &mut Vec3) {
+        if self.obstacles.is_empty() {
+            // The walls alone: each axis back inside, as the first round of
+            // `resolve_slow` does (a second finds nothing to move), without
+            // its call for the particles on a wall's clearance plane that
+            // every push into the wall sends there.
+            let c = self.clearance;
+            let (min, max) = (self.domain.min + c, self.domain.max - c);
+            for a in 0..3 {
+                if x[a] < min[a] {
+                    x[a] = min[a];
+                } else if x[a] > max[a] {
+                    x[a] = max[a];
+                }
+            }
+            return;
+        }
         let mut v = Vec3::ZERO;
         self.resolve(x, &mut v);
     }
