@@ -418,22 +418,12 @@ impl Sweep<'_> {
         let xi = unsafe { self.rows.get(i) };
         let (rho_wall, wall) = m.walls_at(Vec3::new(xi[0], xi[1], xi[2]));
         let inv_rho0 = S::splat(m.inv_rho0);
-        // Each chunk's rows copied out one by one (see `Shared`); the lanes
-        // past i's own neighbours stay empty (no mass).
-        let chunks = || {
-            self.lists.lanes(i).map(|(_, slots, count)| {
-                let mut near = [[0.0; 4]; LANES];
-                for (row, &j) in near.iter_mut().zip(&slots[..count]) {
-                    *row = unsafe { self.rows.get(j as usize) };
-                }
-                (near, *slots, count)
-            })
-        };
         // The first chunks' ∇W_ij, kept for the pushes; longer lists
         // gather the rest again.
         let mut kept = [[S::splat(0.0); 3]; KEPT];
         let mut sums = DensitySums::new();
-        for (q, (near, _, count)) in chunks().enumerate() {
+        for (q, (_, slots, count)) in self.lists.lanes(i).enumerate() {
+            let near = self.near(slots, count);
             let c = Near::<S>::gather(xi, &near, &LOCAL, count);
             let (w, s) = m.lanes.eval(c.r2());
             sums.add(&c, w, s, inv_rho0);
@@ -458,10 +448,11 @@ impl Sweep<'_> {
         }
         // The neighbours' pushes, −λ_i (m_i/ρ0) ∇W_ij.
         let f = S::splat(-lambda * xi[3] * m.inv_rho0);
-        for (q, (near, slots, count)) in chunks().enumerate() {
+        for (q, (_, slots, count)) in self.lists.lanes(i).enumerate() {
             let grad = if q < KEPT {
                 kept[q]
             } else {
+                let near = self.near(slots, count);
                 let c = Near::<S>::gather(xi, &near, &LOCAL, count);
                 let (_, s) = m.lanes.eval(c.r2());
                 [c.d[0] * s, c.d[1] * s, c.d[2] * s]
@@ -478,6 +469,18 @@ impl Sweep<'_> {
         }
         self.shift(i, lambda * grad_i);
         rho
+    }
+
+    /// The rows of a chunk's first `count` neighbours, copied out one by
+    /// one (see [`Shared`]); the lanes past them stay empty (no mass).
+    #[inline(always)]
+    fn near(&self, slots: &[u32; LANES], count: usize) -> [[f32; 4]; LANES] {
+        let mut near = [[0.0; 4]; LANES];
+        for (row, &j) in near.iter_mut().zip(&slots[..count]) {
+            // SAFETY: as in `relax`.
+            *row = unsafe { self.rows.get(j as usize) };
+        }
+        near
     }
 
     /// Moves particle `i` by `dx` and out of the walls, and its velocity
