@@ -86,7 +86,7 @@
 //!   of the jitter's source instead: with the cubic spline's density and
 //!   its own gradient, solved constraint by constraint (`coloured`), the
 //!   same pool keeps 21.6 mm/s at 3 substeps and 10.8 at 4, for about
-//!   2.5 times the density station's time.
+//!   2.3 times the density station's time.
 //! - **Gauss–Seidel** ([`PbfParams::solve`]): the sweeps move particles in
 //!   place, so lines 12–21 run per constraint: i and its neighbours move
 //!   by the terms of Δp that constraint i gives them, each projected out of

@@ -177,7 +177,7 @@ pub enum PbfSolve {
     /// Jacobi's 81.7 mm/s and 3.1 % (`docs/benchmark-notes.md`, "Coloured
     /// Gauss–Seidel on the cubic spline"). Neither half does it alone:
     /// Gauss–Seidel on Jacobi's kernels jitters as Jacobi does, and Jacobi
-    /// on the cubic spline needs ω = ½. Its density solve costs about 2.5
+    /// on the cubic spline needs ω = ½. Its density solve costs about 2.3
     /// times Jacobi's. s_corr is not applied ([`PbfParams::scorr_k`] must
     /// stay 0), and the GPU path runs only Jacobi.
     GaussSeidel,
