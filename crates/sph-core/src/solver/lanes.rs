@@ -19,41 +19,32 @@ use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 /// Neighbours per chunk.
 pub(super) const LANES: usize = 8;
 
-/// PBF's pair kernels per lane, from |r|²: poly6 W and the spiky
-/// gradient's factor s (∇W_spiky = s r), the same formulas as
-/// [`Poly6::value_r2`] and [`Spiky::gradient_len`] written without
-/// branches; or, built by [`LaneKernels::with_cubic`], the cubic spline's W and
-/// its own gradient ([`LaneCubic`]).
+/// PBF's pair kernels per lane, from |r|²: W and the gradient's factor s
+/// (∇W = s r).
 #[derive(Debug, Clone, Copy)]
-pub(super) struct LaneKernels {
-    h: f32,
-    h2: f32,
-    poly6: f32,
-    spiky: f32,
-    /// The smallest |r| divided by: 1e-6 h.
-    tiny: f32,
-    /// The cubic spline in place of the pair above.
-    cubic: Option<LaneCubic>,
+pub(super) enum LaneKernels {
+    /// Poly6 W and spiky's s, the same formulas as [`Poly6::value_r2`] and
+    /// [`Spiky::gradient_len`] written without branches (Jacobi's pair).
+    Poly6Spiky {
+        h: f32,
+        h2: f32,
+        poly6: f32,
+        spiky: f32,
+        /// The smallest |r| divided by: 1e-6 h.
+        tiny: f32,
+    },
+    /// The cubic spline's W and its own gradient (Gauss–Seidel's).
+    Cubic(LaneCubic),
 }
 
 impl LaneKernels {
-    pub(super) fn new(poly6: &Poly6, spiky: &Spiky, h: f32) -> Self {
-        Self {
+    pub(super) fn poly6_spiky(poly6: &Poly6, spiky: &Spiky, h: f32) -> Self {
+        Self::Poly6Spiky {
             h,
             h2: h * h,
             poly6: poly6.coefficients().0,
             spiky: spiky.coefficient(),
             tiny: h * 1e-6,
-            cubic: None,
-        }
-    }
-
-    /// These lanes with the cubic spline's W and gradient factor instead
-    /// of poly6's and spiky's.
-    pub(super) fn with_cubic(self, cubic: &CubicSpline) -> Self {
-        Self {
-            cubic: Some(LaneCubic::new(cubic)),
-            ..self
         }
     }
 
@@ -62,16 +53,24 @@ impl LaneKernels {
     /// has a finite s times a zero offset.
     #[inline(always)]
     pub(super) fn eval<S: F32x8>(&self, r2: S) -> (S, S) {
-        if let Some(cubic) = &self.cubic {
-            return cubic.eval(r2);
+        match self {
+            Self::Cubic(cubic) => cubic.eval(r2),
+            &Self::Poly6Spiky {
+                h,
+                h2,
+                poly6,
+                spiky,
+                tiny,
+            } => {
+                let zero = S::splat(0.0);
+                let d = (S::splat(h2) - r2).max(zero);
+                let w = S::splat(poly6) * d * d * d;
+                let len = r2.sqrt();
+                let t = (S::splat(h) - len).max(zero);
+                let s = S::splat(-spiky) * t * t / len.max(S::splat(tiny));
+                (w, s)
+            }
         }
-        let zero = S::splat(0.0);
-        let d = (S::splat(self.h2) - r2).max(zero);
-        let w = S::splat(self.poly6) * d * d * d;
-        let len = r2.sqrt();
-        let t = (S::splat(self.h) - len).max(zero);
-        let s = S::splat(-self.spiky) * t * t / len.max(S::splat(self.tiny));
-        (w, s)
     }
 }
 

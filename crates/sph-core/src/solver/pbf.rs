@@ -109,7 +109,7 @@ use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
 use super::lane_map::{LaneMap, fill_block};
-use super::lanes::{DensitySums, LaneKernels, Near, rows_of};
+use super::lanes::{DensitySums, LaneCubic, LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
 use super::surface_tension::SurfaceTension;
@@ -279,12 +279,11 @@ impl Model {
         let h = params.h;
         let (poly6, spiky) = (Poly6::new(h)?, Spiky::new(h)?);
         let dq = pbf.scorr_dq * h;
-        let lanes = LaneKernels::new(&poly6, &spiky, h);
         // Gauss–Seidel's kernel: the cubic spline, its density and its own
         // gradient, and the walls' term of the same kernel.
         let (lanes, wall_kernel, w, w_dq) = match pbf.solve {
             PbfSolve::Jacobi => (
-                lanes,
+                LaneKernels::poly6_spiky(&poly6, &spiky, h),
                 WallKernel::new(h),
                 poly6.value_r2(0.0),
                 poly6.value_r2(dq * dq),
@@ -292,7 +291,7 @@ impl Model {
             PbfSolve::GaussSeidel => {
                 let cubic = CubicSpline::new(h)?;
                 (
-                    lanes.with_cubic(&cubic),
+                    LaneKernels::Cubic(LaneCubic::new(&cubic)),
                     WallKernel::cubic_spline(h),
                     cubic.value_len(0.0),
                     cubic.value_len(dq),
@@ -531,6 +530,24 @@ struct Headway {
     bad: bool,
 }
 
+impl Headway {
+    /// From the largest densities of the first `iterations`' and the
+    /// last's, a half of `densest` each (per block or column), and
+    /// whether each block's final positions are `finite`. A non-finite
+    /// state shows in the positions: the largest densities, folded by
+    /// `f32::max`, pass a NaN over.
+    fn of(densest: &[f32], rho0: f32, iterations: usize, finite: &[bool]) -> Self {
+        let (at_first, at_last) = densest.split_at(densest.len() / 2);
+        let worst = |row: &[f32]| row.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0;
+        let (first, worst) = match iterations {
+            0 => (None, 0.0f32),
+            _ => (Some(worst(at_first)), worst(at_last)),
+        };
+        let bad = iterations > 0 && !finite.iter().all(|&f| f);
+        Self { first, worst, bad }
+    }
+}
+
 /// The λ pass: every particle's [`Constraint`].
 struct Lambdas<'a> {
     model: &'a Model,
@@ -751,20 +768,7 @@ impl SolveDensity {
                 .collect();
             region::run(n, &passes);
         }
-        // The solve's headway: the largest density at the first and the
-        // last iteration.
-        let worst_at = |row: usize| {
-            let blocks = &self.densest[row * per_pass..(row + 1) * per_pass];
-            blocks.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0
-        };
-        let (first, worst) = match iterations {
-            0 => (None, 0.0f32),
-            _ => (Some(worst_at(0)), worst_at(1)),
-        };
-        // A non-finite state shows in the positions (`bad`): the blocks'
-        // largest densities, folded by `f32::max`, pass a NaN over.
-        let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
-        Headway { first, worst, bad }
+        Headway::of(&self.densest, rho0, iterations, &self.finite)
     }
 
     /// Lines 8–19 as sweeps of Gauss–Seidel ([`PbfSolve::GaussSeidel`],
@@ -798,8 +802,6 @@ impl SolveDensity {
         {
             let sweep = coloured::Sweep {
                 model,
-                pbf: &model.pbf,
-                boundary: model.walls.boundary(),
                 lists,
                 dt,
                 rows: coloured::Shared::new(rows),
@@ -863,16 +865,7 @@ impl SolveDensity {
         // is, after those before it have moved its neighbours: below
         // Jacobi's first reading, so a solve that makes no headway is
         // caught a little sooner.
-        let worst_at = |row: usize| {
-            let rows = &self.densest[row * columns..(row + 1) * columns];
-            rows.iter().fold(0.0, |m: f32, &rho| m.max(rho)) / rho0 - 1.0
-        };
-        let (first, worst) = match iterations {
-            0 => (None, 0.0f32),
-            _ => (Some(worst_at(0)), worst_at(1)),
-        };
-        let bad = iterations > 0 && !self.finite.iter().all(|&f| f);
-        Ok(Headway { first, worst, bad })
+        Ok(Headway::of(&self.densest, rho0, iterations, &self.finite))
     }
 }
 

@@ -26,9 +26,8 @@ use std::ops::Range;
 
 use glam::Vec3;
 
-use super::{Model, PbfParams};
+use super::Model;
 use crate::NeighbourLists;
-use crate::boundary::Boundary;
 use crate::error::{Error, Result};
 use crate::simd::{F32x8, LaneFn, Lanes};
 use crate::solver::lane_map::{LaneMap, par_map};
@@ -43,11 +42,10 @@ const BLOCK_OVER_H: f64 = 2.0 * (1.0 + 1e-4);
 /// predicted positions.
 #[derive(Debug, Clone, Default)]
 pub(super) struct Colouring {
-    /// Particle indices, block after block; within a block, ascending.
+    /// Particle indices, column after column; within a column, block
+    /// after block from the bottom up, and within a block ascending.
     order: Vec<u32>,
-    /// Block b's particles are `order[starts[b]..starts[b + 1]]`.
-    starts: Vec<u32>,
-    /// Column t's blocks are `columns[t]..columns[t + 1]`, upwards.
+    /// Column t's particles are `order[columns[t]..columns[t + 1]]`.
     columns: Vec<u32>,
     /// Colour c's columns are `colours[c]..colours[c + 1]`.
     colours: [usize; 5],
@@ -96,10 +94,7 @@ impl Colouring {
             self.cells.push(cell);
         }
         self.order.clear();
-        self.starts.clear();
-        self.starts.push(0);
         self.columns.clear();
-        self.columns.push(0);
         self.colours = [0; 5];
         if n == 0 {
             return;
@@ -129,8 +124,8 @@ impl Colouring {
             self.counts[at(c)] += 1;
         }
         // The occupied blocks, colour by colour, each in box order, and
-        // where each colour's columns start in its list.
-        let mut by_colour: [(Vec<u32>, Vec<u32>); 4] = Default::default();
+        // whether each starts a column.
+        let mut by_colour: [Vec<(u32, bool)>; 4] = Default::default();
         let mut last = [None; 4];
         for (b, &count) in self.counts.iter().enumerate() {
             if count > 0 {
@@ -142,34 +137,28 @@ impl Colouring {
                 ];
                 let cell = [0, 1, 2].map(|a| lo[a] + d[a] as i32);
                 let c = colour(cell);
-                let (blocks, columns) = &mut by_colour[c];
-                if last[c] != Some([cell[1], cell[2]]) {
-                    columns.push(blocks.len() as u32);
-                    last[c] = Some([cell[1], cell[2]]);
-                }
-                blocks.push(b as u32);
+                let column = Some([cell[1], cell[2]]);
+                by_colour[c].push((b as u32, last[c] != column));
+                last[c] = column;
             }
         }
         // Each block's first place in `order`, kept in `counts` while the
-        // particles are dealt out in index order.
-        let mut placed = 0;
-        for (c, (blocks, firsts)) in by_colour.iter().enumerate() {
-            self.colours[c] = self.columns.len() - 1;
-            if blocks.is_empty() {
-                continue;
-            }
-            for &first in &firsts[1..] {
-                self.columns.push(placed + first);
-            }
-            placed += blocks.len() as u32;
-            self.columns.push(placed);
-            for &b in blocks {
-                let start = self.starts[self.starts.len() - 1];
-                self.starts.push(start + self.counts[b as usize]);
+        // particles are dealt out in index order; each column's, in
+        // `columns`.
+        let mut start = 0;
+        for (c, blocks) in by_colour.iter().enumerate() {
+            self.colours[c] = self.columns.len();
+            for &(b, new_column) in blocks {
+                if new_column {
+                    self.columns.push(start);
+                }
+                let count = self.counts[b as usize];
                 self.counts[b as usize] = start;
+                start += count;
             }
         }
-        self.colours[4] = self.columns.len() - 1;
+        self.colours[4] = self.columns.len();
+        self.columns.push(start);
         self.order.resize(self.cells.len(), 0);
         for (i, c) in self.cells.iter().enumerate() {
             let slot = &mut self.counts[at(c)];
@@ -188,30 +177,21 @@ impl Colouring {
         keys.sort_unstable();
         let mut before: Option<(usize, [i32; 3])> = None;
         for (k, &(c, cell, i)) in keys.iter().enumerate() {
-            if before != Some((c, cell)) {
-                // A new block; a new column where the colour or the
-                // coordinates across gravity change.
-                if k > 0 {
-                    self.starts.push(k as u32);
+            // A new column where the colour or the coordinates across
+            // gravity change.
+            if before.is_none_or(|(bc, bcell)| (bc, &bcell[..2]) != (c, &cell[..2])) {
+                for later in before.map_or(0, |(bc, _)| bc + 1)..=c {
+                    self.colours[later] = self.columns.len();
                 }
-                let block = self.starts.len() as u32 - 1;
-                let column = before.is_none_or(|(bc, bcell)| (bc, &bcell[..2]) != (c, &cell[..2]));
-                if column && block > 0 {
-                    self.columns.push(block);
-                }
-                let first_of = before.map_or(0, |(bc, _)| bc + 1);
-                for later in first_of..=c {
-                    self.colours[later] = self.columns.len() - 1;
-                }
+                self.columns.push(k as u32);
             }
             before = Some((c, cell));
             self.order.push(i);
         }
-        self.starts.push(keys.len() as u32);
-        self.columns.push(self.starts.len() as u32 - 1);
         for later in before.map_or(0, |(c, _)| c + 1)..=4 {
-            self.colours[later] = self.columns.len() - 1;
+            self.colours[later] = self.columns.len();
         }
+        self.columns.push(keys.len() as u32);
     }
 
     /// The number of columns.
@@ -226,8 +206,7 @@ impl Colouring {
 
     /// Column `t`'s particles, block after block from the bottom up.
     pub(super) fn particles(&self, t: usize) -> &[u32] {
-        let (first, end) = (self.columns[t] as usize, self.columns[t + 1] as usize);
-        &self.order[self.starts[first] as usize..self.starts[end] as usize]
+        &self.order[self.columns[t] as usize..self.columns[t + 1] as usize]
     }
 
     /// The most columns any colour has.
@@ -339,8 +318,6 @@ const KEPT: usize = 8;
 /// What a column's relaxation reads and writes.
 pub(super) struct Sweep<'a> {
     pub(super) model: &'a Model,
-    pub(super) pbf: &'a PbfParams,
-    pub(super) boundary: &'a Boundary,
     pub(super) lists: &'a NeighbourLists,
     pub(super) dt: f32,
     /// (x, m) per particle, moved in place.
@@ -435,7 +412,7 @@ impl Sweep<'_> {
         let rho = rho_wall + xi[3] * m.w0 + rho_sum;
         let grad_i = wall + grad_sum;
         let error = rho * m.inv_rho0 - 1.0;
-        let lambda = -self.pbf.over_relaxation * error.max(0.0)
+        let lambda = -m.pbf.over_relaxation * error.max(0.0)
             / (grad_i.length_squared() + squares + m.epsilon);
         let applied = -m.params.rest_density * lambda / (self.dt * self.dt);
         unsafe {
@@ -491,7 +468,7 @@ impl Sweep<'_> {
         let row = unsafe { self.rows.get(i) };
         let free = Vec3::new(row[0], row[1], row[2]) + dx;
         let mut x = free;
-        self.boundary.project(&mut x);
+        self.model.walls.boundary().project(&mut x);
         unsafe {
             self.rows.set(i, [x.x, x.y, x.z, row[3]]);
             let v = self.velocities.get(i);
@@ -572,11 +549,9 @@ mod tests {
         dense.build(&rows, h, Vec3::new(0.0, -9.81, 0.0));
         let mut sparse = dense.clone();
         sparse.order.clear();
-        sparse.starts.truncate(1);
-        sparse.columns.truncate(1);
+        sparse.columns.clear();
         sparse.sparse();
         assert_eq!(dense.order, sparse.order);
-        assert_eq!(dense.starts, sparse.starts);
         assert_eq!(dense.columns, sparse.columns);
         assert_eq!(dense.colours, sparse.colours);
         assert!(dense.widest() > 1, "{} columns", dense.columns());
