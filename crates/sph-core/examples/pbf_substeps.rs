@@ -7,10 +7,11 @@
 //!
 //! A setting is SUBSTEPSxITERATIONS, optionally followed by `@ω` (the
 //! over-relaxation) and `/c` (XSPH's c), and `+gs` for the Gauss–Seidel
-//! solve ([`sph_core::PbfSolve::GaussSeidel`]); what it leaves out takes
-//! the defaults ([`sph_core::PbfParams`]). `5x2@1/0.01` is the paper's
-//! plain Jacobi and XSPH at 5 substeps of 2 iterations, `5x3+gs` Gauss–Seidel
-//! at 5 substeps of 3 sweeps.
+//! solve ([`sph_core::PbfSolve::GaussSeidel`]), `+gsW` with the warm start
+//! W ([`sph_core::PbfParams::warm_start`]); what it leaves out takes the
+//! defaults ([`sph_core::PbfParams`]). `5x2@1/0.01` is the paper's plain
+//! Jacobi and XSPH at 5 substeps of 2 iterations, `5x3+gs` Gauss–Seidel at
+//! 5 substeps of 3 sweeps, `5x3+gs0.5` the same warm-started by half.
 //!
 //! ```text
 //! cargo run --release -p sph-core --example pbf_substeps [-- 5x2 6x3@1/0.01 5x2@1.3 ...]
@@ -46,9 +47,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let frame = 1.0 / 60.0;
         let defaults = scene.pbf_params();
         let parse = || -> Option<PbfParams> {
-            let (body, solve) = match setting.strip_suffix("+gs") {
-                Some(body) => (body, PbfSolve::GaussSeidel),
-                None => (setting.as_str(), PbfSolve::Jacobi),
+            let (body, solve, warm) = match setting.split_once("+gs") {
+                Some((body, "")) => (body, PbfSolve::GaussSeidel, 0.0),
+                Some((body, warm)) => (body, PbfSolve::GaussSeidel, warm.parse().ok()?),
+                None => (setting.as_str(), PbfSolve::Jacobi, 0.0),
             };
             let (counts, rest) = body.split_once('@').unwrap_or((body, ""));
             let (omega, c) = rest.split_once('/').unwrap_or((rest, ""));
@@ -62,6 +64,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 substeps,
                 iterations: i.parse().ok()?,
                 solve,
+                warm_start: warm,
                 over_relaxation: value(omega, defaults.over_relaxation)?,
                 xsph: value(c, defaults.xsph)?,
                 max_dt: frame / substeps as f32,
@@ -69,7 +72,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             })
         };
         let pbf = parse().ok_or(format!(
-            "{setting}: expected SUBSTEPSxITERATIONS[@OMEGA][/XSPH][+gs], e.g. 5x2@1.4/0.05"
+            "{setting}: expected SUBSTEPSxITERATIONS[@OMEGA][/XSPH][+gs[WARM]], e.g. 5x2@1.4/0.05"
         ))?;
         scene.solver.pbf = Some(pbf);
         let mut world = scene.build_world()?;

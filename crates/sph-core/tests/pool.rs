@@ -317,3 +317,51 @@ fn gauss_seidel_quiets_a_pbf_pool() {
         "first layer {layer} m"
     );
 }
+
+/// Gauss–Seidel's warm start (`PbfParams::warm_start`) carries the weight
+/// of a pool 25 layers deep from one substep to the next, where the cold
+/// solve's three sweeps hold it by compressing the pool: at half the last
+/// pressure the pool (0.3 m square here, to keep the test short) moves
+/// less than half as fast after 2 s and stands higher (measured 26.7
+/// against 138.3 mm/s, the free surface −1.80 % against −2.56 %; run this
+/// test with `--nocapture`). At 0.6 m square:
+/// 57.8 against 174.4 mm/s, the free surface −1.90 % against −2.36 %
+/// (`cargo run --release -p sph-core --example pool_at_rest -- pbf --depth
+/// 0.5 --solver-toml 'pbf = { solve = "gauss-seidel", warm_start = 0.5
+/// }'`). Asserted: at most half the cold rms speed, and the surface at
+/// least 0.3 % of the depth higher.
+#[test]
+fn a_warm_start_holds_a_deep_pbf_pool() {
+    let (side, depth) = (0.3, 0.5);
+    let run = |warm_start| {
+        let spec = SolverSpec {
+            kind: SolverKind::Pbf,
+            pbf: Some(PbfParams {
+                solve: PbfSolve::GaussSeidel,
+                warm_start,
+                ..PbfParams::default()
+            }),
+            ..SolverSpec::default()
+        };
+        let mut world = pool(spec, side, depth, None);
+        for _ in 0..120 {
+            world.advance(1.0 / 60.0).unwrap();
+        }
+        (rms_speed(&world), free_surface(&world, side, depth))
+    };
+    let (cold, cold_surface) = run(0.0);
+    let (warm, warm_surface) = run(0.5);
+    eprintln!(
+        "rms speed at 2 s: warm {:.2} mm/s, cold {:.2} mm/s; free surface warm {:+.2} %, \
+         cold {:+.2} %",
+        1e3 * warm,
+        1e3 * cold,
+        100.0 * warm_surface,
+        100.0 * cold_surface
+    );
+    assert!(warm <= 0.5 * cold, "{warm} against {cold} m/s");
+    assert!(
+        warm_surface >= cold_surface + 3e-3,
+        "free surface {warm_surface:+} against {cold_surface:+}"
+    );
+}

@@ -320,6 +320,11 @@ pub(super) struct Sweep<'a> {
     pub(super) model: &'a Model,
     pub(super) lists: &'a NeighbourLists,
     pub(super) dt: f32,
+    /// Whether the solve is warm-started ([`PbfParams::warm_start`](super::PbfParams::warm_start)): each
+    /// constraint's λ then accumulates from the warm share in `pressures`
+    /// and is clamped as a sum, where without it each sweep's λ_i is
+    /// clamped on its own and the first sweep starts the pressures afresh.
+    pub(super) warm: bool,
     /// (x, m) per particle, moved in place.
     pub(super) rows: Shared<'a, [f32; 4]>,
     pub(super) velocities: Shared<'a, Vec3>,
@@ -412,13 +417,26 @@ impl Sweep<'_> {
         let rho = rho_wall + xi[3] * m.w0 + rho_sum;
         let grad_i = wall + grad_sum;
         let error = rho * m.inv_rho0 - 1.0;
-        let lambda = -m.pbf.over_relaxation * error.max(0.0)
-            / (grad_i.length_squared() + squares + m.epsilon);
+        let denominator = grad_i.length_squared() + squares + m.epsilon;
+        let omega = m.pbf.over_relaxation;
+        // The pressure the solve has applied so far, p = −ρ0 λ/Δt².
+        // SAFETY: as above.
+        let before = match (self.warm, k) {
+            (false, 0) => 0.0,
+            _ => unsafe { self.pressures.get(i) },
+        };
+        let lambda = if self.warm {
+            // Clamped as a sum: the pushes so far may be taken back, no
+            // further than none.
+            let so_far = -before * self.dt * self.dt * m.inv_rho0;
+            (so_far - omega * error / denominator).min(0.0) - so_far
+        } else {
+            -omega * error.max(0.0) / denominator
+        };
         let applied = -m.params.rest_density * lambda / (self.dt * self.dt);
         unsafe {
             self.densities.set(i, rho);
-            let p = if k == 0 { 0.0 } else { self.pressures.get(i) };
-            self.pressures.set(i, p + applied);
+            self.pressures.set(i, before + applied);
         }
         if lambda == 0.0 {
             return rho;
