@@ -263,6 +263,12 @@ fn identical_for_1_2_and_4_threads() {
     identical_for_thread_counts(&scene, 20, &[1, 2, 4]);
     scene.clearance = Some(0.01);
     identical_for_thread_counts(&scene, 20, &[1, 2, 4]);
+    // And with the free surface's target.
+    scene.solver.dfsph = Some(DfsphParams {
+        surface_target: true,
+        ..DfsphParams::default()
+    });
+    identical_for_thread_counts(&scene, 20, &[1, 2, 4]);
 }
 
 /// The same with surface tension (the `drops` scene under DFSPH: Akinci

@@ -433,11 +433,12 @@ fn identical_for_1_2_and_4_threads() {
         solve: PbfSolve::GaussSeidel,
         ..xsph.pbf_params()
     });
-    // Warm-started, with each λ clamped as a sum.
+    // Warm-started, with each λ clamped as a sum, and the surface target.
     let mut warm = xsph.clone();
     warm.solver.pbf = Some(PbfParams {
         solve: PbfSolve::GaussSeidel,
         warm_start: 0.5,
+        surface_target: true,
         ..xsph.pbf_params()
     });
     for scene in [xsph, implicit, sleeping, gauss_seidel, warm] {
@@ -837,6 +838,14 @@ fn bad_parameters_are_errors_naming_the_field() {
             "pbf.warm_start",
             PbfParams {
                 warm_start: 0.5,
+                ..d
+            },
+        ),
+        // The surface target, which Jacobi's jitter blows up.
+        (
+            "pbf.surface_target",
+            PbfParams {
+                surface_target: true,
                 ..d
             },
         ),

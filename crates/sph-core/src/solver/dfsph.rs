@@ -110,6 +110,7 @@ use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 
+use super::free_surface::{SurfaceTarget, TargetCache};
 use super::lane_map::{LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
 use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
 use super::params::FluidParams;
@@ -166,6 +167,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             shared: shared.clone(),
             rows: Vec::new(),
             layers: None,
+            surface: None,
         })
         .push(DivergenceSolve(Solve::new(
             model.clone(),
@@ -420,6 +422,9 @@ struct Linearisation {
     contacts: Vec<Contact>,
     /// The walls' layers of the step ([`Walls::layers`]).
     layers: Option<Layers>,
+    /// With [`DfsphParams::surface_target`], the free surface's target
+    /// for the lightest particle's lattice.
+    surface: Option<SurfaceTarget>,
 }
 
 /// The [`Linearisation`] the stations of one program share.
@@ -445,6 +450,8 @@ pub struct Factors {
     rows: Vec<[f32; 4]>,
     /// The walls' layers, for the lightest particle's lattice.
     layers: LayersCache,
+    /// The free surface's target, for the same lattice.
+    surface: TargetCache,
 }
 
 impl Processor for Factors {
@@ -463,12 +470,31 @@ impl Processor for Factors {
             pairs,
             contacts,
             layers,
+            surface,
         } = &mut *shared;
         let f = particles.fields_mut();
         rows_of(f.positions, f.masses, &mut self.rows);
         pairs.resize(lists.pairs(), Vec3::ZERO);
         factors.resize(f.positions.len(), Factor::default());
         *layers = model.walls.layers(f.masses, &mut self.layers);
+        if model.dfsph.surface_target {
+            let (cubic, h) = (&model.cubic, model.params.h);
+            *surface = SurfaceTarget::lightest(
+                model.walls.kernel(),
+                model.params.rest_density,
+                f.masses,
+                &mut self.surface,
+                |spacing, volume| {
+                    SurfaceTarget::lattice(
+                        h,
+                        spacing,
+                        volume,
+                        |r| cubic.value_len(r),
+                        |r| cubic.derivative_len(r),
+                    )
+                },
+            );
+        }
         let pass = FactorPass {
             model,
             rows: &self.rows,
@@ -596,6 +622,7 @@ impl Solve {
         let n = particles.len();
         let shared = lock(&self.shared);
         let (factors, pairs, layers) = (&shared.factors, &shared.pairs, shared.layers);
+        let surface = shared.surface;
         if factors.len() != n || pairs.len() != lists.pairs() + PAIR_PADDING {
             return Err(Error::Pipeline {
                 processor: target.name(),
@@ -663,10 +690,11 @@ impl Solve {
                     let (rho_wall, wall) = model.walls.at_either(x[i] + dt * vi, layers);
                     let walls = rho_wall * inv_rho0 - c.fraction;
                     let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
+                    let rest = surface.map_or(1.0, |s| s.at(c.grad.length()));
                     Row {
                         wall,
                         alpha: model.inverse(sum),
-                        source: 1.0 - (c.rho * inv_rho0 + walls + dt * rate),
+                        source: rest - (c.rho * inv_rho0 + walls + dt * rate),
                     }
                 }
             };

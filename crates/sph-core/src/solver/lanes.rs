@@ -12,7 +12,8 @@
 
 use glam::Vec3;
 
-use crate::simd::F32x8;
+use super::free_surface::SurfaceTarget;
+use crate::simd::{F32x8, Scalar};
 
 use crate::kernels::{CubicSpline, Kernel, Poly6, Spiky};
 
@@ -46,6 +47,18 @@ impl LaneKernels {
             spiky: spiky.coefficient(),
             tiny: h * 1e-6,
         }
+    }
+
+    /// The free surface's target for a cubic lattice of `spacing` and
+    /// particles of volume `volume` under these kernels
+    /// ([`SurfaceTarget::lattice`]).
+    pub(super) fn surface_target(&self, h: f32, spacing: f32, volume: f32) -> SurfaceTarget {
+        // W and dW/dr = s r from the lanes' own formulas, one lane used.
+        let at = |r: f32| {
+            let (w, s) = self.eval(Scalar::splat(r * r));
+            (w.to_array()[0], s.to_array()[0] * r)
+        };
+        SurfaceTarget::lattice(h, spacing, volume, |r| at(r).0, |r| at(r).1)
     }
 
     /// (W, s) per lane. Without branches within a kind: beyond h both

@@ -22,6 +22,7 @@
 
 pub mod dfsph;
 mod force_sums;
+mod free_surface;
 mod lane_map;
 mod lanes;
 pub mod params;

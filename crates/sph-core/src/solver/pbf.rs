@@ -120,6 +120,7 @@ use crate::kernels::{CubicSpline, Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
+use super::free_surface::{SurfaceTarget, TargetCache};
 use super::lane_map::{LaneMap, fill_block};
 use super::lanes::{DensitySums, LaneCubic, LaneKernels, Near, rows_of};
 use super::stations::lists;
@@ -266,9 +267,21 @@ struct Model {
     /// particle's lattice, with the mass they were found for, set by each
     /// station's pass ([`Model::set_layers`]).
     layers: LayersCache,
+    /// With [`PbfParams::surface_target`], the free surface's target for
+    /// the lightest particle's lattice ([`Model::set_layers`]).
+    surface: Option<SurfaceTarget>,
+    surface_cache: TargetCache,
 }
 
 impl Model {
+    /// The density target over ρ0 of a constraint whose gradient
+    /// ∇_i(ρ_i/ρ0) is `grad`: 1, or with [`PbfParams::surface_target`]
+    /// less at a free surface ([`SurfaceTarget::at`]).
+    #[inline(always)]
+    fn target(&self, grad: Vec3) -> f32 {
+        self.surface.map_or(1.0, |s| s.at(grad.length()))
+    }
+
     /// The walls' density term and its gradient over ρ0 at `x` ([`Walls`]).
     #[inline(always)]
     fn walls_at(&self, x: Vec3) -> (f32, Vec3) {
@@ -281,6 +294,17 @@ impl Model {
     fn set_layers(&mut self, masses: &[f32]) {
         if self.walls.boundary().clearance > 0.0 {
             self.walls.layers(masses, &mut self.layers);
+        }
+        if self.pbf.surface_target {
+            let h = self.params.h;
+            let lanes = &self.lanes;
+            self.surface = SurfaceTarget::lightest(
+                self.walls.kernel(),
+                self.params.rest_density,
+                masses,
+                &mut self.surface_cache,
+                |spacing, volume| lanes.surface_target(h, spacing, volume),
+            );
         }
     }
 
@@ -320,6 +344,8 @@ impl Model {
             lanes,
             w0: w,
             layers: None,
+            surface: None,
+            surface_cache: None,
         })
     }
 
@@ -345,7 +371,7 @@ impl Model {
         let (rho_sum, grad_sum, squares) = sums.finish();
         let rho = rho_wall + xi[3] * self.w0 + rho_sum;
         let grad_i = wall + grad_sum;
-        let error = rho * self.inv_rho0 - 1.0;
+        let error = rho * self.inv_rho0 - self.target(grad_i);
         let d = 1.0 / (grad_i.length_squared() + squares + self.epsilon);
         Constraint {
             rho,

@@ -32,6 +32,11 @@ impl Walls {
         &self.boundary
     }
 
+    /// The fluid's kernel, as the walls integrate it.
+    pub(crate) fn kernel(&self) -> &WallKernel {
+        &self.kernel
+    }
+
     /// The layers of the lattice of the lightest of `masses`
     /// ([`lightest_layers`]).
     pub(crate) fn layers(&self, masses: &[f32], cache: &mut LayersCache) -> Option<Layers> {

@@ -40,6 +40,14 @@ pub struct DfsphParams {
     /// The implicit viscosity's most conjugate-gradient iterations per
     /// step (counted as unconverged when reached). Default 100.
     pub viscosity_max_iterations: u32,
+    /// Holds particles at a free surface to the density a lattice's top
+    /// layer reads instead of ρ0, as PBF's
+    /// ([`PbfParams::surface_target`](crate::solver::pbf::PbfParams::surface_target)):
+    /// the density solve's source is that target's. Default false, under
+    /// which a pool's top layer packs and its surface sinks (−1.7 % of a
+    /// 0.2 m pool at 2 s; `docs/benchmark-notes.md`, "The free surface's
+    /// packed top layer").
+    pub surface_target: bool,
     /// Particle sleeping (m/s), as PBF's ([`PbfParams::sleep_speed`](crate::solver::pbf::PbfParams::sleep_speed)):
     /// a particle slower than this at the end of a step does not move, and
     /// its velocity is zero. Default 0: off.
@@ -73,6 +81,7 @@ impl Default for DfsphParams {
             max_iterations: 100,
             viscosity_tolerance: 1e-3,
             viscosity_max_iterations: 100,
+            surface_target: false,
             sleep_speed: 0.0,
         }
     }

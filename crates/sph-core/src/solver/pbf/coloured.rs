@@ -416,7 +416,7 @@ impl Sweep<'_> {
         let (rho_sum, grad_sum, squares) = sums.finish();
         let rho = rho_wall + xi[3] * m.w0 + rho_sum;
         let grad_i = wall + grad_sum;
-        let error = rho * m.inv_rho0 - 1.0;
+        let error = rho * m.inv_rho0 - m.target(grad_i);
         let denominator = grad_i.length_squared() + squares + m.epsilon;
         let omega = m.pbf.over_relaxation;
         // The pressure the solve has applied so far, p = −ρ0 λ/Δt².

@@ -27,6 +27,17 @@ pub struct PbfParams {
     /// paper's) or `"gauss-seidel"` (coloured Gauss–Seidel on the cubic
     /// spline, the quieter water at rest; [`PbfSolve`]).
     pub solve: PbfSolve,
+    /// Holds particles at a free surface to the density a lattice's top
+    /// layer reads instead of ρ0 (the module `free_surface`'s target, by
+    /// the length of each constraint's gradient), so that the surface
+    /// layers do not pack and the free surface stays at the fluid's
+    /// height. Default false: the paper's ρ0 everywhere, under which a
+    /// pool's top layer packs and its surface sinks (−2.4 % of a 0.2 m
+    /// pool under Gauss–Seidel; `docs/benchmark-notes.md`, "The free
+    /// surface's packed top layer"). Read only under
+    /// [`PbfSolve::GaussSeidel`]: under Jacobi's jitter the bulk reads as
+    /// a surface, and a pool 0.5 m deep blew up. CPU only.
+    pub surface_target: bool,
     /// Gauss–Seidel's warm start w in [0, 0.5]: each substep's solve
     /// starts by applying w times the pressure the last substep's solve
     /// ended with ([`Particles::pressures`](crate::Particles::pressures)),
@@ -211,6 +222,7 @@ impl Default for PbfParams {
             substeps: 3,
             iterations: 3,
             solve: PbfSolve::Jacobi,
+            surface_target: false,
             warm_start: 0.0,
             over_relaxation: 1.0,
             max_dt: 1.0 / 180.0,
@@ -443,8 +455,8 @@ impl PbfParams {
 
     /// Refuses a field the other settings leave unread, set away from its
     /// default: nothing a scene gives is silently dropped. s_corr is
-    /// applied only by [`PbfSolve::Jacobi`], the warm start only by
-    /// [`PbfSolve::GaussSeidel`], XSPH's blend is
+    /// applied only by [`PbfSolve::Jacobi`], the warm start and the surface
+    /// target only by [`PbfSolve::GaussSeidel`], XSPH's blend is
     /// read only under [`PbfViscosity::Xsph`], the implicit viscosity's
     /// tolerance and iterations only under [`PbfViscosity::Implicit`], and
     /// s_corr's n and Δq only where its k is above 0. A field written out
@@ -464,6 +476,14 @@ impl PbfParams {
                 f64::from(self.scorr_k),
                 "is not applied by solve = \"gauss-seidel\", whose sweeps move particles by \
                  their constraints alone: leave it out, or set solve = \"jacobi\"",
+            ),
+            (
+                "pbf.surface_target",
+                self.solve == PbfSolve::Jacobi && self.surface_target,
+                1.0,
+                "is read only under solve = \"gauss-seidel\": Jacobi's jitter reads as a surface \
+                 in the bulk, and a pool 0.5 m deep blew up within 1 s (docs/benchmark-notes.md): \
+                 leave it out, or set solve = \"gauss-seidel\"",
             ),
             (
                 "pbf.warm_start",
