@@ -465,9 +465,9 @@ fn held_surfaces_fall_asleep_at_their_height() {
         ..SolverSpec::default()
     };
     for (spec, side, depth) in [
-        (pbf.clone(), 0.6, 0.2),
+        (pbf, 0.6, 0.2),
         (pbf, 0.3, 0.5),
-        (dfsph.clone(), 0.6, 0.2),
+        (dfsph, 0.6, 0.2),
         (dfsph, 0.3, 0.5),
     ] {
         let kind = spec.kind;
