@@ -25,6 +25,11 @@
 //! more, pack a little: twice the deficit there made the surfaces of
 //! settled pools rougher). Thin sheets and spray, whose gradients cancel,
 //! keep ρ0, as before.
+//!
+//! At h = 2 spacings only the top layer misses a share. With wider
+//! kernels the next layer misses some too, which the ramp does not follow:
+//! it is held to ρ0 against the 0.976 ρ0 it reads at h = 3 spacings, and so
+//! packs a little.
 
 use crate::boundary::WallKernel;
 
@@ -164,6 +169,43 @@ mod tests {
     /// A lattice at rest reads its target at every layer: the top layer
     /// (0.85 ρ0 with the cubic spline, 0.81 with poly6 and spiky, at h = 2
     /// spacings) its own density, the layers below ρ0.
+    /// With wider kernels the layers below the top miss a share too,
+    /// which the ramp does not follow: the top layer still reads its
+    /// target, the second is held to ρ0 against its 0.996 at h = 2.5
+    /// spacings, 0.976 at 3, and to 0.912 against 0.919 at 4.
+    #[test]
+    fn wider_kernels_hold_the_top_layer() {
+        for (ratio, below) in [(2.5f32, 0.005), (3.0, 0.025), (4.0, 0.01)] {
+            let s = 0.02f32;
+            let h = ratio * s;
+            let cubic = CubicSpline::new(h).unwrap();
+            let w = |r: f32| cubic.value_len(r);
+            let dw = |r: f32| cubic.derivative_len(r);
+            let reach = (h / s).ceil() as i32;
+            let mut sum = 0.0;
+            for a in -reach..=reach {
+                for b in -reach..=reach {
+                    for c in -reach..=reach {
+                        sum += w((Vec3::new(a as f32, b as f32, c as f32) * s).length());
+                    }
+                }
+            }
+            let volume = 1.0 / sum;
+            let target = SurfaceTarget::lattice(h, s, volume, w, dw);
+            let read = layers(h, s, volume, &w, &dw);
+            let (top, n) = read[0];
+            assert!((top - target.at(n)).abs() < 1e-4, "h/s {ratio}: {top}");
+            for &(rho, n) in &read[1..] {
+                let off = (rho - target.at(n)).abs();
+                assert!(
+                    off <= below,
+                    "h/s {ratio}: reads {rho}, target {}",
+                    target.at(n)
+                );
+            }
+        }
+    }
+
     #[test]
     fn a_lattice_at_rest_reads_its_target_at_every_layer() {
         let (h, s) = (0.04f32, 0.02f32);
