@@ -373,11 +373,11 @@ fn a_warm_start_holds_a_deep_pbf_pool() {
 /// 2 s: under DFSPH in the 0.2 m pool and in one 25 layers deep (0.3 m
 /// square here, to keep the test short), and under PBF's warm-started
 /// Gauss–Seidel solve in the 0.2 m pool, each of which ends 1.1–2.2 % low
-/// without it (here: DFSPH +0.08 % and −0.31 % against −1.71 % and
-/// −1.11 %, PBF −0.27 % against −2.16 %). At 0.6 m square (`cargo run
+/// without it (here: DFSPH +0.19 % and −0.33 % against −1.71 % and
+/// −1.11 %, PBF −0.22 % against −2.16 %). At 0.6 m square (`cargo run
 /// --release -p sph-core --example pool_at_rest -- SOLVER --depth D
-/// --solver-toml '...'`): DFSPH +0.08 % and −0.22 % against −1.71 % and
-/// −0.99 %; PBF −0.27 % and, 0.5 m deep, −1.10 % (the bulk's compression,
+/// --solver-toml '...'`): DFSPH +0.19 % and −0.23 % against −1.71 % and
+/// −0.99 %; PBF −0.22 % and, 0.5 m deep, −1.12 % (the bulk's compression,
 /// which the warm start does not take away) against −2.16 % and −1.90 %.
 #[test]
 fn a_surface_target_keeps_the_free_surface_at_its_height() {
@@ -432,13 +432,14 @@ fn a_surface_target_keeps_the_free_surface_at_its_height() {
 ///   0.1, sleeping at 2 cm/s.
 /// - DFSPH: its defaults, sleeping at 1.5 cm/s.
 ///
-/// Here PBF's surfaces end at −0.06 % and −0.40 %, DFSPH's at −0.05 % and
-/// +0.21 %. At 0.6 m square (`cargo run --release -p sph-core --example
+/// Here PBF's surfaces end at −0.07 % and −0.06 %, DFSPH's at −0.05 % and
+/// −0.04 %. At 0.6 m square (`cargo run --release -p sph-core --example
 /// pool_at_rest -- SOLVER --depth D --solver-toml '...'`) both are at
-/// rest, PBF's surfaces at −0.06 % and −0.46 %, DFSPH's at −0.05 % and
-/// +0.02 %. The deep pools freeze with a rippled top (`flat_pool`'s top
-/// normals 2.78° median and 7.13° at p99 under PBF, 1.47° and 6.60° under
-/// DFSPH), the shallow ones flat (PBF 0.15° and 1.43°).
+/// rest, PBF's surfaces at −0.07 % and −0.25 %, DFSPH's at −0.05 % and
+/// +0.07 %. The shallow pools freeze flat (`flat_pool`'s top normals
+/// 0.14° median and 1.42° at p99 under PBF, 0.00° and 1.30° under DFSPH),
+/// the deep ones with the ripples they had when they fell asleep (3.94°
+/// and 10.0° under PBF, 1.68° and 5.97° under DFSPH).
 #[test]
 fn held_surfaces_fall_asleep_at_their_height() {
     let pbf = SolverSpec {

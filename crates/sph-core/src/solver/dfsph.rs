@@ -110,9 +110,9 @@ use std::sync::{Arc, Mutex};
 
 use glam::Vec3;
 
-use super::free_surface::{SurfaceTarget, TargetCache};
+use super::free_surface::{SmoothedLengths, SurfaceTarget, TargetCache};
 use super::lane_map::{LaneMap, LaneRowMap, fill_block, par_map, par_map_rows};
-use super::lanes::{DensitySums, LANES, LaneCubic, Near, rows_of};
+use super::lanes::{DensitySums, LANES, LaneCubic, LaneKernels, Near, rows_of};
 use super::params::FluidParams;
 use super::stations::{BodyForces, Boundaries, BuildGrid, FindNeighbours, lists};
 use super::surface_tension::SurfaceTension;
@@ -168,6 +168,7 @@ pub fn program(params: FluidParams, dfsph: DfsphParams, boundary: Boundary) -> R
             rows: Vec::new(),
             layers: None,
             surface: None,
+            lengths: Default::default(),
         })
         .push(DivergenceSolve(Solve::new(
             model.clone(),
@@ -422,9 +423,9 @@ struct Linearisation {
     contacts: Vec<Contact>,
     /// The walls' layers of the step ([`Walls::layers`]).
     layers: Option<Layers>,
-    /// With [`DfsphParams::surface_target`], the free surface's target
-    /// for the lightest particle's lattice.
-    surface: Option<SurfaceTarget>,
+    /// With [`DfsphParams::surface_target`], each particle's density
+    /// target over ρ0 (`free_surface`); empty without.
+    targets: Vec<f32>,
 }
 
 /// The [`Linearisation`] the stations of one program share.
@@ -452,6 +453,8 @@ pub struct Factors {
     layers: LayersCache,
     /// The free surface's target, for the same lattice.
     surface: TargetCache,
+    /// Each particle's |∇C|, then averaged (`free_surface`).
+    lengths: [Vec<f32>; 2],
 }
 
 impl Processor for Factors {
@@ -470,16 +473,17 @@ impl Processor for Factors {
             pairs,
             contacts,
             layers,
-            surface,
+            targets,
         } = &mut *shared;
         let f = particles.fields_mut();
         rows_of(f.positions, f.masses, &mut self.rows);
         pairs.resize(lists.pairs(), Vec3::ZERO);
         factors.resize(f.positions.len(), Factor::default());
         *layers = model.walls.layers(f.masses, &mut self.layers);
+        let mut surface = None;
         if model.dfsph.surface_target {
             let (cubic, h) = (&model.cubic, model.params.h);
-            *surface = SurfaceTarget::lightest(
+            surface = SurfaceTarget::lightest(
                 model.walls.kernel(),
                 model.params.rest_density,
                 f.masses,
@@ -502,6 +506,23 @@ impl Processor for Factors {
             layers: *layers,
         };
         par_map_rows(&pass, lists, factors, pairs);
+        targets.clear();
+        if let Some(surface) = surface {
+            let [lengths, smoothed] = &mut self.lengths;
+            lengths.resize(factors.len(), 0.0);
+            region::for_each(lengths, |i, l| *l = factors[i].grad.length());
+            let kernels = LaneKernels::Cubic(model.lanes);
+            let pass = SmoothedLengths {
+                kernels: &kernels,
+                rows: &self.rows,
+                lists,
+                lengths,
+                w0: model.w0,
+            };
+            par_map(&pass, factors.len(), smoothed);
+            targets.resize(factors.len(), 1.0);
+            region::for_each(targets, |i, t| *t = surface.at(smoothed[i]));
+        }
         // Padding, so that a row's last chunk of G_ij reads as eight lanes.
         pairs.extend([Vec3::ZERO; PAIR_PADDING]);
         region::for_each(f.densities, |i, rho| *rho = factors[i].rho);
@@ -622,7 +643,7 @@ impl Solve {
         let n = particles.len();
         let shared = lock(&self.shared);
         let (factors, pairs, layers) = (&shared.factors, &shared.pairs, shared.layers);
-        let surface = shared.surface;
+        let targets = &shared.targets;
         if factors.len() != n || pairs.len() != lists.pairs() + PAIR_PADDING {
             return Err(Error::Pipeline {
                 processor: target.name(),
@@ -690,7 +711,7 @@ impl Solve {
                     let (rho_wall, wall) = model.walls.at_either(x[i] + dt * vi, layers);
                     let walls = rho_wall * inv_rho0 - c.fraction;
                     let sum = c.grad.dot(c.grad - c.wall + wall) + c.pairs;
-                    let rest = surface.map_or(1.0, |s| s.at(c.grad.length()));
+                    let rest = targets.get(i).copied().unwrap_or(1.0);
                     Row {
                         wall,
                         alpha: model.inverse(sum),

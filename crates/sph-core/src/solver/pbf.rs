@@ -120,8 +120,8 @@ use crate::kernels::{CubicSpline, Poly6, Spiky};
 use crate::particles::Particles;
 use crate::processor::{Context, Processor, Program};
 
-use super::free_surface::{SurfaceTarget, TargetCache};
-use super::lane_map::{LaneMap, fill_block};
+use super::free_surface::{SmoothedLengths, SurfaceTarget, TargetCache};
+use super::lane_map::{LaneMap, fill_block, par_map};
 use super::lanes::{DensitySums, LaneCubic, LaneKernels, Near, rows_of};
 use super::stations::lists;
 pub use super::stations::{BodyForces, FindNeighbours};
@@ -274,14 +274,6 @@ struct Model {
 }
 
 impl Model {
-    /// The density target over ρ0 of a constraint whose gradient
-    /// ∇_i(ρ_i/ρ0) is `grad`: 1, or with [`PbfParams::surface_target`]
-    /// less at a free surface ([`SurfaceTarget::at`]).
-    #[inline(always)]
-    fn target(&self, grad: Vec3) -> f32 {
-        self.surface.map_or(1.0, |s| s.at(grad.length()))
-    }
-
     /// The walls' density term and its gradient over ρ0 at `x` ([`Walls`]).
     #[inline(always)]
     fn walls_at(&self, x: Vec3) -> (f32, Vec3) {
@@ -371,7 +363,7 @@ impl Model {
         let (rho_sum, grad_sum, squares) = sums.finish();
         let rho = rho_wall + xi[3] * self.w0 + rho_sum;
         let grad_i = wall + grad_sum;
-        let error = rho * self.inv_rho0 - self.target(grad_i);
+        let error = rho * self.inv_rho0 - 1.0;
         let d = 1.0 / (grad_i.length_squared() + squares + self.epsilon);
         Constraint {
             rho,
@@ -564,6 +556,11 @@ pub struct SolveDensity {
     farthest: Vec<f32>,
     /// Each particle's move by Gauss–Seidel's warm start.
     moves: Vec<Vec3>,
+    /// Each particle's |∇C|, then averaged ([`PbfParams::surface_target`]).
+    lengths: [Vec<f32>; 2],
+    /// Each particle's density target over ρ0 (empty without
+    /// [`PbfParams::surface_target`]).
+    targets: Vec<f32>,
 }
 
 /// A solve's headway: the largest density error at its first and last
@@ -608,6 +605,32 @@ impl LaneMap for Lambdas<'_> {
     }
 }
 
+/// Every particle's |∇_i C_i|, the walls' term included (the free
+/// surface's targets read it).
+struct GradientLengths<'a> {
+    model: &'a Model,
+    rows: &'a [[f32; 4]],
+    lists: &'a NeighbourLists,
+}
+
+impl LaneMap for GradientLengths<'_> {
+    type Out = f32;
+    #[inline(always)]
+    fn particle<S: F32x8>(&self, i: usize) -> f32 {
+        let m = self.model;
+        let xi = self.rows[i];
+        let (_, wall) = m.walls_at(Vec3::new(xi[0], xi[1], xi[2]));
+        let inv_rho0 = S::splat(m.inv_rho0);
+        let mut sums = DensitySums::new();
+        for (_, slots, count) in self.lists.lanes(i) {
+            let c = Near::<S>::gather(xi, self.rows, slots, count);
+            let (w, s) = m.lanes.eval(c.r2());
+            sums.add(&c, w, s, inv_rho0);
+        }
+        (wall + sums.finish().1).length()
+    }
+}
+
 /// The Δp pass: every particle's position correction.
 struct Corrections<'a> {
     model: &'a Model,
@@ -643,6 +666,8 @@ impl SolveDensity {
             colouring: coloured::Colouring::default(),
             farthest: Vec::new(),
             moves: Vec::new(),
+            lengths: Default::default(),
+            targets: Vec::new(),
         }
     }
 }
@@ -839,6 +864,23 @@ impl SolveDensity {
         let colouring = &mut self.colouring;
         colouring.build(rows, model.params.h, model.params.gravity);
         let colouring = &*colouring;
+        // The free surface's targets, from the positions the sweeps start
+        // at.
+        self.targets.clear();
+        if let Some(surface) = model.surface {
+            let [lengths, smoothed] = &mut self.lengths;
+            par_map(&GradientLengths { model, rows, lists }, n, lengths);
+            let pass = SmoothedLengths {
+                kernels: &model.lanes,
+                rows,
+                lists,
+                lengths,
+                w0: model.w0,
+            };
+            par_map(&pass, n, smoothed);
+            self.targets.resize(n, 1.0);
+            region::for_each(&mut self.targets, |i, t| *t = surface.at(smoothed[i]));
+        }
         let f = particles.fields_mut();
         // After the colouring: it and the lists' check must see the same
         // positions, those the sweeps' particles were grouped by.
@@ -863,6 +905,7 @@ impl SolveDensity {
                 lists,
                 dt,
                 warm: pbf.warm_start > 0.0,
+                targets: &self.targets,
                 rows: coloured::Shared::new(rows),
                 velocities: coloured::Shared::new(f.velocities),
                 pressures: coloured::Shared::new(f.pressures),
@@ -974,7 +1017,7 @@ impl Warm<'_> {
             constraints,
             lists,
         };
-        super::lane_map::par_map(&corrections, n, moves);
+        par_map(&corrections, n, moves);
         let (rows, velocities) = (Blocks::new(rows), Blocks::new(velocities));
         let pressures = Blocks::new(pressures);
         let b = model.walls.boundary();

@@ -325,6 +325,10 @@ pub(super) struct Sweep<'a> {
     /// and is clamped as a sum, where without it each sweep's λ_i is
     /// clamped on its own and the first sweep starts the pressures afresh.
     pub(super) warm: bool,
+    /// Each particle's density target over ρ0
+    /// ([`PbfParams::surface_target`](super::PbfParams::surface_target));
+    /// empty for ρ0 everywhere.
+    pub(super) targets: &'a [f32],
     /// (x, m) per particle, moved in place.
     pub(super) rows: Shared<'a, [f32; 4]>,
     pub(super) velocities: Shared<'a, Vec3>,
@@ -416,7 +420,8 @@ impl Sweep<'_> {
         let (rho_sum, grad_sum, squares) = sums.finish();
         let rho = rho_wall + xi[3] * m.w0 + rho_sum;
         let grad_i = wall + grad_sum;
-        let error = rho * m.inv_rho0 - m.target(grad_i);
+        let target = self.targets.get(i).copied().unwrap_or(1.0);
+        let error = rho * m.inv_rho0 - target;
         let denominator = grad_i.length_squared() + squares + m.epsilon;
         let omega = m.pbf.over_relaxation;
         // The pressure the solve has applied so far, p = −ρ0 λ/Δt².
