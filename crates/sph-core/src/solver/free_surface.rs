@@ -39,8 +39,11 @@ use crate::simd::F32x8;
 /// ρ0: the bulk's disorder.
 const DEAD_ZONE: f32 = 0.25;
 
-/// The most layers the target follows.
-const POINTS: usize = 8;
+/// The most points of the target: every layer that misses a share of its
+/// kernel (fewer than h over the spacing, at most
+/// [`MAX_H_OVER_SPACING`](crate::solver::MAX_H_OVER_SPACING)) and the end
+/// of the ramp.
+const POINTS: usize = 12;
 
 /// The target ρ/ρ0 as a function of the constraint gradient's length
 /// |∇C| averaged over the neighbourhood (1/m, [`SmoothedLengths`]),
@@ -133,8 +136,9 @@ pub(crate) type TargetCache = Option<(f32, SurfaceTarget)>;
 impl SurfaceTarget {
     /// The target for a cubic lattice of `spacing`, particles of volume
     /// m/ρ0 `volume`, and a density of kernel `w(r)` whose gradient is
-    /// `dw(r)` = dW/dr (the solver's own pair, which for PBF's Jacobi
-    /// solve is poly6's density and spiky's gradient), both 0 beyond `h`.
+    /// `dw(r)` = dW/dr (the solver's own pair: the cubic spline's for
+    /// both solvers that read it; the unit tests also take poly6's density
+    /// with spiky's gradient), both 0 beyond `h`.
     pub(crate) fn lattice(
         h: f32,
         spacing: f32,
@@ -187,7 +191,11 @@ impl SurfaceTarget {
     /// The target of the lattice of the lightest of `masses` at
     /// `rest_density`, whose spacing the walls' `kernel` finds
     /// ([`WallKernel::lattice_layers`]), kept in `cache` while that mass
-    /// stays; `of(spacing, volume)` calibrates it. None without a particle.
+    /// stays; `of(spacing, volume)` calibrates it. Heavier particles of a
+    /// fluid of several masses get the same (as the walls' layers do). None
+    /// without a particle, or for one so light that h spans more than
+    /// [`MAX_H_OVER_SPACING`](crate::solver::MAX_H_OVER_SPACING) of its
+    /// lattice (no scene's; a calibration would cost (h/spacing)⁴).
     pub(crate) fn lightest(
         kernel: &WallKernel,
         rest_density: f32,
@@ -203,6 +211,10 @@ impl SurfaceTarget {
             Some((m, target)) if m == lightest => Some(target),
             _ => {
                 let spacing = kernel.lattice_layers(lightest, rest_density).spacing;
+                let within = kernel.h() / spacing <= crate::solver::MAX_H_OVER_SPACING;
+                if !within {
+                    return None;
+                }
                 let target = of(spacing, lightest / rest_density);
                 *cache = Some((lightest, target));
                 Some(target)

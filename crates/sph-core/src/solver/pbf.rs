@@ -864,6 +864,19 @@ impl SolveDensity {
         let colouring = &mut self.colouring;
         colouring.build(rows, model.params.h, model.params.gravity);
         let colouring = &*colouring;
+        let f = particles.fields_mut();
+        // After the colouring: it and the lists' check must see the same
+        // positions, those the sweeps' particles were grouped by.
+        if pbf.warm_start > 0.0 {
+            let warm = Warm {
+                model,
+                lists,
+                dt,
+                constraints: &mut self.constraints,
+                moves: &mut self.moves,
+            };
+            warm.apply(rows, f.pressures, f.velocities);
+        }
         // The free surface's targets, from the positions the sweeps start
         // at.
         self.targets.clear();
@@ -880,19 +893,6 @@ impl SolveDensity {
             par_map(&pass, n, smoothed);
             self.targets.resize(n, 1.0);
             region::for_each(&mut self.targets, |i, t| *t = surface.at(smoothed[i]));
-        }
-        let f = particles.fields_mut();
-        // After the colouring: it and the lists' check must see the same
-        // positions, those the sweeps' particles were grouped by.
-        if pbf.warm_start > 0.0 {
-            let warm = Warm {
-                model,
-                lists,
-                dt,
-                constraints: &mut self.constraints,
-                moves: &mut self.moves,
-            };
-            warm.apply(rows, f.pressures, f.velocities);
         }
         let columns = colouring.columns();
         self.densest.resize(2 * columns, 0.0);
@@ -1003,8 +1003,10 @@ impl Warm<'_> {
             let (rows, pressures) = (&*rows, &*pressures);
             region::for_each(constraints, |i, c| {
                 let x = rows[i];
+                // The sweeps leave no pressure below 0; another program's
+                // particles might carry one, which must not pull.
                 *c = Constraint {
-                    lambda: to_lambda * pressures[i],
+                    lambda: to_lambda * pressures[i].max(0.0),
                     d: 0.0,
                     rho: 0.0,
                     wall: model.walls_at(Vec3::new(x[0], x[1], x[2])).1,
@@ -1031,7 +1033,7 @@ impl Warm<'_> {
                 b.project(&mut x);
                 *v += (dx + (x - free)) / dt;
                 *row = [x.x, x.y, x.z, row[3]];
-                *p *= w;
+                *p = w * p.max(0.0);
             }
         };
         region::run(n, &[&moved]);

@@ -341,8 +341,8 @@ pub(super) struct Sweep<'a> {
 struct Column<'s, 'a> {
     sweep: &'s Sweep<'a>,
     particles: &'s [u32],
-    /// The sweep's index: the first sets the pressures, odd ones run
-    /// backwards.
+    /// The sweep's index: the first starts the pressures afresh (or from
+    /// the warm start's share), odd ones run backwards.
     k: usize,
 }
 
@@ -430,18 +430,22 @@ impl Sweep<'_> {
             (false, 0) => 0.0,
             _ => unsafe { self.pressures.get(i) },
         };
-        let lambda = if self.warm {
+        let (lambda, pressure) = if self.warm {
             // Clamped as a sum: the pushes so far may be taken back, no
-            // further than none.
+            // further than none. The pressure is the sum's, exactly 0
+            // where all is taken back.
             let so_far = -before * self.dt * self.dt * m.inv_rho0;
-            (so_far - omega * error / denominator).min(0.0) - so_far
+            let total = (so_far - omega * error / denominator).min(0.0);
+            let pressure = -m.params.rest_density * total / (self.dt * self.dt);
+            (total - so_far, pressure)
         } else {
-            -omega * error.max(0.0) / denominator
+            let lambda = -omega * error.max(0.0) / denominator;
+            let applied = -m.params.rest_density * lambda / (self.dt * self.dt);
+            (lambda, before + applied)
         };
-        let applied = -m.params.rest_density * lambda / (self.dt * self.dt);
         unsafe {
             self.densities.set(i, rho);
-            self.pressures.set(i, before + applied);
+            self.pressures.set(i, pressure);
         }
         if lambda == 0.0 {
             return rho;

@@ -29,7 +29,8 @@ pub struct PbfParams {
     pub solve: PbfSolve,
     /// Holds particles at a free surface to the density a lattice's top
     /// layer reads instead of ρ0 (the module `free_surface`'s target, by
-    /// the length of each constraint's gradient), so that the surface
+    /// the length of each constraint's gradient averaged over its
+    /// neighbourhood), so that the surface
     /// layers do not pack and the free surface stays at the fluid's
     /// height. Default false: the paper's ρ0 everywhere, under which a
     /// pool's top layer packs and its surface sinks (−2.4 % of a 0.2 m
@@ -58,7 +59,9 @@ pub struct PbfParams {
     /// (`docs/benchmark-notes.md`, "Gauss–Seidel's warm start"). The
     /// carried pressure acts as an explicit force, one substep late, and
     /// only the fresh part of each solve damps: at 0.6 the deep pool's top
-    /// rings at 0.2 m/s, and at 0.85 it diverges, hence the bound.
+    /// rings at 0.2 m/s, and at 0.85 it diverges, hence the bound. The
+    /// warm move, like the sweeps' corrections, is not limited by
+    /// [`Self::max_displacement`], which guards the prediction.
     pub warm_start: f32,
     /// The over-relaxation ω of the Jacobi iterations: each position
     /// correction moves a particle by ω Δp_i instead of Δp_i (successive
