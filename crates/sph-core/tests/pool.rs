@@ -322,10 +322,10 @@ fn gauss_seidel_quiets_a_pbf_pool() {
 /// of a pool 25 layers deep from one substep to the next, where the cold
 /// solve's three sweeps hold it by compressing the pool: at half the last
 /// pressure the pool (0.3 m square here, to keep the test short) moves
-/// less than half as fast after 2 s and stands higher (measured 26.7
-/// against 138.3 mm/s, the free surface −1.80 % against −2.56 %; run this
+/// less than half as fast after 2 s and stands higher (measured 26.4
+/// against 138.3 mm/s, the free surface −1.75 % against −2.56 %; run this
 /// test with `--nocapture`). At 0.6 m square:
-/// 57.8 against 174.4 mm/s, the free surface −1.90 % against −2.36 %
+/// 57.8 against 174.4 mm/s, the free surface −1.91 % against −2.36 %
 /// (`cargo run --release -p sph-core --example pool_at_rest -- pbf --depth
 /// 0.5 --solver-toml 'pbf = { solve = "gauss-seidel", warm_start = 0.5
 /// }'`). Asserted: at most half the cold rms speed, and the surface at
@@ -374,11 +374,11 @@ fn a_warm_start_holds_a_deep_pbf_pool() {
 /// square here, to keep the test short), and under PBF's warm-started
 /// Gauss–Seidel solve in the 0.2 m pool, each of which ends 1.1–2.2 % low
 /// without it (here: DFSPH +0.19 % and −0.33 % against −1.71 % and
-/// −1.11 %, PBF −0.22 % against −2.16 %). At 0.6 m square (`cargo run
+/// −1.11 %, PBF −0.18 % against −2.16 %). At 0.6 m square (`cargo run
 /// --release -p sph-core --example pool_at_rest -- SOLVER --depth D
 /// --solver-toml '...'`): DFSPH +0.19 % and −0.23 % against −1.71 % and
-/// −0.99 %; PBF −0.22 % and, 0.5 m deep, −1.12 % (the bulk's compression,
-/// which the warm start does not take away) against −2.16 % and −1.90 %.
+/// −0.99 %; PBF −0.18 % and, 0.5 m deep, −1.13 % (the bulk's compression,
+/// which the warm start does not take away) against −2.16 % and −1.91 %.
 #[test]
 fn a_surface_target_keeps_the_free_surface_at_its_height() {
     let dfsph = |surface_target| SolverSpec {
@@ -432,10 +432,10 @@ fn a_surface_target_keeps_the_free_surface_at_its_height() {
 ///   0.1, sleeping at 2 cm/s.
 /// - DFSPH: its defaults, sleeping at 1.5 cm/s.
 ///
-/// Here PBF's surfaces end at −0.07 % and −0.06 %, DFSPH's at −0.05 % and
+/// Here PBF's surfaces end at −0.07 % and −0.19 %, DFSPH's at −0.05 % and
 /// −0.04 %. At 0.6 m square (`cargo run --release -p sph-core --example
 /// pool_at_rest -- SOLVER --depth D --solver-toml '...'`) both are at
-/// rest, PBF's surfaces at −0.07 % and −0.25 %, DFSPH's at −0.05 % and
+/// rest, PBF's surfaces at −0.07 % and −0.22 %, DFSPH's at −0.05 % and
 /// +0.07 %. The shallow pools freeze flat (`flat_pool`'s top normals
 /// 0.14° median and 1.42° at p99 under PBF, 0.00° and 1.30° under DFSPH),
 /// the deep ones with the ripples they had when they fell asleep (3.94°
