@@ -6,7 +6,11 @@
 //! cargo run --release -p sph-core --example pbf_stations
 //! SPH_SIMD=baseline cargo run --release -p sph-core --example pbf_stations
 //! cargo run --release -p sph-core --example pbf_stations -- --gauss-seidel
+//! cargo run --release -p sph-core --example pbf_stations -- --gauss-seidel --warm 0.5 --surface-target
 //! ```
+//!
+//! `--warm W` and `--surface-target` (with `--gauss-seidel`) set
+//! [`PbfParams::warm_start`] and [`PbfParams::surface_target`].
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -38,9 +42,23 @@ impl<P: Processor> Processor for Timed<P> {
 
 fn main() -> Result<()> {
     let mut scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Pbf);
-    if std::env::args().any(|a| a == "--gauss-seidel") {
+    let args: Vec<String> = std::env::args().collect();
+    if args.iter().any(|a| a == "--gauss-seidel") {
+        let warm = match args.iter().position(|a| a == "--warm") {
+            Some(k) => {
+                let value = args.get(k + 1).and_then(|w| w.parse().ok());
+                value.ok_or_else(|| sph_core::Error::InvalidParameter {
+                    name: "--warm",
+                    value: args.get(k + 1).cloned().unwrap_or_default(),
+                    reason: "expected a share of the last pressure, e.g. --warm 0.5",
+                })?
+            }
+            None => 0.0,
+        };
         scene.solver.pbf = Some(PbfParams {
             solve: PbfSolve::GaussSeidel,
+            warm_start: warm,
+            surface_target: args.iter().any(|a| a == "--surface-target"),
             ..scene.pbf_params()
         });
     }
