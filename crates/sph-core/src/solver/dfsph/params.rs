@@ -44,9 +44,12 @@ pub struct DfsphParams {
     /// layer reads instead of ρ0, as PBF's
     /// ([`PbfParams::surface_target`](crate::solver::pbf::PbfParams::surface_target)):
     /// the density solve's source is that target's. Default false, under
-    /// which a pool's top layer packs and its surface sinks (−1.7 % of a
-    /// 0.2 m pool at 2 s; `docs/benchmark-notes.md`, "The free surface's
-    /// packed top layer").
+    /// which a pool's top layer packs and its surface sinks: a 0.2 m pool
+    /// is 1.71 % low after 2 s, +0.19 % with the target (0.5 m: −0.99 %,
+    /// −0.23 %; `docs/benchmark-notes.md`, "The free surface's packed top
+    /// layer"). Not the default because a drop under surface tension then
+    /// holds less of Laplace's pressure (0.456 of 2σ/R against 0.805): the
+    /// target loosens its surface shell, which carries the pull.
     pub surface_target: bool,
     /// Particle sleeping (m/s), as PBF's ([`PbfParams::sleep_speed`](crate::solver::pbf::PbfParams::sleep_speed)):
     /// a particle slower than this at the end of a step does not move, and

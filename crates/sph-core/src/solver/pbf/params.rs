@@ -30,14 +30,15 @@ pub struct PbfParams {
     /// Holds particles at a free surface to the density a lattice's top
     /// layer reads instead of ρ0 (the module `free_surface`'s target, by
     /// the length of each constraint's gradient averaged over its
-    /// neighbourhood), so that the surface
-    /// layers do not pack and the free surface stays at the fluid's
-    /// height. Default false: the paper's ρ0 everywhere, under which a
-    /// pool's top layer packs and its surface sinks (−2.4 % of a 0.2 m
-    /// pool under Gauss–Seidel; `docs/benchmark-notes.md`, "The free
-    /// surface's packed top layer"). Read only under
-    /// [`PbfSolve::GaussSeidel`]: under Jacobi's jitter the bulk reads as
-    /// a surface, and a pool 0.5 m deep blew up. CPU only.
+    /// neighbourhood), so that the surface layers do not pack and the free
+    /// surface stays at the fluid's height. Default false: the paper's ρ0
+    /// everywhere, under which a pool's top layer packs and its surface
+    /// sinks (a 0.2 m pool under Gauss–Seidel warm-started by half: 2.16 %
+    /// low after 2 s, 0.18 % with the target; `docs/benchmark-notes.md`,
+    /// "The free surface's packed top layer"). It costs the density
+    /// station about 10 % (two more passes). Read only under
+    /// [`PbfSolve::GaussSeidel`]: under Jacobi's jitter the bulk reads as a
+    /// surface, and a pool 0.5 m deep blew up. CPU only.
     pub surface_target: bool,
     /// Gauss–Seidel's warm start w in [0, 0.5]: each substep's solve
     /// starts by applying w times the pressure the last substep's solve
