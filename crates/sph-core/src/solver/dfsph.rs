@@ -480,25 +480,18 @@ impl Processor for Factors {
         pairs.resize(lists.pairs(), Vec3::ZERO);
         factors.resize(f.positions.len(), Factor::default());
         *layers = model.walls.layers(f.masses, &mut self.layers);
-        let mut surface = None;
-        if model.dfsph.surface_target {
-            let (cubic, h) = (&model.cubic, model.params.h);
-            surface = SurfaceTarget::lightest(
+        let kernels = LaneKernels::Cubic(model.lanes);
+        let surface = if model.dfsph.surface_target {
+            SurfaceTarget::lightest(
                 model.walls.kernel(),
+                &kernels,
                 model.params.rest_density,
                 f.masses,
                 &mut self.surface,
-                |spacing, volume| {
-                    SurfaceTarget::lattice(
-                        h,
-                        spacing,
-                        volume,
-                        |r| cubic.value_len(r),
-                        |r| cubic.derivative_len(r),
-                    )
-                },
-            );
-        }
+            )
+        } else {
+            None
+        };
         let pass = FactorPass {
             model,
             rows: &self.rows,
@@ -511,7 +504,6 @@ impl Processor for Factors {
             let [lengths, smoothed] = &mut self.lengths;
             lengths.resize(factors.len(), 0.0);
             region::for_each(lengths, |i, l| *l = factors[i].grad.length());
-            let kernels = LaneKernels::Cubic(model.lanes);
             let pass = SmoothedLengths {
                 kernels: &kernels,
                 rows: &self.rows,
@@ -519,9 +511,7 @@ impl Processor for Factors {
                 lengths,
                 w0: model.w0,
             };
-            par_map(&pass, factors.len(), smoothed);
-            targets.resize(factors.len(), 1.0);
-            region::for_each(targets, |i, t| *t = surface.at(smoothed[i]));
+            pass.targets(surface, smoothed, targets);
         }
         // Padding, so that a row's last chunk of G_ij reads as eight lanes.
         pairs.extend([Vec3::ZERO; PAIR_PADDING]);

@@ -189,19 +189,19 @@ impl SurfaceTarget {
     }
 
     /// The target of the lattice of the lightest of `masses` at
-    /// `rest_density`, whose spacing the walls' `kernel` finds
-    /// ([`WallKernel::lattice_layers`]), kept in `cache` while that mass
-    /// stays; `of(spacing, volume)` calibrates it. Heavier particles of a
-    /// fluid of several masses get the same (as the walls' layers do). None
-    /// without a particle, or for one so light that h spans more than
+    /// `rest_density` under the solver's `kernels`, whose spacing the
+    /// walls' `kernel` finds ([`WallKernel::lattice_layers`]), kept in
+    /// `cache` while that mass stays. Heavier particles of a fluid of
+    /// several masses get the same (as the walls' layers do). None without
+    /// a particle, or for one so light that h spans more than
     /// [`MAX_H_OVER_SPACING`](crate::solver::MAX_H_OVER_SPACING) of its
     /// lattice (no scene's; a calibration would cost (h/spacing)⁴).
     pub(crate) fn lightest(
         kernel: &WallKernel,
+        kernels: &LaneKernels,
         rest_density: f32,
         masses: &[f32],
         cache: &mut TargetCache,
-        of: impl FnOnce(f32, f32) -> Self,
     ) -> Option<Self> {
         let lightest = super::lanes::lightest(masses);
         if !lightest.is_finite() {
@@ -210,12 +210,13 @@ impl SurfaceTarget {
         match *cache {
             Some((m, target)) if m == lightest => Some(target),
             _ => {
+                let h = kernel.h();
                 let spacing = kernel.lattice_layers(lightest, rest_density).spacing;
-                let within = kernel.h() / spacing <= crate::solver::MAX_H_OVER_SPACING;
+                let within = h / spacing <= crate::solver::MAX_H_OVER_SPACING;
                 if !within {
                     return None;
                 }
-                let target = of(spacing, lightest / rest_density);
+                let target = kernels.surface_target(h, spacing, lightest / rest_density);
                 *cache = Some((lightest, target));
                 Some(target)
             }
@@ -258,6 +259,22 @@ impl LaneMap for SmoothedLengths<'_> {
         }
         let own = xi[3] * self.w0;
         (num.sum() + own * self.lengths[i]) / (den.sum() + own)
+    }
+}
+
+impl SmoothedLengths<'_> {
+    /// Each particle's density target over ρ0 under `target`, into
+    /// `targets`, from its averaged |∇C| (into `smoothed`).
+    pub(super) fn targets(
+        &self,
+        target: SurfaceTarget,
+        smoothed: &mut Vec<f32>,
+        targets: &mut Vec<f32>,
+    ) {
+        let n = self.rows.len();
+        super::lane_map::par_map(self, n, smoothed);
+        targets.resize(n, 1.0);
+        crate::region::for_each(targets, |i, t| *t = target.at(smoothed[i]));
     }
 }
 

@@ -288,14 +288,12 @@ impl Model {
             self.walls.layers(masses, &mut self.layers);
         }
         if self.pbf.surface_target {
-            let h = self.params.h;
-            let lanes = &self.lanes;
             self.surface = SurfaceTarget::lightest(
                 self.walls.kernel(),
+                &self.lanes,
                 self.params.rest_density,
                 masses,
                 &mut self.surface_cache,
-                |spacing, volume| lanes.surface_target(h, spacing, volume),
             );
         }
     }
@@ -890,9 +888,7 @@ impl SolveDensity {
                 lengths,
                 w0: model.w0,
             };
-            par_map(&pass, n, smoothed);
-            self.targets.resize(n, 1.0);
-            region::for_each(&mut self.targets, |i, t| *t = surface.at(smoothed[i]));
+            pass.targets(surface, smoothed, &mut self.targets);
         }
         let columns = colouring.columns();
         self.densest.resize(2 * columns, 0.0);
@@ -1328,5 +1324,38 @@ mod tests {
         };
         let eta = agreed(every_kind(&gradients, n), vecs);
         assert!(eta.iter().any(|e| e.length() > 0.0));
+
+        // The free surface's passes, on Gauss–Seidel's kernels: each |∇C|
+        // (the length of Jacobi's ∇_i C_i, summed in another order), then
+        // its average.
+        let cubic = Model::new(
+            params,
+            PbfParams {
+                solve: PbfSolve::GaussSeidel,
+                ..PbfParams::default()
+            },
+            Boundary::new(Aabb::new(Vec3::ZERO, Vec3::splat(0.3))),
+        )
+        .unwrap();
+        let lengths = GradientLengths {
+            model: &cubic,
+            rows,
+            lists,
+        };
+        let lengths = agreed(every_kind(&lengths, n), |v| bits(v));
+        assert!(lengths.iter().any(|&l| l > 0.0));
+        let smoothed = crate::solver::free_surface::SmoothedLengths {
+            kernels: &cubic.lanes,
+            rows,
+            lists,
+            lengths: &lengths,
+            w0: cubic.w0,
+        };
+        let smoothed = agreed(every_kind(&smoothed, n), |v| bits(v));
+        let (lo, hi) = lengths
+            .iter()
+            .fold((f32::MAX, 0.0f32), |(a, b), &l| (a.min(l), b.max(l)));
+        let (lo, hi) = (lo * (1.0 - 1e-5), hi * (1.0 + 1e-5));
+        assert!(smoothed.iter().all(|&s| s >= lo && s <= hi), "an average");
     }
 }
