@@ -20,7 +20,8 @@
 //!   velocity of cells 2h wide and the motion about it (particle-scale
 //!   jitter).
 //! - `--bands`: at the end, per 2 cm band above the floor, the particles,
-//!   their rms horizontal and vertical speeds and mean density.
+//!   their rms horizontal and vertical speeds, their mean vertical velocity
+//!   and mean density.
 //! - `--solver-toml`: the body of a scene's `[solver]` table (without
 //!   `kind`), to try parameters.
 
@@ -145,29 +146,31 @@ fn split_rms(p: &Particles, cell: f32) -> (f64, f64, f64) {
 }
 
 /// Per band `s` thick above the floor: particles, rms horizontal and
-/// vertical speed, mean density.
+/// vertical speed, mean vertical velocity, mean density.
 fn print_bands(p: &Particles, s: f32) {
-    let mut bands: Vec<(f64, f64, usize, f64)> = Vec::new();
+    let mut bands: Vec<(f64, f64, usize, f64, f64)> = Vec::new();
     for ((x, v), &rho) in (p.positions().iter().zip(p.velocities())).zip(p.densities()) {
         let k = (x.y / s).max(0.0) as usize;
         if bands.len() <= k {
-            bands.resize(k + 1, (0.0, 0.0, 0, 0.0));
+            bands.resize(k + 1, (0.0, 0.0, 0, 0.0, 0.0));
         }
         let b = &mut bands[k];
         b.0 += f64::from(v.x * v.x + v.z * v.z);
         b.1 += f64::from(v.y * v.y);
         b.2 += 1;
         b.3 += f64::from(rho);
+        b.4 += f64::from(v.y);
     }
-    println!("  band (cm)  particles  rms horizontal  vertical (mm/s)  density (kg/m³)");
-    for (k, &(horizontal, vertical, n, rho)) in bands.iter().enumerate() {
+    println!("  band (cm)  particles  rms horizontal  vertical  mean vertical (mm/s)  density (kg/m³)");
+    for (k, &(horizontal, vertical, n, rho, mean)) in bands.iter().enumerate() {
         let count = n.max(1) as f64;
         println!(
-            "  {:3.0}–{:<3.0}  {n:9}  {:14.2}  {:15.2}  {:15.2}",
+            "  {:3.0}–{:<3.0}  {n:9}  {:14.2}  {:8.2}  {:20.2}  {:15.2}",
             100.0 * s * k as f32,
             100.0 * s * (k + 1) as f32,
             1e3 * (horizontal / count).sqrt(),
             1e3 * (vertical / count).sqrt(),
+            1e3 * mean / count,
             rho / count
         );
     }
