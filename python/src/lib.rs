@@ -169,9 +169,11 @@ impl PyWorld {
         })
     }
 
-    /// Advances by `seconds` of simulated time in frames of `frame_dt` (the
-    /// GIL released); returns the last frame's report as a dict (solver,
-    /// substeps, iterations, density_error_avg, density_error_max, time).
+    /// Advances by `seconds` of simulated time in equal frames of at most
+    /// `frame_dt` (the GIL released); returns the last frame's report as a
+    /// dict (solver, substeps, iterations, density_error_avg,
+    /// density_error_max, clamped: the particles PBF's displacement guard
+    /// slowed, time).
     /// `frame_dt` defaults to the scene's `time_step.frame_dt` (1/60 s for
     /// the built-in scenes and `from_arrays`).
     #[pyo3(signature = (seconds, frame_dt = None))]
@@ -192,13 +194,19 @@ impl PyWorld {
                 "frame_dt: {frame_dt} must be finite and > 0"
             )));
         }
+        // Equal frames, as many as frames of `frame_dt` would take: a last
+        // short remainder (a sliver below `min_dt` where `seconds` is not a
+        // multiple of `frame_dt` in f32) would be refused by the world. A
+        // hair under, as `PbfParams::substeps_for`, so that a whole number
+        // of frames despite rounding takes that number.
+        let ratio = seconds / f64::from(frame_dt);
+        let frames = (ratio * (1.0 - 1e-6)).ceil() as u64;
+        let dt = (seconds / frames.max(1) as f64) as f32;
         let world = &mut self.world;
         let report = py
             .detach(|| {
-                let end = world.time() + seconds;
                 let mut last = None;
-                while world.time() < end - 1e-9 {
-                    let dt = (end - world.time()).min(f64::from(frame_dt)) as f32;
+                for _ in 0..frames {
                     last = Some(world.advance(dt)?);
                 }
                 Ok::<_, sph_core::Error>(last)
@@ -212,6 +220,7 @@ impl PyWorld {
             dict.set_item("iterations", r.iterations)?;
             dict.set_item("density_error_avg", r.density_error_avg)?;
             dict.set_item("density_error_max", r.density_error_max)?;
+            dict.set_item("clamped", r.clamped)?;
         }
         Ok(dict)
     }

@@ -16,7 +16,8 @@
 //! - `--clearance C`: the scene's `clearance` (m; half the spacing when
 //!   left out).
 //! - `--gravity G`: gravity's magnitude (m/s², 9.81 by default).
-//! - `--every T`: every T seconds, the rms speed split into the mean
+//! - `--every T`: every T seconds (rounded to whole 60 Hz frames, at least
+//!   one), the rms speed split into the mean
 //!   velocity of cells 2h wide and the motion about it (particle-scale
 //!   jitter).
 //! - `--bands`: at the end, per 2 cm band above the floor, the particles,
@@ -51,6 +52,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             kind => kinds.push(SolverKind::from_name(kind).ok_or("solvers: wcsph, pbf, dfsph")?),
         }
     }
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(format!("--seconds {seconds}: must be finite and > 0").into());
+    }
+    if !(every.is_finite() && every >= 0.0) {
+        return Err(format!("--every {every}: must be finite and ≥ 0 (0: no reports)").into());
+    }
+    if !(gravity.is_finite() && gravity >= 0.0) {
+        return Err(format!("--gravity {gravity}: must be finite and ≥ 0 (m/s²)").into());
+    }
     if kinds.is_empty() {
         kinds = vec![SolverKind::Dfsph, SolverKind::Pbf, SolverKind::Wcsph];
     }
@@ -71,7 +81,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             scene.blocks[0].max = [side, depth, side];
             let h = scene.fluid.h;
             let mut world = scene.build_world()?;
-            let frames = (seconds * 60.0).round() as usize;
+            let frames = (seconds * 60.0).round().max(1.0) as usize;
             let report_every = (every * 60.0).round().max(1.0) as usize;
             for frame in 1..=frames {
                 world.advance(1.0 / 60.0)?;
@@ -161,7 +171,9 @@ fn print_bands(p: &Particles, s: f32) {
         b.3 += f64::from(rho);
         b.4 += f64::from(v.y);
     }
-    println!("  band (cm)  particles  rms horizontal  vertical  mean vertical (mm/s)  density (kg/m³)");
+    println!(
+        "  band (cm)  particles  rms horizontal  vertical  mean vertical (mm/s)  density (kg/m³)"
+    );
     for (k, &(horizontal, vertical, n, rho, mean)) in bands.iter().enumerate() {
         let count = n.max(1) as f64;
         println!(

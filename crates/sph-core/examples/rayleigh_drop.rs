@@ -272,6 +272,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         )
         .into());
     }
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(format!("seconds {seconds}: must be finite and > 0").into());
+    }
     if !(kick.is_finite() && kick >= 0.0) {
         return Err(format!("--kick {kick}: must be a speed ≥ 0 (m/s)").into());
     }

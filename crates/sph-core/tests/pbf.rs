@@ -938,6 +938,22 @@ fn bad_parameters_are_errors_naming_the_field() {
         let e = scene.build_world().unwrap_err().to_string();
         assert!(e.contains(&format!("solver.{name}")), "{e}");
     }
+    // A max_dt valid alone that the scene's frame would cut into more than
+    // 1000 substeps (16,667 at 60 Hz): refused with the scene, and a frame
+    // of a world that long refused before any substep.
+    let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Pbf);
+    scene.solver.pbf = Some(PbfParams { max_dt: 1e-6, ..d });
+    let e = scene.build_world().unwrap_err().to_string();
+    assert!(e.contains("solver.pbf.max_dt") && e.contains("1000"), "{e}");
+    scene.solver.pbf = Some(d);
+    let mut world = scene.build_world().unwrap();
+    for frame in [10.0, 1e30] {
+        match world.advance(frame) {
+            Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "pbf.max_dt"),
+            other => panic!("{frame}: {other:?}"),
+        }
+    }
+    assert_eq!(world.time(), 0.0);
     // In a file.
     let mut scene = Scene::dam_break(0.1, 0.04, 0.02).with_solver(SolverKind::Pbf);
     scene.solver.pbf = Some(PbfParams::default());

@@ -1,6 +1,7 @@
 //! Scene files: every file in `assets/scenes/` loads and runs, and each kind of
 //! malformed scene is rejected with a message naming the field and the reason.
 
+use sph_core::scene::{BlockSpec, BoxSpec, ObstacleSpec};
 use sph_core::{Error, Scene};
 
 const SCENES: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/scenes");
@@ -482,6 +483,41 @@ fn malformed_scenes_name_the_field_and_reason() {
         .build_world()
         .unwrap_err();
     assert!(e.to_string().contains("no fluid"), "{e}");
+    // So does one block of two, named, while the other keeps its fluid.
+    let two = Scene {
+        blocks: vec![
+            BlockSpec {
+                min: [0.0, 0.0, 0.0],
+                max: [0.6, 0.1, 0.6],
+                velocity: [0.0; 3],
+            },
+            BlockSpec {
+                min: [0.25, 0.3, 0.25],
+                max: [0.35, 0.4, 0.35],
+                velocity: [0.0; 3],
+            },
+        ],
+        obstacles: vec![ObstacleSpec::Box {
+            min: [0.2, 0.25, 0.2],
+            max: [0.4, 0.45, 0.4],
+        }],
+        domain: BoxSpec {
+            min: [0.0; 3],
+            max: [0.6, 0.6, 0.6],
+        },
+        emitters: Vec::new(),
+        ..Scene::built_in("dam-break").unwrap()
+    };
+    let e = two.build_world().unwrap_err().to_string();
+    assert!(
+        e.contains("blocks[1]") && e.contains("holds no fluid"),
+        "{e}"
+    );
+    let one = Scene {
+        blocks: two.blocks[..1].to_vec(),
+        ..two.clone()
+    };
+    assert!(one.build_world().is_ok());
     // PBF's substeps derived from a fall (no `[solver.pbf]`) that would
     // need more than PBF takes: an error saying where they came from, not
     // a run with every particle slowed by the displacement guard.

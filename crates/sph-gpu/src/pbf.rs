@@ -29,7 +29,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use bytemuck::{Pod, Zeroable};
-use sph_core::solver::pbf::{MAX_DENSITY_ERROR, MAX_PBF_COUNT};
+use sph_core::solver::pbf::MAX_DENSITY_ERROR;
 use sph_core::solver::surface_tension;
 use sph_core::{
     Boundary, FluidParams, Particles, PbfParams, PbfSolve, PbfViscosity, Poly6, Solver,
@@ -611,8 +611,9 @@ impl GpuPbf {
     ///
     /// # Errors
     /// [`GpuError::Invalid`] for a `frame_dt` that is not finite or is
-    /// shorter than [`MIN_FRAME_DT`], or that would take more than
-    /// [`MAX_PBF_COUNT`] substeps;
+    /// shorter than [`MIN_FRAME_DT`]; [`GpuError::Params`] for one that
+    /// would take more than 1000 substeps
+    /// ([`PbfParams::check_frame`]);
     /// [`GpuError::Unstable`] when statistics that came back show a frame
     /// whose state became non-finite, whose constraint solve diverged (as
     /// `SolveDensity` judges it on the CPU), or one of whose particles had
@@ -665,12 +666,7 @@ impl GpuPbf {
                 "frame_dt must be finite and at least 1e-7 s (sph-core's default min_dt)",
             ));
         }
-        let substeps = self.pbf.substeps_for(frame_dt);
-        if substeps > MAX_PBF_COUNT {
-            return Err(GpuError::Invalid(
-                "frame_dt over pbf.max_dt is more than 1000 substeps: shorten the frame",
-            ));
-        }
+        let substeps = self.pbf.check_frame(frame_dt).map_err(GpuError::Params)?;
         self.failed()?;
         let mut stats = self.collect(device, false)?;
         let slot = match self.slots.iter().position(|s| s.frame.is_none()) {

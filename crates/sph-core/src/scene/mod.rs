@@ -217,12 +217,17 @@ impl Scene {
 
     /// The particles of the blocks, on a lattice of `spacing` (cell-centred),
     /// skipping lattice points inside obstacles.
+    ///
+    /// # Errors
+    /// A scene that does not validate, or a block whose every lattice point
+    /// lies inside an obstacle (named `blocks[i]`).
     pub fn particles(&self) -> Result<Particles> {
         self.validate()?;
         let mass = (self.solver()).particle_mass(&self.fluid_params(), self.spacing)?;
         let boundary = self.boundary();
         let mut p = Particles::new();
-        for b in &self.blocks {
+        for (index, b) in self.blocks.iter().enumerate() {
+            let before = p.len();
             let min = Vec3::from(b.min);
             let n = lattice_count(min, b.max.into(), self.spacing);
             for k in 0..n[2] {
@@ -236,12 +241,14 @@ impl Scene {
                     }
                 }
             }
-        }
-        if p.is_empty() && self.emitters.is_empty() {
-            return Err(invalid(
-                "blocks",
-                "every block particle lies inside an obstacle: the scene has no fluid",
-            ));
+            if p.len() == before {
+                // A block the obstacles swallow whole would vanish unseen.
+                return Err(invalid(
+                    format!("blocks[{index}]"),
+                    "every particle of the block lies inside an obstacle (or within the \
+                     clearance of one): the block holds no fluid",
+                ));
+            }
         }
         Ok(p)
     }

@@ -311,6 +311,7 @@ impl Scene {
         // apply: PBF's substep, and DFSPH's shortest step at rest (a
         // frame's last two steps share what is left of it).
         let (gravity, frame_dt) = (Vec3::from(self.fluid.gravity).length(), t.frame_dt);
+        (self.pbf_params().check_frame(frame_dt)).map_err(in_table("solver"))?;
         (self.pbf_params().check_sleep(gravity, frame_dt)).map_err(in_table("solver"))?;
         let dfsph = self.dfsph_params();
         let shortest = frame_dt.min(0.5 * dfsph.max_dt);

@@ -195,7 +195,8 @@ impl SurfaceTarget {
     /// several masses get the same (as the walls' layers do). None without
     /// a particle, or for one so light that h spans more than
     /// [`MAX_H_OVER_SPACING`](crate::solver::MAX_H_OVER_SPACING) of its
-    /// lattice (no scene's; a calibration would cost (h/spacing)⁴).
+    /// lattice, which no world admits (a calibration would cost
+    /// (h/spacing)⁴).
     pub(crate) fn lightest(
         kernel: &WallKernel,
         kernels: &LaneKernels,
@@ -212,7 +213,9 @@ impl SurfaceTarget {
             _ => {
                 let h = kernel.h();
                 let spacing = kernel.lattice_layers(lightest, rest_density).spacing;
-                let within = h / spacing <= crate::solver::MAX_H_OVER_SPACING;
+                // Every mass a world admits (`FluidParams::check_masses`:
+                // a side of h/10 to a per cent in volume) is calibrated.
+                let within = h / spacing <= 1.02 * crate::solver::MAX_H_OVER_SPACING;
                 if !within {
                     return None;
                 }
@@ -338,6 +341,29 @@ mod tests {
                 (raw[depth].0 / bulk, num / den)
             })
             .collect()
+    }
+
+    /// The lightest particle a world admits (`FluidParams::check_masses`,
+    /// h/V^⅓ just over 10) gets a target, as do the built-in scenes'; none
+    /// is switched off without a word.
+    #[test]
+    fn every_admitted_mass_is_calibrated() {
+        let h = 0.04f32;
+        let params = crate::solver::FluidParams::water(h);
+        let rho0 = params.rest_density;
+        let walls = WallKernel::cubic_spline(h);
+        let kernels = LaneKernels::Cubic(super::super::lanes::LaneCubic::new(
+            &CubicSpline::new(h).unwrap(),
+        ));
+        let lightest = 0.97 * rho0 * (h / crate::solver::MAX_H_OVER_SPACING).powi(3);
+        for mass in [lightest, rho0 * (0.5 * h).powi(3)] {
+            params.check_masses(&[mass]).unwrap();
+            let mut cache = None;
+            let target = SurfaceTarget::lightest(&walls, &kernels, rho0, &[mass], &mut cache);
+            let target = target.unwrap_or_else(|| panic!("no target for {mass} kg"));
+            assert!(target.at(f32::MAX) < 0.9, "{target:?}");
+        }
+        assert!(SurfaceTarget::lightest(&walls, &kernels, rho0, &[], &mut None).is_none());
     }
 
     /// With wider kernels the layers below the top miss a share too, and

@@ -421,8 +421,8 @@ impl World {
         };
         if let Solver::Pbf(pbf) = self.solver {
             // Refused before any substep moves a particle.
+            let n = pbf.check_frame(frame_dt)?;
             pbf.check_sleep(self.params.gravity.length(), frame_dt)?;
-            let n = pbf.substeps_for(frame_dt);
             let dt = frame_dt / n as f32;
             for k in 0..n {
                 take(self, dt, k + 1 == n)?;

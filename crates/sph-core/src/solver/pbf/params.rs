@@ -285,6 +285,30 @@ impl PbfParams {
         check_sleep_at(self.sleep_speed, gravity, dt)
     }
 
+    /// The substeps a frame of `frame_dt` takes ([`Self::substeps_for`]),
+    /// refused above [`MAX_PBF_COUNT`]: a `max_dt` far below the frame
+    /// would otherwise run thousands of substeps a frame (a run that looks
+    /// hung), or, past `u32::MAX`, substeps longer than `max_dt`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidParameter`] naming `pbf.max_dt`.
+    pub fn check_frame(&self, frame_dt: f32) -> Result<u32> {
+        let n = self.substeps_for(frame_dt);
+        if n > MAX_PBF_COUNT {
+            return Err(Error::InvalidParameter {
+                name: "pbf.max_dt",
+                value: format!(
+                    "{} s, against frames of {frame_dt} s ({:.0} substeps a frame)",
+                    self.max_dt,
+                    f64::from(frame_dt) / f64::from(self.max_dt)
+                ),
+                reason: "a frame takes at most 1000 substeps of at most max_dt: lengthen \
+                         solver.pbf.max_dt, or advance by shorter frames (time_step.frame_dt)",
+            });
+        }
+        Ok(n)
+    }
+
     /// The substeps a frame of `frame_dt` takes: [`Self::substeps`], more
     /// only where they would be longer than [`Self::max_dt`] (what
     /// [`crate::World::advance`] takes, each `frame_dt` over this).
