@@ -83,8 +83,9 @@ pub struct Args {
     pub out: PathBuf,
 
     /// Also write the frames as an animated GIF at PATH (looping, one frame
-    /// per --fps of simulated time, each shown for 1/fps s in GIF's whole
-    /// hundredths, so --fps at most 100; headless, needs a GPU adapter). The file
+    /// per --fps of simulated time, shown at --fps on average in GIF's whole
+    /// hundredths of a second, so --fps at most 50, above which browsers
+    /// slow frames down; headless, needs a GPU adapter). The file
     /// is created before the run starts, so a path that cannot be written is
     /// an error at once.
     #[arg(long, value_name = "PATH")]
@@ -294,12 +295,13 @@ impl Args {
     /// Checks what one flag's parser cannot: --seconds makes whole frames
     /// at --fps (the run renders whole frames, and rounding 0.05 s at 30
     /// fps to 2 frames would simulate 0.067 s without a word), and --gif's
-    /// --fps is at most 100 (a GIF frame lasts whole hundredths of a
-    /// second).
+    /// --fps is at most 50 (a GIF frame lasts whole hundredths of a
+    /// second, and browsers show a frame shorter than 2/100 s for 1/10 s).
     pub fn check(&self) -> Result<(), String> {
-        if self.gif.is_some() && self.fps > 100.0 {
+        if self.gif.is_some() && self.fps > 50.0 {
             return Err(format!(
-                "--gif at --fps {}: a GIF frame lasts at least 1/100 s, so a clip plays at most 100 fps",
+                "--gif at --fps {}: a GIF frame lasts whole hundredths of a second, and browsers \
+                 show one shorter than 2/100 s for 1/10 s, so a clip plays right at most at 50 fps",
                 self.fps
             ));
         }

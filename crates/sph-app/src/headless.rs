@@ -358,7 +358,10 @@ impl Rows {
 struct GifWriter {
     path: std::path::PathBuf,
     encoder: GifEncoder<BufWriter<KeptErrors>>,
-    delay: Delay,
+    /// Frames per second.
+    fps: f64,
+    /// Frames written so far.
+    frames: u64,
     /// The first error of a write to the file.
     error: Rc<RefCell<Option<std::io::Error>>>,
 }
@@ -405,19 +408,30 @@ impl GifWriter {
         encoder
             .set_repeat(Repeat::Infinite)
             .map_err(|e| AppError::output(path, e))?;
-        // GIF delays are whole hundredths of a second.
-        // (`Args::check` refuses --gif above 100 fps.)
-        let delay = Delay::from_numer_denom_ms((1000.0 / fps).round() as u32, 1);
         Ok(Self {
             path: path.to_path_buf(),
             encoder,
-            delay,
+            fps,
+            frames: 0,
             error,
         })
     }
 
+    /// Frame `k`'s delay in hundredths of a second, the only unit a GIF
+    /// has: the rounded end time of the frame less that of the one before,
+    /// so that a clip plays at `fps` on average (at 15 fps 7, 6, 7, 7, 6,
+    /// 7, …, where one rounded delay, 6, would play 11 % fast).
+    /// `Args::check` keeps fps at most 50, so every delay is at least 2:
+    /// browsers show a frame of 1/100 s or none for 1/10 s.
+    fn centiseconds(fps: f64, k: u64) -> u32 {
+        let end = |k: u64| (k as f64 * 100.0 / fps).round();
+        (end(k + 1) - end(k)) as u32
+    }
+
     fn push(&mut self, image: image::RgbaImage) -> Result<(), AppError> {
-        let frame = Frame::from_parts(image, 0, 0, self.delay);
+        let cs = Self::centiseconds(self.fps, self.frames);
+        self.frames += 1;
+        let frame = Frame::from_parts(image, 0, 0, Delay::from_numer_denom_ms(10 * cs, 1));
         self.encoder
             .encode_frame(frame)
             .map_err(|e| AppError::output(&self.path, e))

@@ -665,23 +665,29 @@ fn gif_clip_decodes_and_a_bad_path_fails_first() {
         .collect_frames()
         .unwrap();
     assert_eq!(frames.len(), 4);
+    let mut delays = Vec::new();
     for f in &frames {
         assert_eq!(f.buffer().dimensions(), (80, 48));
-        // 30 fps: 33 ms, stored in whole hundredths.
-        assert_eq!(f.delay().numer_denom_ms(), (30, 1));
+        let (numer, denom) = f.delay().numer_denom_ms();
+        delays.push(numer / denom);
     }
-    // Above 100 fps a GIF cannot show each frame for 1/fps s.
-    let o = app(&[
-        "--headless",
-        "--frames",
-        "2",
-        "--fps",
-        "200",
-        "--gif",
-        gif.to_str().unwrap(),
-    ]);
-    assert!(!o.status.success());
-    assert!(stderr(&o).contains("at most 100 fps"), "{}", stderr(&o));
+    // 30 fps in whole hundredths: each frame ends at its rounded time
+    // (3.33, 6.67, 10, 13.33 cs), so the clip keeps 30 fps on average.
+    assert_eq!(delays, [30, 40, 30, 30]);
+    // Above 50 fps a GIF cannot show each frame for 1/fps s in a browser.
+    for fps in ["60", "200"] {
+        let o = app(&[
+            "--headless",
+            "--frames",
+            "2",
+            "--fps",
+            fps,
+            "--gif",
+            gif.to_str().unwrap(),
+        ]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains("at most at 50 fps"), "{}", stderr(&o));
+    }
     let bad = scratch("gif-bad");
     let o = app(&[
         "--headless",
