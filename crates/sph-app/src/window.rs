@@ -90,6 +90,8 @@ struct Settings {
     /// The tank, obstacles and ground around the fluid (`--no-scenery`
     /// turns them off, the panel toggles them).
     scenery: bool,
+    /// Why the fluid's last edit was refused, shown under its sliders.
+    fluid_note: Option<String>,
 }
 
 /// A GPU path the panel switches on and off.
@@ -196,6 +198,7 @@ impl App {
                 cull: args.cull,
                 compute_splats: args.splats.forced().map(|path| path == SplatPath::Compute),
                 scenery: !args.no_scenery,
+                fluid_note: None,
             },
             push,
             gfx: None,
@@ -349,13 +352,37 @@ impl App {
         Ok(())
     }
 
-    /// Rebuilds the world around the current particles after a parameter change.
-    fn apply_fluid_params(&mut self) -> Result<(), AppError> {
-        let particles = self.pipeline.particles()?.clone();
-        self.pipeline.world = self.pipeline.scene.world_with(particles)?;
+    /// Rebuilds the world around the current particles after a parameter
+    /// change ([`sph_core::Scene::world_continuing`]: its clock and
+    /// emitters run on). A value the scene refuses (a sleeping threshold
+    /// that the gravity now set would leave hanging, ...) goes back to
+    /// `applied`, what the world runs, and the panel says why.
+    fn apply_fluid_params(&mut self, applied: sph_core::Scene) -> Result<(), AppError> {
+        self.pipeline.particles()?;
+        let pipeline = &mut self.pipeline;
+        match pipeline.scene.world_continuing(&mut pipeline.world) {
+            Ok(world) => {
+                pipeline.world = world;
+                self.settings.fluid_note = None;
+            }
+            Err(e) => {
+                log::warn!("{e}");
+                pipeline.scene = applied;
+                self.settings.fluid_note = Some(format!("not applied: {e}"));
+                return Ok(());
+            }
+        }
         if let Some(gpu) = &self.pipeline.gpu {
-            // The GPU solver holds the old parameters: start it again from here.
-            self.pipeline.gpu = Some(gpu.restart(&self.pipeline.world, &self.pipeline.scene)?);
+            // The GPU solver holds the old parameters: start it again from
+            // here, or go on on the CPU with the GPU path's reason.
+            match gpu.restart(&self.pipeline.world, &self.pipeline.scene) {
+                Ok(gpu) => self.pipeline.gpu = Some(gpu),
+                Err(e) => {
+                    let refusal = (self.pipeline.set_gpu_sim(None))
+                        .and(Err(AppError::Gpu(format!("{e}: back on the CPU"))));
+                    self.settings.gpu_sim.settle(refusal);
+                }
+            }
         }
         install_push(&mut self.pipeline, &self.push);
         Ok(())
@@ -513,6 +540,8 @@ impl App {
         let (fps, render_ms) = (self.fps, self.render_ms);
         let settings = &mut self.settings;
         let extract = &mut self.pipeline.extract;
+        // What the world runs, for an edit the scene refuses.
+        let applied = self.pipeline.scene.clone();
         let scene = &mut self.pipeline.scene;
         let name = self.pipeline.name.clone();
         let playing = self
@@ -615,6 +644,9 @@ impl App {
                     });
                 ui.collapsing("fluid", |ui| {
                     changed |= fluid_sliders(ui, scene);
+                    if let Some(note) = &settings.fluid_note {
+                        ui.colored_label(egui::Color32::from_rgb(230, 150, 60), note.as_str());
+                    }
                 });
                 ui.collapsing("extraction", |ui| {
                     let mut smooth = extract.surface != Surface::Isotropic;
@@ -699,7 +731,7 @@ impl App {
         self.frames_drawn += 1;
 
         if changed {
-            self.apply_fluid_params()?;
+            self.apply_fluid_params(applied)?;
         }
         if self.pipeline.extract != extract_before
             && let Some(gfx) = self.gfx.as_ref()
@@ -847,15 +879,18 @@ fn surface_size(ctx: &GpuContext, size: winit::dpi::PhysicalSize<u32>) -> (u32, 
     (size.width.clamp(1, max), size.height.clamp(1, max))
 }
 
-/// A slider over `range` that clamps what the user enters to it but leaves a
-/// value already outside it alone. egui's default clamps every value a
+/// A slider over `range` that clamps nothing: dragging stays within the
+/// range, a value typed beyond it is taken as typed (the scene's
+/// validation refuses what it must, and the panel says why), and a value
+/// already outside it is left alone. egui's default clamps every value a
 /// slider draws, so opening the panel on honey (μ = 50 Pa·s, the slider
-/// reaching 5) would set μ to 5 and rebuild the world, unasked.
+/// reaching 5) would set μ to 5 and rebuild the world, unasked; clamping
+/// edits would turn a typed 50 into 5 without a word.
 fn slider<N: egui::emath::Numeric>(
     value: &mut N,
     range: std::ops::RangeInclusive<N>,
 ) -> egui::Slider<'_> {
-    egui::Slider::new(value, range).clamping(egui::SliderClamping::Edits)
+    egui::Slider::new(value, range).clamping(egui::SliderClamping::Never)
 }
 
 /// The panel's sliders for what the scene's solver applies: WCSPH's

@@ -228,6 +228,16 @@ impl Program {
         self.processors.len() != before
     }
 
+    /// Removes every processor named `name` and returns them, in order
+    /// (to move them, with their state, into another program).
+    pub fn take(&mut self, name: &str) -> Vec<Box<dyn Processor>> {
+        let (taken, kept) = std::mem::take(&mut self.processors)
+            .into_iter()
+            .partition(|p| p.name() == name);
+        self.processors = kept;
+        taken
+    }
+
     /// The processors' names, in order.
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.processors.iter().map(|p| p.name())

@@ -744,3 +744,46 @@ fn the_drops_scene_merges_by_surface_tension() {
     assert!((with - 1.0).abs() <= 0.1, "{with}");
     assert!(without >= 1.5, "{without}");
 }
+
+/// A world rebuilt mid-run with `Scene::world_continuing` (the demo's
+/// panel after a slider moved) runs on as if nothing had happened when
+/// nothing changed: the same particles, bit for bit, the same clock, and
+/// its emitter keeps its place in the stream. A fresh emitter would emit
+/// a layer at once, within a spacing of the last.
+#[test]
+fn a_world_continued_mid_run_keeps_its_emitter_and_clock() {
+    let scene = Scene::load(format!("{SCENES}/drop_into_pool.toml")).unwrap();
+    let mut straight = scene.build_world().unwrap();
+    let mut rebuilt = scene.build_world().unwrap();
+    let frame = 1.0 / 60.0;
+    for _ in 0..10 {
+        straight.advance(frame).unwrap();
+        rebuilt.advance(frame).unwrap();
+    }
+    let mut rebuilt = scene.world_continuing(&mut rebuilt).unwrap();
+    assert_eq!(rebuilt.time(), straight.time());
+    assert_eq!(rebuilt.steps(), straight.steps());
+    for _ in 0..5 {
+        straight.advance(frame).unwrap();
+        rebuilt.advance(frame).unwrap();
+    }
+    assert_eq!(rebuilt.particles.len(), straight.particles.len());
+    assert_eq!(
+        rebuilt.particles.positions(),
+        straight.particles.positions()
+    );
+    // As the demo once did it, with a fresh emitter: a layer at once.
+    let particles = straight.particles.clone();
+    let mut fresh = scene.world_with(particles).unwrap();
+    fresh.advance(1e-4).unwrap();
+    straight.advance(1e-4).unwrap();
+    assert!(fresh.particles.len() > straight.particles.len());
+    // A scene the new parameters break leaves the old world running.
+    let mut bad = scene.clone();
+    bad.fluid.surface_tension = -1.0;
+    let before = rebuilt.particles.len();
+    assert!(bad.world_continuing(&mut rebuilt).is_err());
+    rebuilt.advance(frame).unwrap();
+    assert!(rebuilt.particles.len() >= before);
+    assert!(rebuilt.program_mut().names().any(|n| n == "emitter"));
+}

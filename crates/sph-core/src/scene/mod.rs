@@ -290,6 +290,30 @@ impl Scene {
         Ok(world)
     }
 
+    /// A world of this scene's parameters that continues `old`'s run (after
+    /// a parameter changed mid-run, as the demo's panel does): `old`'s
+    /// particles, its clock, and its running emitters, each at its place
+    /// in its stream (a fresh one would emit a layer at once, within a
+    /// spacing of the last). Processors of `old`'s own beyond those are
+    /// not carried over. `old` is left as it was unless the new world is
+    /// built, so a parameter the scene refuses costs nothing.
+    ///
+    /// # Errors
+    /// As [`Scene::world_with`]: a scene that does not validate.
+    pub fn world_continuing(&self, old: &mut World) -> Result<World> {
+        let mut world = self.world_with(old.particles.clone())?;
+        let running = old.program_mut().take("emitter");
+        if !running.is_empty() {
+            let program = world.program_mut();
+            program.take("emitter");
+            for emitter in running.into_iter().rev() {
+                program.push_front(emitter);
+            }
+        }
+        world.continue_clock(old);
+        Ok(world)
+    }
+
     /// A scene with no fluid of its own in the box `min`–`max`, for
     /// particles that come from elsewhere (other simulators' files, arrays)
     /// through [`World::with_solver`]: the built-in scenes' fluid (h = 2 ×

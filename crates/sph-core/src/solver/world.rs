@@ -236,6 +236,12 @@ impl World {
         &self.solver
     }
 
+    /// Takes over `old`'s clock (simulated time and step count), for a
+    /// world rebuilt mid-run ([`crate::Scene::world_continuing`]).
+    pub(crate) fn continue_clock(&mut self, old: &World) {
+        (self.time, self.step) = (old.time, old.step);
+    }
+
     /// Simulated time (s).
     pub fn time(&self) -> f64 {
         self.time
