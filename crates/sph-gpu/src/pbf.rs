@@ -58,6 +58,50 @@ pub const MIN_FRAME_DT: f32 = 1e-7;
 /// as an error ([`GpuError::Unstable`]).
 pub const MAX_NEIGHBOURS: u32 = 96;
 
+/// The most lattice neighbours at rest (within h, on the cubic lattice of
+/// the lightest particle's volume) a GPU scene may have: three quarters of
+/// a list ([`MAX_NEIGHBOURS`] less the particle itself), leaving the rest
+/// for compression. h up to 2.4 spacings passes (56 neighbours; the
+/// built-in scenes' 2 spacings: 32); 2.5 (80) would overflow at 19 %
+/// compression.
+const MAX_NEIGHBOURS_AT_REST: usize = (MAX_NEIGHBOURS as usize - 1) * 3 / 4;
+
+/// Refuses a fluid whose h spans so many of its particles' spacings that
+/// the GPU's neighbour lists would overflow ([`MAX_NEIGHBOURS_AT_REST`]),
+/// which the CPU path, whose lists have no such bound, runs. Without it
+/// such a scene (h = 3.2 spacings: 136 neighbours) passed every check and
+/// failed frames later with a hint about iterations.
+fn check_lists_hold(particles: &Particles, fluid: &FluidParams) -> Result<(), GpuError> {
+    let lightest = particles
+        .masses()
+        .iter()
+        .copied()
+        .fold(f32::INFINITY, f32::min);
+    if !lightest.is_finite() {
+        return Ok(());
+    }
+    let spacing = f64::from(lightest / fluid.rest_density).cbrt();
+    let reach = f64::from(fluid.h) / spacing;
+    let r = reach.floor() as i64;
+    let at_rest = (-r..=r)
+        .flat_map(|i| (-r..=r).flat_map(move |j| (-r..=r).map(move |k| (i, j, k))))
+        .filter(|&(i, j, k)| {
+            let d2 = (i * i + j * j + k * k) as f64;
+            d2 > 0.0 && d2 <= reach * reach
+        })
+        .count();
+    if at_rest > MAX_NEIGHBOURS_AT_REST {
+        return Err(GpuError::DeviceLimit(format!(
+            "fluid.h is {reach:.2} particle spacings: a particle at rest has {at_rest} neighbours \
+             within h, more than the {MAX_NEIGHBOURS_AT_REST} the GPU's neighbour lists hold with \
+             room for compression ({} in all); run it on the CPU (--cpu), or take h at most 2.4 \
+             spacings",
+            MAX_NEIGHBOURS - 1
+        )));
+    }
+    Ok(())
+}
+
 /// Mirrors `struct Pbf` in `shaders/pbf.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Pod, Zeroable)]
@@ -242,7 +286,8 @@ impl GpuPbf {
     /// `pbf.sleep_speed` > 0 and for `pbf.solve = "gauss-seidel"`, which
     /// run only on the CPU;
     /// [`GpuError::DeviceLimit`] for more particles than one dispatch or
-    /// storage binding of this device holds.
+    /// storage binding of this device holds, or for an h of more than 2.4
+    /// particle spacings, whose neighbours would overflow the GPU's lists.
     pub fn new(
         device: &wgpu::Device,
         queue: &wgpu::Queue,
@@ -271,6 +316,7 @@ impl GpuPbf {
                 "solver.pbf.solve = \"gauss-seidel\" runs only on the CPU: on the GPU leave it out or set \"jacobi\"",
             ));
         }
+        check_lists_hold(particles, fluid)?;
         let n = particles.len();
         let capacity = n.max(1);
         check_fits(device, "particles", capacity, 64, 32)?;

@@ -342,6 +342,19 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
     };
     let e = new(&params, &zero, &world.particles);
     assert!(e.contains("pbf.iterations"), "{e}");
+    // h = 3.2 spacings, which the CPU runs: 136 neighbours at rest would
+    // overflow the lists; refused at once, not frames later. 2.4 runs.
+    for (spacing, refused) in [(0.0125f32, true), (0.04 / 2.4, false)] {
+        let mut wide = Scene::dam_break(0.1, 0.06, spacing).with_solver(sph_core::SolverKind::Pbf);
+        wide.fluid.h = 0.04;
+        let wide = wide.build_world().unwrap();
+        let e = new(wide.params(), &pbf, &wide.particles);
+        if refused {
+            assert!(e.contains("neighbours") && e.contains("--cpu"), "{e}");
+        } else {
+            assert_eq!(e, "", "h = 2.4 spacings");
+        }
+    }
     // A domain 2^20 h out, where f32 resolves positions to h/8.
     let b = scene.boundary();
     let offset = glam::Vec3::X * (1_048_576.0 * params.h);
