@@ -198,15 +198,21 @@ impl PyWorld {
         // short remainder (a sliver below `min_dt` where `seconds` is not a
         // multiple of `frame_dt` in f32) would be refused by the world. A
         // hair under, as `PbfParams::substeps_for`, so that a whole number
-        // of frames despite rounding takes that number.
-        let ratio = seconds / f64::from(frame_dt);
-        let frames = (ratio * (1.0 - 1e-6)).ceil() as u64;
-        let dt = (seconds / frames.max(1) as f64) as f32;
+        // of frames despite rounding takes that number. Each frame shares
+        // what is left, so the last lands on the end; a duration of a
+        // nanosecond or less takes none, as before.
+        let frames = if seconds > 1e-9 {
+            (seconds / f64::from(frame_dt) * (1.0 - 1e-6)).ceil().max(1.0) as u64
+        } else {
+            0
+        };
         let world = &mut self.world;
         let report = py
             .detach(|| {
+                let end = world.time() + seconds;
                 let mut last = None;
-                for _ in 0..frames {
+                for k in 0..frames {
+                    let dt = ((end - world.time()) / (frames - k) as f64) as f32;
                     last = Some(world.advance(dt)?);
                 }
                 Ok::<_, sph_core::Error>(last)

@@ -62,6 +62,11 @@ def test_durations_that_are_not_whole_frames_end_on_time():
         report = world.advance(seconds, frame_dt=frame_dt)
         assert abs(world.time - start - seconds) < 1e-6
         assert report["clamped"] >= 0
+    # A nanosecond or less takes no frame, as a loop towards a target time
+    # may ask.
+    start = world.time
+    assert "substeps" not in world.advance(1e-10)
+    assert world.time == start
 
 
 def test_a_switch_that_gives_way_warns(tmp_path):

@@ -301,6 +301,7 @@ impl App {
         self.settings.shading.depth_epsilon = pipeline.shading().depth_epsilon;
         self.pipeline = pipeline;
         self.geometry = None;
+        self.settings.fluid_note = None;
         Ok(())
     }
 
@@ -348,6 +349,7 @@ impl App {
 
     fn reset(&mut self) -> Result<(), AppError> {
         self.pipeline.reset()?;
+        self.settings.fluid_note = None;
         install_push(&mut self.pipeline, &self.push);
         Ok(())
     }
@@ -360,7 +362,10 @@ impl App {
     fn apply_fluid_params(&mut self, applied: sph_core::Scene) -> Result<(), AppError> {
         self.pipeline.particles()?;
         let pipeline = &mut self.pipeline;
-        match pipeline.scene.world_continuing(&mut pipeline.world) {
+        match pipeline
+            .scene
+            .world_continuing(&mut pipeline.world, &applied)
+        {
             Ok(world) => {
                 pipeline.world = world;
                 self.settings.fluid_note = None;
@@ -879,14 +884,25 @@ fn surface_size(ctx: &GpuContext, size: winit::dpi::PhysicalSize<u32>) -> (u32, 
     (size.width.clamp(1, max), size.height.clamp(1, max))
 }
 
-/// A slider over `range` that clamps nothing: dragging stays within the
-/// range, a value typed beyond it is taken as typed (the scene's
-/// validation refuses what it must, and the panel says why), and a value
-/// already outside it is left alone. egui's default clamps every value a
+/// A slider over `range` that clamps what the user enters to it but leaves a
+/// value already outside it alone. egui's default clamps every value a
 /// slider draws, so opening the panel on honey (μ = 50 Pa·s, the slider
-/// reaching 5) would set μ to 5 and rebuild the world, unasked; clamping
-/// edits would turn a typed 50 into 5 without a word.
+/// reaching 5) would set μ to 5 and rebuild the world, unasked. The
+/// extraction's and shading's sliders use it: their ranges are what their
+/// validation accepts.
 fn slider<N: egui::emath::Numeric>(
+    value: &mut N,
+    range: std::ops::RangeInclusive<N>,
+) -> egui::Slider<'_> {
+    egui::Slider::new(value, range).clamping(egui::SliderClamping::Edits)
+}
+
+/// A fluid slider over `range` that clamps nothing: its handle stays in the
+/// range, but a value typed or dragged on its number beyond it is taken as
+/// is (μ = 50 Pa·s, honey's, where [`slider`] would make it 5 without a
+/// word). The scene's validation refuses what it must, and
+/// `App::apply_fluid_params` then keeps the running world and says why.
+fn fluid_slider<N: egui::emath::Numeric>(
     value: &mut N,
     range: std::ops::RangeInclusive<N>,
 ) -> egui::Slider<'_> {
@@ -901,7 +917,7 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     let kind = scene.solver.kind;
     if kind == SolverKind::Wcsph {
         let mut wcsph = scene.wcsph_params();
-        let k = slider(&mut wcsph.stiffness, 100.0..=20_000.0).logarithmic(true);
+        let k = fluid_slider(&mut wcsph.stiffness, 100.0..=20_000.0).logarithmic(true);
         if ui.add(k.text("k (m²/s²)")).changed() {
             scene.solver.wcsph = Some(wcsph);
             changed = true;
@@ -910,7 +926,7 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     if kind == SolverKind::Pbf && scene.pbf_params().viscosity == PbfViscosity::Xsph {
         let mut pbf = scene.pbf_params();
         if ui
-            .add(slider(&mut pbf.xsph, 0.0..=1.0).text("XSPH blend (no unit)"))
+            .add(fluid_slider(&mut pbf.xsph, 0.0..=1.0).text("XSPH blend (no unit)"))
             .changed()
         {
             scene.solver.pbf = Some(pbf);
@@ -919,7 +935,7 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     } else {
         let mut mu = scene.fluid.viscosity();
         if ui
-            .add(slider(&mut mu, 0.0..=5.0).text("μ (Pa·s)"))
+            .add(fluid_slider(&mut mu, 0.0..=5.0).text("μ (Pa·s)"))
             .changed()
         {
             scene.fluid.viscosity = Some(mu);
@@ -928,10 +944,10 @@ fn fluid_sliders(ui: &mut egui::Ui, scene: &mut sph_core::Scene) -> bool {
     }
     let fluid = &mut scene.fluid;
     changed |= ui
-        .add(slider(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)"))
+        .add(fluid_slider(&mut fluid.surface_tension, 0.0..=2.0).text("σ (N/m)"))
         .changed();
     changed |= ui
-        .add(slider(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)"))
+        .add(fluid_slider(&mut fluid.gravity[1], -30.0..=0.0).text("gravity y (m/s²)"))
         .changed();
     changed
 }

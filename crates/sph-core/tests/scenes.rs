@@ -760,7 +760,7 @@ fn a_world_continued_mid_run_keeps_its_emitter_and_clock() {
         straight.advance(frame).unwrap();
         rebuilt.advance(frame).unwrap();
     }
-    let mut rebuilt = scene.world_continuing(&mut rebuilt).unwrap();
+    let mut rebuilt = scene.world_continuing(&mut rebuilt, &scene).unwrap();
     assert_eq!(rebuilt.time(), straight.time());
     assert_eq!(rebuilt.steps(), straight.steps());
     for _ in 0..5 {
@@ -782,8 +782,16 @@ fn a_world_continued_mid_run_keeps_its_emitter_and_clock() {
     let mut bad = scene.clone();
     bad.fluid.surface_tension = -1.0;
     let before = rebuilt.particles.len();
-    assert!(bad.world_continuing(&mut rebuilt).is_err());
+    assert!(bad.world_continuing(&mut rebuilt, &scene).is_err());
     rebuilt.advance(frame).unwrap();
     assert!(rebuilt.particles.len() >= before);
     assert!(rebuilt.program_mut().names().any(|n| n == "emitter"));
+    // A scene whose emitter moved starts it afresh: a layer at once, at
+    // its new place.
+    let mut moved = scene.clone();
+    moved.emitters[0].centre[2] += 0.02;
+    let n = rebuilt.particles.len();
+    let mut moved_world = moved.world_continuing(&mut rebuilt, &scene).unwrap();
+    moved_world.advance(1e-4).unwrap();
+    assert!(moved_world.particles.len() > n);
 }

@@ -394,6 +394,11 @@ fn gpu_pbf_refuses_what_it_cannot_run() {
             Err(GpuError::Invalid(_))
         ));
     }
+    // A frame of more than 1000 substeps of max_dt, as on the CPU.
+    match gpu.advance(&ctx.device, &ctx.queue, 10.0) {
+        Err(GpuError::Params(e)) => assert!(e.to_string().contains("pbf.max_dt"), "{e}"),
+        other => panic!("{:?}", other.err()),
+    }
 
     // 200 particles on one point: more neighbours than a list holds.
     let mut heap = Particles::new();

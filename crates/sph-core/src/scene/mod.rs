@@ -290,27 +290,39 @@ impl Scene {
         Ok(world)
     }
 
-    /// A world of this scene's parameters that continues `old`'s run (after
-    /// a parameter changed mid-run, as the demo's panel does): `old`'s
-    /// particles, its clock, and its running emitters, each at its place
-    /// in its stream (a fresh one would emit a layer at once, within a
-    /// spacing of the last). Processors of `old`'s own beyond those are
-    /// not carried over. `old` is left as it was unless the new world is
-    /// built, so a parameter the scene refuses costs nothing.
+    /// A world of this scene's parameters that continues `old`'s run, built
+    /// from the scene `was` (after a parameter changed mid-run, as the
+    /// demo's panel does): `old`'s particles, its clock and thread setting,
+    /// and, where this scene's emitters are `was`'s (the same emitters,
+    /// spacing, particle mass and `max_particles`), `old`'s running
+    /// emitters, each at its place in its stream (a fresh one would emit a
+    /// layer at once, within a spacing of the last); otherwise this scene's
+    /// emitters start afresh, as in [`Scene::world_with`]. Processors
+    /// of `old`'s own beyond those are not carried over. `old` is left as
+    /// it was unless the new world is built, so a parameter the scene
+    /// refuses costs nothing.
     ///
     /// # Errors
     /// As [`Scene::world_with`]: a scene that does not validate.
-    pub fn world_continuing(&self, old: &mut World) -> Result<World> {
+    pub fn world_continuing(&self, old: &mut World, was: &Scene) -> Result<World> {
         let mut world = self.world_with(old.particles.clone())?;
-        let running = old.program_mut().take("emitter");
-        if !running.is_empty() {
+        let mass = |s: &Scene| s.solver().particle_mass(&s.fluid_params(), s.spacing).ok();
+        let same_emitters = self.emitters == was.emitters
+            && self.spacing == was.spacing
+            && self.max_particles == was.max_particles
+            && mass(self) == mass(was);
+        let running = (old.program_mut().names())
+            .filter(|&n| n == "emitter")
+            .count();
+        if same_emitters && running == self.emitters.len() && running > 0 {
+            let running = old.program_mut().take("emitter");
             let program = world.program_mut();
             program.take("emitter");
             for emitter in running.into_iter().rev() {
                 program.push_front(emitter);
             }
         }
-        world.continue_clock(old);
+        world.continue_from(old);
         Ok(world)
     }
 

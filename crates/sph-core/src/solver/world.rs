@@ -236,10 +236,15 @@ impl World {
         &self.solver
     }
 
-    /// Takes over `old`'s clock (simulated time and step count), for a
-    /// world rebuilt mid-run ([`crate::Scene::world_continuing`]).
-    pub(crate) fn continue_clock(&mut self, old: &World) {
+    /// Takes over `old`'s clock (simulated time and step count), its
+    /// thread setting ([`World::use_every_thread`]) and its kept grid and
+    /// list memory, for a world rebuilt mid-run
+    /// ([`crate::Scene::world_continuing`]).
+    pub(crate) fn continue_from(&mut self, old: &mut World) {
         (self.time, self.step) = (old.time, old.step);
+        self.every_thread = old.every_thread;
+        self.recycled_grid = old.recycled_grid.take();
+        self.recycled_lists = old.recycled_lists.take();
     }
 
     /// Simulated time (s).

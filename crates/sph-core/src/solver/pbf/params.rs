@@ -303,7 +303,8 @@ impl PbfParams {
                     f64::from(frame_dt) / f64::from(self.max_dt)
                 ),
                 reason: "a frame takes at most 1000 substeps of at most max_dt: lengthen \
-                         solver.pbf.max_dt, or advance by shorter frames (time_step.frame_dt)",
+                         solver.pbf.max_dt, or advance by shorter frames (a scene's \
+                         time_step.frame_dt, the frame given to World::advance)",
             });
         }
         Ok(n)
