@@ -202,7 +202,9 @@ impl PyWorld {
         // what is left, so the last lands on the end; a duration of a
         // nanosecond or less takes none, as before.
         let frames = if seconds > 1e-9 {
-            (seconds / f64::from(frame_dt) * (1.0 - 1e-6)).ceil().max(1.0) as u64
+            (seconds / f64::from(frame_dt) * (1.0 - 1e-6))
+                .ceil()
+                .max(1.0) as u64
         } else {
             0
         };
