@@ -11,6 +11,7 @@ mod gpu_extract;
 mod gpu_sim;
 mod headless;
 mod orbit;
+mod panel;
 mod pipeline;
 mod playback;
 mod png;
