@@ -9,7 +9,7 @@
 //!
 //! ```text
 //! cargo run --release -p sph-core --example pool_at_rest [-- SOLVER... \
-//!     [--depth D] [--seconds T] [--clearance C] [--gravity G] [--every T] [--bands] \
+//!     [--depth D] [--seconds T] [--clearance C] [--gravity G] [--every T] [--bands] [--walls] \
 //!     [--solver-toml 'pbf = { xsph = 0.1 }']]
 //! ```
 //!
@@ -20,6 +20,8 @@
 //!   one), the rms speed split into the mean
 //!   velocity of cells 2h wide and the motion about it (particle-scale
 //!   jitter).
+//! - `--walls`: at the end, the rms vertical speed by distance from the
+//!   nearest side wall, in whole spacings (the last row all beyond).
 //! - `--bands`: at the end, per 2 cm band above the floor, the particles,
 //!   their rms horizontal and vertical speeds, their mean vertical velocity
 //!   and mean density.
@@ -37,6 +39,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut kinds = Vec::new();
     let (mut depths, mut seconds, mut clearance) = (vec![0.2f32, 0.5], 2.0f32, None);
     let (mut every, mut bands, mut extra) = (0.0f32, false, String::new());
+    let mut walls = false;
     let mut gravity = 9.81f32;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
@@ -47,6 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--clearance" => clearance = Some(value("--clearance")?.parse()?),
             "--every" => every = value("--every")?.parse()?,
             "--bands" => bands = true,
+            "--walls" => walls = true,
             "--gravity" => gravity = value("--gravity")?.parse()?,
             "--solver-toml" => extra = value("--solver-toml")?,
             kind => kinds.push(SolverKind::from_name(kind).ok_or("solvers: wcsph, pbf, dfsph")?),
@@ -124,6 +128,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 1e3 * first / count.max(1) as f64,
                 100.0 * (surface / f64::from(depth) - 1.0)
             );
+            if walls {
+                print_walls(p, side, s);
+            }
             if bands {
                 print_bands(p, s);
             }
@@ -153,6 +160,27 @@ fn split_rms(p: &Particles, cell: f32) -> (f64, f64, f64) {
     let n = p.len().max(1) as f64;
     let mm = |sum: f64| 1e3 * (sum / n).sqrt();
     (mm(all), mm(coarse), mm(fine))
+}
+
+/// The rms vertical speed of the particles by their distance from the
+/// nearest side wall of a pool `side` square, in whole spacings `s` (the
+/// last row: 7 spacings and beyond).
+fn print_walls(p: &Particles, side: f32, s: f32) {
+    let mut rows = [(0.0f64, 0usize); 8];
+    for (x, v) in p.positions().iter().zip(p.velocities()) {
+        let d = x.x.min(side - x.x).min(x.z).min(side - x.z);
+        let row = &mut rows[((d / s).max(0.0) as usize).min(7)];
+        row.0 += f64::from(v.y * v.y);
+        row.1 += 1;
+    }
+    println!("  from the side walls (spacings)  particles  rms vertical (mm/s)");
+    for (k, &(sum, n)) in rows.iter().enumerate() {
+        let rms = 1e3 * (sum / n.max(1) as f64).sqrt();
+        println!(
+            "  {k:>29}{}  {n:9}  {rms:19.2}",
+            if k == 7 { "+" } else { " " }
+        );
+    }
 }
 
 /// Per band `s` thick above the floor: particles, rms horizontal and
