@@ -674,6 +674,33 @@ fn gif_clip_decodes_and_a_bad_path_fails_first() {
     // 30 fps in whole hundredths: each frame ends at its rounded time
     // (3.33, 6.67, 10, 13.33 cs), so the clip keeps 30 fps on average.
     assert_eq!(delays, [30, 40, 30, 30]);
+    // 50 fps, the most: every frame 2/100 s.
+    let o = app(&[
+        "--headless",
+        "--scene",
+        "dam-break",
+        "--frames",
+        "3",
+        "--fps",
+        "50",
+        "--width",
+        "80",
+        "--height",
+        "48",
+        "--gif",
+        gif.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let file = std::io::BufReader::new(std::fs::File::open(&gif).unwrap());
+    let frames = image::codecs::gif::GifDecoder::new(file)
+        .unwrap()
+        .into_frames()
+        .collect_frames()
+        .unwrap();
+    assert_eq!(frames.len(), 3);
+    for f in &frames {
+        assert_eq!(f.delay().numer_denom_ms(), (20, 1));
+    }
     // Above 50 fps a GIF cannot show each frame for 1/fps s in a browser.
     for fps in ["60", "200"] {
         let o = app(&[

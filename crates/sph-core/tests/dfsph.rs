@@ -286,11 +286,17 @@ fn identical_with_surface_tension_for_1_2_and_4_threads() {
 /// (`dam-break-fine`): each Jacobi and CG iteration runs in one parallel
 /// region of 157 blocks, claimed a few at a time by however many threads
 /// arrive, whose sums make the solves' error means and the CG's dot
-/// products in block order.
+/// products in block order. And with the free surface's target, whose
+/// averaging is a pass of its own.
 #[test]
 fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
-    let scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Dfsph);
+    let mut scene = Scene::dam_break(0.25, 0.08, 0.01).with_solver(SolverKind::Dfsph);
     assert_eq!(scene.particles().unwrap().len(), 10_000);
+    identical_for_thread_counts(&scene, 6, &[1, 2, 3, 7]);
+    scene.solver.dfsph = Some(DfsphParams {
+        surface_target: true,
+        ..DfsphParams::default()
+    });
     identical_for_thread_counts(&scene, 6, &[1, 2, 3, 7]);
 }
 

@@ -462,8 +462,9 @@ fn identical_with_surface_tension_for_1_2_and_4_threads() {
 /// density solve, the vorticity and XSPH station and the CG iterations
 /// each in one parallel region: 157 blocks, claimed a few at a time by
 /// however many threads arrive, their sums added in block order. And
-/// under Gauss–Seidel (warm-started), whose colours' columns are claimed
-/// the same way, and whose warm start is a pass of its own.
+/// under Gauss–Seidel (warm-started, with the free surface's target),
+/// whose colours' columns are claimed the same way, and whose warm start
+/// and target are passes of their own.
 #[test]
 fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     let fine = Scene::dam_break(0.25, 0.08, 0.01);
@@ -473,6 +474,7 @@ fn identical_for_1_2_3_and_7_threads_at_10k_particles() {
     gauss_seidel.solver.pbf = Some(PbfParams {
         solve: PbfSolve::GaussSeidel,
         warm_start: 0.5,
+        surface_target: true,
         ..xsph.pbf_params()
     });
     for scene in [xsph, implicit, gauss_seidel] {

@@ -169,6 +169,25 @@ fn free_surface(world: &World, side: f32, depth: f32) -> f64 {
     mean / f64::from(depth) - 1.0
 }
 
+/// Runs `world` 2 s at 60 Hz; returns the most any particle moved over the
+/// last 0.1 s (m).
+fn two_seconds(world: &mut World) -> f32 {
+    let mut at = std::collections::HashMap::new();
+    for frame in 1..=120 {
+        world.advance(1.0 / 60.0).unwrap();
+        if frame == 114 {
+            let p = &world.particles;
+            at = (p.ids().iter().copied())
+                .zip(p.positions().iter().copied())
+                .collect();
+        }
+    }
+    let p = &world.particles;
+    (p.ids().iter().zip(p.positions()))
+        .map(|(id, x)| (*x - at[id]).length())
+        .fold(0.0f32, f32::max)
+}
+
 /// The rms speed of every particle (m/s).
 fn rms_speed(world: &World) -> f64 {
     let p = &world.particles;
@@ -229,25 +248,8 @@ fn pools_fall_asleep() {
         (dfsph(0.015), 0.6, 0.2, true),
     ] {
         let kind = spec.kind;
-        // 1.9 s, then where each particle is, then 2 s.
         let mut world = pool(spec, side, depth, None);
-        let mut at = std::collections::HashMap::new();
-        for frame in 1..=120 {
-            world.advance(1.0 / 60.0).unwrap();
-            if frame == 114 {
-                let p = &world.particles;
-                at = p
-                    .ids()
-                    .iter()
-                    .copied()
-                    .zip(p.positions().iter().copied())
-                    .collect();
-            }
-        }
-        let p = &world.particles;
-        let moved = (p.ids().iter().zip(p.positions()))
-            .map(|(id, x)| (*x - at[id]).length())
-            .fold(0.0f32, f32::max);
+        let moved = two_seconds(&mut world);
         let rms = rms_speed(&world);
         let surface = free_surface(&world, side, depth);
         eprintln!(
@@ -328,8 +330,9 @@ fn gauss_seidel_quiets_a_pbf_pool() {
 /// 57.8 against 174.4 mm/s, the free surface −1.91 % against −2.36 %
 /// (`cargo run --release -p sph-core --example pool_at_rest -- pbf --depth
 /// 0.5 --solver-toml 'pbf = { solve = "gauss-seidel", warm_start = 0.5
-/// }'`). Asserted: at most half the cold rms speed, and the surface at
-/// least 0.3 % of the depth higher.
+/// }'`). Asserted: at most 0.3 of the cold rms speed, and the surface at
+/// least 0.5 % of the depth higher (w = 0.3 gave 0.51 and +0.16 % at 0.6 m
+/// square, so a weaker carry fails).
 #[test]
 fn a_warm_start_holds_a_deep_pbf_pool() {
     let (side, depth) = (0.3, 0.5);
@@ -359,9 +362,9 @@ fn a_warm_start_holds_a_deep_pbf_pool() {
         100.0 * warm_surface,
         100.0 * cold_surface
     );
-    assert!(warm <= 0.5 * cold, "{warm} against {cold} m/s");
+    assert!(warm <= 0.3 * cold, "{warm} against {cold} m/s");
     assert!(
-        warm_surface >= cold_surface + 3e-3,
+        warm_surface >= cold_surface + 5e-3,
         "free surface {warm_surface:+} against {cold_surface:+}"
     );
 }
@@ -473,16 +476,22 @@ fn held_surfaces_fall_asleep_at_their_height() {
     ] {
         let kind = spec.kind;
         let mut world = pool(spec, side, depth, None);
-        for _ in 0..120 {
-            world.advance(1.0 / 60.0).unwrap();
-        }
+        let moved = two_seconds(&mut world);
         let (rms, surface) = (rms_speed(&world), free_surface(&world, side, depth));
         eprintln!(
-            "{kind}, {side} m square, {depth} m deep: rms speed {:.2} mm/s, free surface {:+.2} %",
+            "{kind}, {side} m square, {depth} m deep: rms speed {:.2} mm/s, the most any \
+             particle moved over the last 0.1 s {:.4} mm, free surface {:+.2} %",
             1e3 * rms,
+            1e3 * moved,
             100.0 * surface
         );
         assert!(rms <= 1e-3, "{kind}: rms speed {:.2} mm/s", 1e3 * rms);
-        assert!(surface.abs() <= 5e-3, "{kind}: free surface {surface:+}");
+        // Asleep, the most any particle moves over 0.1 s is 12 µm here (a
+        // particle at the edge of sleeping); awake, millimetres.
+        assert!(moved <= 3e-5, "{kind}: a particle moved {moved} m");
+        // At most 0.19 % off here; asleep without the target the shallow
+        // pools read −0.35 % (PBF) and −0.06 % (DFSPH), the deep ones −1 to
+        // −2.6 %.
+        assert!(surface.abs() <= 3e-3, "{kind}: free surface {surface:+}");
     }
 }

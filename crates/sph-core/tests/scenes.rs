@@ -749,49 +749,68 @@ fn the_drops_scene_merges_by_surface_tension() {
 /// panel after a slider moved) runs on as if nothing had happened when
 /// nothing changed: the same particles, bit for bit, the same clock, and
 /// its emitter keeps its place in the stream. A fresh emitter would emit
-/// a layer at once, within a spacing of the last.
+/// a layer at once, within a spacing of the last. A changed fluid
+/// parameter keeps the emitter's place too; a moved emitter starts afresh
+/// where it now is; a scene the new parameters break leaves the old world
+/// running untouched.
 #[test]
 fn a_world_continued_mid_run_keeps_its_emitter_and_clock() {
     let scene = Scene::load(format!("{SCENES}/drop_into_pool.toml")).unwrap();
     let mut straight = scene.build_world().unwrap();
     let mut rebuilt = scene.build_world().unwrap();
     let frame = 1.0 / 60.0;
-    for _ in 0..10 {
-        straight.advance(frame).unwrap();
-        rebuilt.advance(frame).unwrap();
-    }
+    let both = |a: &mut sph_core::World, b: &mut sph_core::World, dt: f32, n: usize| {
+        for _ in 0..n {
+            a.advance(dt).unwrap();
+            b.advance(dt).unwrap();
+        }
+    };
+    both(&mut straight, &mut rebuilt, frame, 10);
     let mut rebuilt = scene.world_continuing(&mut rebuilt, &scene).unwrap();
     assert_eq!(rebuilt.time(), straight.time());
     assert_eq!(rebuilt.steps(), straight.steps());
-    for _ in 0..5 {
-        straight.advance(frame).unwrap();
-        rebuilt.advance(frame).unwrap();
-    }
+    both(&mut straight, &mut rebuilt, frame, 5);
     assert_eq!(rebuilt.particles.len(), straight.particles.len());
     assert_eq!(
         rebuilt.particles.positions(),
         straight.particles.positions()
     );
-    // As the demo once did it, with a fresh emitter: a layer at once.
-    let particles = straight.particles.clone();
-    let mut fresh = scene.world_with(particles).unwrap();
-    fresh.advance(1e-4).unwrap();
-    straight.advance(1e-4).unwrap();
-    assert!(fresh.particles.len() > straight.particles.len());
-    // A scene the new parameters break leaves the old world running.
+    // Refused: the running world is untouched, still in step.
     let mut bad = scene.clone();
     bad.fluid.surface_tension = -1.0;
-    let before = rebuilt.particles.len();
     assert!(bad.world_continuing(&mut rebuilt, &scene).is_err());
-    rebuilt.advance(frame).unwrap();
-    assert!(rebuilt.particles.len() >= before);
-    assert!(rebuilt.program_mut().names().any(|n| n == "emitter"));
-    // A scene whose emitter moved starts it afresh: a layer at once, at
-    // its new place.
+    both(&mut straight, &mut rebuilt, frame, 1);
+    assert_eq!(
+        rebuilt.particles.positions(),
+        straight.particles.positions()
+    );
+    // Gravity changed (the emitters and the mass as they were): the stream
+    // goes on where it was, so the count stays that of the straight run
+    // (a fresh emitter would be a layer ahead).
+    let mut lighter = scene.clone();
+    lighter.fluid.gravity[1] = -9.0;
+    let mut light = lighter.world_continuing(&mut rebuilt, &scene).unwrap();
+    both(&mut straight, &mut light, frame, 5);
+    assert_eq!(light.particles.len(), straight.particles.len());
+    // As the demo once did it, with a fresh emitter: a layer at once.
+    let layer = 16;
+    let mut fresh = scene.world_with(straight.particles.clone()).unwrap();
+    fresh.advance(1e-4).unwrap();
+    straight.advance(1e-4).unwrap();
+    assert_eq!(fresh.particles.len(), straight.particles.len() + layer);
+    // A moved emitter starts afresh, at its new place.
     let mut moved = scene.clone();
     moved.emitters[0].centre[2] += 0.02;
-    let n = rebuilt.particles.len();
-    let mut moved_world = moved.world_continuing(&mut rebuilt, &scene).unwrap();
+    let newest = straight.particles.ids().iter().copied().max().unwrap();
+    let mut moved_world = moved.world_continuing(&mut straight, &scene).unwrap();
     moved_world.advance(1e-4).unwrap();
-    assert!(moved_world.particles.len() > n);
+    let p = &moved_world.particles;
+    let new: Vec<_> = (p.ids().iter().zip(p.positions()))
+        .filter(|&(&id, _)| id > newest)
+        .map(|(_, x)| *x)
+        .collect();
+    assert_eq!(new.len(), layer);
+    let z = new.iter().map(|x| x.z).sum::<f32>() / layer as f32;
+    // A tenth of a spacing: the old place was a whole spacing away.
+    assert!((z - moved.emitters[0].centre[2]).abs() < 2e-3, "{z}");
 }

@@ -416,9 +416,9 @@ mod tests {
             (
                 &cubic_w as &dyn Fn(f32) -> f32,
                 &cubic_dw as &dyn Fn(f32) -> f32,
-                0.850,
+                0.8503,
             ),
-            (&poly6_w, &spiky_dw, 0.81),
+            (&poly6_w, &spiky_dw, 0.809),
         ] {
             let volume = s * s * s;
             let target = SurfaceTarget::lattice(h, s, volume, w, dw);
@@ -430,14 +430,17 @@ mod tests {
                     "layer {k}: reads {rho} at |∇C| {n}, target {expected}"
                 );
             }
-            assert!((read[0].0 - top).abs() < 0.01, "top layer {}", read[0].0);
+            assert!((read[0].0 - top).abs() < 2e-3, "top layer {}", read[0].0);
             assert_eq!(target.at(0.0), 1.0);
             // Linear from the end of the ramp to the top layer's, that
             // beyond.
             let deficit = 1.0 - read[0].0;
             let (n0, end) = (target.points[0].0, target.points[target.len - 1].0);
             assert_eq!(target.len, 2);
-            assert!(end >= DEAD_ZONE * n0 && end >= read[1].1);
+            assert!(
+                end >= read[1].1,
+                "the ramp ends at the first full layer or below"
+            );
             assert_eq!(target.at(end), 1.0);
             let middle = 0.5 * (end + n0);
             assert!((target.at(middle) - (1.0 - 0.5 * deficit)).abs() < 1e-4);

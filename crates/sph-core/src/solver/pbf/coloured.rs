@@ -577,6 +577,7 @@ mod tests {
         let mut sparse = dense.clone();
         sparse.order.clear();
         sparse.columns.clear();
+        sparse.colours = [usize::MAX; 5];
         sparse.sparse();
         assert_eq!(dense.order, sparse.order);
         assert_eq!(dense.columns, sparse.columns);
