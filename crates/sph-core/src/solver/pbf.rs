@@ -1211,12 +1211,14 @@ mod tests {
     use super::*;
     use crate::NeighbourGrid;
     use crate::boundary::Aabb;
+    use crate::kernels::Kernel;
     use crate::solver::lane_map::every_kind;
     use crate::solver::lanes::{jittered_block, rows_of};
 
-    /// The four lane passes give bitwise the same values with every kind of
-    /// lanes (plain, SSE2, AVX2), and the λ pass's density is the plain sum
-    /// Σ m_j W(x_i − x_j) plus the walls' term.
+    /// The lane passes give bitwise the same values with every kind of
+    /// lanes (plain, SSE2, AVX2), the λ pass's density is the plain sum
+    /// Σ m_j W(x_i − x_j) plus the walls' term, and the free surface's
+    /// |∇C| and its average are their plain sums.
     #[test]
     fn lane_passes_agree_across_kinds_and_with_plain_sums() {
         let h = 0.04;
@@ -1344,6 +1346,21 @@ mod tests {
         };
         let lengths = agreed(every_kind(&lengths, n), |v| bits(v));
         assert!(lengths.iter().any(|&l| l > 0.0));
+        // Each against the plain |Σ_j (m_j/ρ0) ∇W_ij + the walls' ∇f|, to a
+        // part in 10⁵ of the sum of the terms' sizes (the bulk's cancel).
+        let spline = CubicSpline::new(h).unwrap();
+        for (i, &length) in lengths.iter().enumerate() {
+            let terms: Vec<Vec3> = (0..n)
+                .map(|j| (m[j] / params.rest_density) * spline.gradient(x[i] - x[j]))
+                .collect();
+            let wall = cubic.walls_at(x[i]).1;
+            let plain = (terms.iter().sum::<Vec3>() + wall).length();
+            let size = terms.iter().map(|t| t.length()).sum::<f32>() + wall.length();
+            assert!(
+                (length - plain).abs() <= 1e-5 * size,
+                "particle {i}: |∇C| {length} against {plain}"
+            );
+        }
         let smoothed = crate::solver::free_surface::SmoothedLengths {
             kernels: &cubic.lanes,
             rows,
@@ -1352,10 +1369,17 @@ mod tests {
             w0: cubic.w0,
         };
         let smoothed = agreed(every_kind(&smoothed, n), |v| bits(v));
-        let (lo, hi) = lengths
-            .iter()
-            .fold((f32::MAX, 0.0f32), |(a, b), &l| (a.min(l), b.max(l)));
-        let (lo, hi) = (lo * (1.0 - 1e-5), hi * (1.0 + 1e-5));
-        assert!(smoothed.iter().all(|&s| s >= lo && s <= hi), "an average");
+        // Each the plain Σ_j m_j W_ij l_j / Σ_j m_j W_ij, its own term in.
+        for (i, &average) in smoothed.iter().enumerate() {
+            let weights: Vec<f32> = (0..n)
+                .map(|j| m[j] * spline.value_len((x[i] - x[j]).length()))
+                .collect();
+            let num: f32 = weights.iter().zip(&lengths).map(|(w, l)| w * l).sum();
+            let plain = num / weights.iter().sum::<f32>();
+            assert!(
+                (average - plain).abs() <= 1e-5 * plain.max(1.0),
+                "particle {i}: averaged {average} against {plain}"
+            );
+        }
     }
 }
