@@ -101,6 +101,17 @@ pub(crate) struct Choices {
     pub(crate) solver: Option<SolverKind>,
 }
 
+impl Choices {
+    /// Adds what another pass over the panel chose (egui may run a frame's
+    /// ui twice, and only the first pass sees the input): a fluid edit in
+    /// either, the first scene or solver chosen.
+    pub(crate) fn absorb(&mut self, other: Choices) {
+        self.fluid_changed |= other.fluid_changed;
+        self.scene = self.scene.or(other.scene);
+        self.solver = self.solver.or(other.solver);
+    }
+}
+
 /// Draws the panel: `settings`, `scene`'s fluid and `extract` are edited in
 /// place; the rest of what the user chose comes back.
 pub(crate) fn draw(
@@ -405,6 +416,26 @@ mod tests {
             assert_eq!(extract, extract_before, "{key}");
             assert_eq!(settings.shading, splat_render::Shading::default(), "{key}");
         }
+    }
+
+    /// A second pass over the panel, which sees no input, keeps what the
+    /// first chose.
+    #[test]
+    fn a_second_pass_keeps_the_first_ones_choices() {
+        let mut first = super::Choices {
+            fluid_changed: true,
+            scene: Some(2),
+            solver: None,
+        };
+        first.absorb(super::Choices::default());
+        assert!(first.fluid_changed && first.scene == Some(2) && first.solver.is_none());
+        let mut none = super::Choices::default();
+        none.absorb(super::Choices {
+            fluid_changed: false,
+            scene: None,
+            solver: Some(sph_core::SolverKind::Dfsph),
+        });
+        assert_eq!(none.solver, Some(sph_core::SolverKind::Dfsph));
     }
 
     /// The panel's labels can be drawn: egui 0.37 bundles no font unless its

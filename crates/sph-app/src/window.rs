@@ -493,7 +493,9 @@ impl App {
         );
         let mut choices = panel::Choices::default();
         let full = self.egui.run_pass(raw, |ctx| {
-            choices = panel::draw(ctx, &shown, settings, scene, extract);
+            // egui may run a frame's ui twice (a first pass it discards),
+            // and only the first sees the input: keep what either chose.
+            choices.absorb(panel::draw(ctx, &shown, settings, scene, extract));
         });
         gfx.egui_state
             .handle_platform_output(&gfx.window, full.platform_output);
