@@ -298,21 +298,27 @@ impl App {
     /// change ([`sph_core::Scene::world_continuing`]: its clock and
     /// emitters run on). A value the scene refuses (a sleeping threshold
     /// that the gravity now set would leave hanging, ...) goes back to
-    /// `applied`, what the world runs, and the panel says why.
-    fn apply_fluid_params(&mut self, applied: sph_core::Scene) -> Result<(), AppError> {
+    /// `applied`, the fluid and solver the world runs, and the panel says
+    /// why.
+    fn apply_fluid_params(
+        &mut self,
+        applied: (sph_core::scene::FluidSpec, sph_core::scene::SolverSpec),
+    ) -> Result<(), AppError> {
         self.pipeline.particles()?;
         let pipeline = &mut self.pipeline;
-        match pipeline
-            .scene
-            .world_continuing(&mut pipeline.world, &applied)
-        {
+        let was = sph_core::Scene {
+            fluid: applied.0,
+            solver: applied.1,
+            ..pipeline.scene.clone()
+        };
+        match pipeline.scene.world_continuing(&mut pipeline.world, &was) {
             Ok(world) => {
                 pipeline.world = world;
                 self.settings.fluid_note = None;
             }
             Err(e) => {
                 log::warn!("{e}");
-                pipeline.scene = applied;
+                pipeline.scene = was;
                 self.settings.fluid_note = Some(format!("not applied: {e}"));
                 return Ok(());
             }
@@ -484,8 +490,9 @@ impl App {
             render_ms: self.render_ms,
             playing: (self.pipeline.playback.as_ref()).map(crate::playback::Playback::len),
         };
-        // What the world runs, for an edit the scene refuses.
-        let applied = self.pipeline.scene.clone();
+        // What the world runs of what the sliders edit, for an edit the
+        // scene refuses.
+        let applied = (self.pipeline.scene.fluid, self.pipeline.scene.solver);
         let (settings, scene, extract) = (
             &mut self.settings,
             &mut self.pipeline.scene,
